@@ -1,0 +1,1 @@
+"""Sub-commands of the ``notchfit`` CLI, one module each (see :mod:`notchfit.cli`)."""
