@@ -1,0 +1,300 @@
+"""Run many independent items (samples, experiments, images) with failure isolation.
+
+:func:`run_batch` calls ``func(item)`` for every item, in this process
+(``jobs=1``), in a pool of worker processes (``jobs>1``), or on a Dask
+distributed cluster (``scheduler="tcp://host:8786"``, needs the ``dask``
+extra). One item failing (an exception, a corrupt image, even a worker
+process that dies) never stops the others: its reason is recorded in the
+:class:`BatchResult`, whose :meth:`~BatchResult.summary` lists every failure.
+A tqdm progress bar is shown on a terminal (disabled when stderr is not a
+TTY).
+
+``func`` must be picklable (a module-level function) for ``jobs>1`` and for
+Dask. Image batches load their images with :func:`load_image`, which turns a
+missing or unreadable file into an exception with the reason.
+
+Example (the image helper's ``detect`` calls it the same way)::
+
+    res = run_batch(detect_one, image_paths, keys=[p.name for p in image_paths], jobs=4)
+    print(res.summary("detect"))
+    good = [r.value for r in res.items if r.ok]
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing
+import os
+import sys
+import threading
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+__all__ = ["BatchResult", "ItemResult", "image_info", "load_image", "run_batch"]
+
+
+@dataclass(frozen=True)
+class ItemResult:
+    """Outcome of one item.
+
+    Attributes
+    ----------
+    key : str
+        The item's label (experiment name, ``ct045/17``, an image file name).
+    ok : bool
+    value : object
+        ``func(item)`` when ok, else None.
+    error : str or None
+        ``"ExceptionType: message"`` when the item failed.
+    seconds : float
+        Wall time of the call [s] (0 when the worker died).
+    """
+
+    key: str
+    ok: bool
+    value: Any = None
+    error: str | None = None
+    seconds: float = 0.0
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """Results of :func:`run_batch`, in input order."""
+
+    items: tuple
+    seconds: float = 0.0
+
+    @property
+    def failures(self) -> list[ItemResult]:
+        return [r for r in self.items if not r.ok]
+
+    @property
+    def n_ok(self) -> int:
+        return sum(r.ok for r in self.items)
+
+    def values(self) -> list:
+        """Values in input order (None for failed items)."""
+        return [r.value for r in self.items]
+
+    def ok_items(self) -> list[ItemResult]:
+        return [r for r in self.items if r.ok]
+
+    def summary(self, what: str = "batch") -> str:
+        """``"fit: 7 of 8 ok in 3.2 s; 1 failed:\\n  ct045: ValueError: ..."``."""
+        n = len(self.items)
+        s = f"{what}: {self.n_ok} of {n} ok in {self.seconds:.1f} s"
+        if self.failures:
+            s += f"; {len(self.failures)} failed:"
+            for r in self.failures:
+                s += f"\n  {r.key}: {r.error}"
+        return s
+
+    def raise_on_failure(self) -> None:
+        """Raise RuntimeError with the summary if any item failed."""
+        if self.failures:
+            raise RuntimeError(self.summary())
+
+
+def _describe(exc: BaseException) -> str:
+    msg = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {msg[0] if msg else ''}".rstrip(": ") + \
+        ("" if len(msg) <= 1 else " ...")
+
+
+def _call(func, item):
+    """Run one item; never raises (the worker side of failure isolation)."""
+    t0 = time.perf_counter()
+    try:
+        return True, func(item), None, time.perf_counter() - t0
+    except Exception as exc:  # noqa: BLE001 - isolation is the point
+        return False, None, _describe(exc), time.perf_counter() - t0
+
+
+def _progress(total, desc, progress):
+    from tqdm.auto import tqdm
+
+    disable = (not sys.stderr.isatty()) if progress is None else (not progress)
+    return tqdm(total=total, desc=desc, disable=disable, leave=False, file=sys.stderr)
+
+
+def _mp_context():
+    # fork is fastest; never fork a process that runs other threads (e.g. a Dask client)
+    if sys.platform.startswith("linux") and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    return multiprocessing.get_context("spawn")
+
+
+def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = None, jobs: int = 1,
+              scheduler=None, desc: str | None = None, progress: bool | None = None) -> BatchResult:
+    """Call ``func(item)`` for every item, isolating failures.
+
+    Parameters
+    ----------
+    func : callable
+        ``func(item) -> value``; module-level (picklable) when ``jobs > 1`` or
+        with a scheduler.
+    items : sequence
+    keys : sequence of str, optional
+        Labels for the summary (default: the item index).
+    jobs : int
+        Worker processes (1: run here; 0 or negative: one per CPU).
+    scheduler : str or dask.distributed.Client, optional
+        Address of a Dask distributed scheduler (``tcp://host:8786``) or a
+        client: the items run on that cluster instead.
+    desc : str, optional
+        Progress-bar label.
+    progress : bool, optional
+        Force the bar on/off (default: on when stderr is a terminal).
+
+    Returns
+    -------
+    BatchResult
+        One :class:`ItemResult` per item, in input order.
+    """
+    items = list(items)
+    keys = [str(k) for k in (keys if keys is not None else range(1, len(items) + 1))]
+    if len(keys) != len(items):
+        raise ValueError(f"{len(keys)} keys for {len(items)} items")
+    if jobs is None or jobs <= 0:
+        jobs = os.cpu_count() or 1
+    t0 = time.perf_counter()
+    if scheduler is not None:
+        out = _run_dask(func, items, scheduler, desc, progress)
+    elif jobs == 1 or len(items) <= 1:
+        out = []
+        with _progress(len(items), desc, progress) as bar:
+            for it in items:
+                out.append(_call(func, it))
+                bar.update(1)
+    else:
+        out = _run_pool(func, items, min(jobs, len(items)), desc, progress)
+    res = tuple(ItemResult(key=k, ok=o[0], value=o[1], error=o[2], seconds=o[3]) for k, o in zip(keys, out))
+    return BatchResult(items=res, seconds=time.perf_counter() - t0)
+
+
+def _run_pool(func, items, jobs, desc, progress):
+    """Process pool with at most ``jobs`` items in flight, so a dead worker blames few items."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    out: list = [None] * len(items)
+    todo = list(range(len(items)))[::-1]
+    ctx = _mp_context()
+    with _progress(len(items), desc, progress) as bar:
+        while todo:
+            pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+            inflight: dict = {}
+            broken = False
+            try:
+                while todo or inflight:
+                    while todo and len(inflight) < 2 * jobs:
+                        i = todo.pop()
+                        inflight[pool.submit(_call, func, items[i])] = i
+                    done, _ = cf.wait(inflight, return_when=cf.FIRST_COMPLETED)
+                    for f in done:
+                        i = inflight.pop(f)
+                        try:
+                            out[i] = f.result()
+                        except BrokenProcessPool:
+                            broken = True
+                            inflight[f] = i
+                            break
+                        except Exception as exc:  # pickling errors and the like
+                            out[i] = (False, None, _describe(exc), 0.0)
+                        bar.update(1)
+                    if broken:
+                        break
+            finally:
+                pool.shutdown(wait=True, cancel_futures=True)
+            if broken:
+                # re-run each item that was in flight alone to find the one that kills its worker
+                for f, i in inflight.items():
+                    if f.done() and not f.cancelled() and f.exception() is None:
+                        out[i] = f.result()
+                    else:
+                        out[i] = _run_isolated(func, items[i], ctx)
+                    bar.update(1)
+    return out
+
+
+def _run_isolated(func, item, ctx):
+    from concurrent.futures.process import BrokenProcessPool
+
+    with cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+        try:
+            return pool.submit(_call, func, item).result()
+        except BrokenProcessPool:
+            return (False, None, "worker process died while processing this item "
+                                 "(a crash in native code, or out of memory)", 0.0)
+        except Exception as exc:
+            return (False, None, _describe(exc), 0.0)
+
+
+def _run_dask(func, items, scheduler, desc, progress):
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise ValueError("--scheduler needs Dask distributed: pip install 'notchfit[dask]'") from None
+    own = not isinstance(scheduler, Client)
+    try:
+        client = Client(scheduler) if own else scheduler
+    except OSError as exc:
+        raise ValueError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None
+    try:
+        futures = [client.submit(_call, func, it, pure=False) for it in items]
+        index = {f.key: i for i, f in enumerate(futures)}
+        out: list = [None] * len(items)
+        with _progress(len(items), desc, progress) as bar:
+            for f in as_completed(futures):
+                i = index[f.key]
+                try:
+                    out[i] = f.result()
+                except Exception as exc:  # a worker lost, a task that could not be deserialised
+                    out[i] = (False, None, _describe(exc), 0.0)
+                bar.update(1)
+        return out
+    finally:
+        if own:
+            client.close()
+
+
+# ----------------------------------------------------------------------------- images
+def load_image(path, flags=None) -> np.ndarray:
+    """Read an image, raising with the reason when it cannot be used.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``image missing: <path>``.
+    ValueError
+        ``corrupt or unreadable image: <path>`` (OpenCV cannot decode it) or
+        an empty image.
+    """
+    import cv2
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"image missing: {path}")
+    data = np.fromfile(path, dtype=np.uint8)
+    if data.size == 0:
+        raise ValueError(f"corrupt or unreadable image (empty file): {path}")
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED if flags is None else flags)
+    if img is None or img.size == 0:
+        raise ValueError(f"corrupt or unreadable image (OpenCV cannot decode it): {path}")
+    return img
+
+
+def image_info(path) -> dict:
+    """Shape, dtype and intensity range of an image (a cheap check of a batch of images)."""
+    img = load_image(path)
+    return {"path": str(path), "height": int(img.shape[0]), "width": int(img.shape[1]),
+            "channels": int(img.shape[2]) if img.ndim == 3 else 1, "dtype": str(img.dtype),
+            "min": float(img.min()), "max": float(img.max())}
+
+
+def format_traceback(exc: BaseException) -> str:  # pragma: no cover - debugging aid
+    return "".join(traceback.format_exception(exc))

@@ -1,0 +1,70 @@
+"""notchfit.batch: parallel items with failure isolation, progress and a summary."""
+import os
+
+import cv2
+import numpy as np
+import pytest
+
+from notchfit.batch import image_info, load_image, run_batch
+
+
+@pytest.fixture
+def images(tmp_path, rng):
+    paths = []
+    for i in range(5):
+        img = (rng.random((40, 60)) * 255).astype(np.uint8)
+        p = tmp_path / f"img{i}.png"
+        assert cv2.imwrite(str(p), img)
+        paths.append(p)
+    paths[1].write_bytes(rng.integers(0, 256, 500, dtype=np.uint8).tobytes())  # corrupt
+    paths[3] = tmp_path / "gone.png"                                           # missing
+    return paths
+
+
+def _check_image_batch(res, paths):
+    assert [r.key for r in res.items] == [p.name for p in paths]
+    assert res.n_ok == 3 and [r.ok for r in res.items] == [True, False, True, False, True]
+    assert res.items[0].value["width"] == 60 and res.items[4].value["height"] == 40
+    assert res.items[1].error.startswith("ValueError: corrupt or unreadable image")
+    assert res.items[3].error.startswith("FileNotFoundError: image missing")
+    s = res.summary("detect")
+    assert s.startswith("detect: 3 of 5 ok")
+    assert "img1.png: ValueError: corrupt" in s and "gone.png: FileNotFoundError: image missing" in s
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_corrupt_and_missing_image_reported_rest_finish(images, jobs):
+    res = run_batch(image_info, images, keys=[p.name for p in images], jobs=jobs, desc="images")
+    _check_image_batch(res, images)
+    with pytest.raises(RuntimeError, match="2 failed"):
+        res.raise_on_failure()
+
+
+def test_load_image_reasons(images):
+    assert load_image(images[0]).shape == (40, 60)
+    with pytest.raises(ValueError, match="corrupt"):
+        load_image(images[1])
+    with pytest.raises(FileNotFoundError, match="image missing"):
+        load_image(images[3])
+
+
+def _square_or_die(x):
+    if x == 3:
+        os._exit(7)  # a native crash in a worker
+    return x * x
+
+
+def test_dead_worker_blames_only_its_item():
+    res = run_batch(_square_or_die, range(6), jobs=2)
+    assert [r.ok for r in res.items] == [True, True, True, False, True, True]
+    assert res.values()[:3] == [0, 1, 4] and res.values()[5] == 25
+    assert "worker process died" in res.items[3].error
+
+
+def test_dask_local_cluster(images):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster:
+        res = run_batch(image_info, images, keys=[p.name for p in images],
+                        scheduler=cluster.scheduler_address)
+    _check_image_batch(res, images)
