@@ -77,7 +77,7 @@ SAMPLE_COLUMNS = ("sample", "time_s", "tension_left_N", "tension_right_N",
                   "displacement_left_mm", "displacement_right_mm")
 POINT_COLUMNS = ("sample", "point", "x_mm", "y_mm")
 DETECTION_COLUMNS = ("sample", "point", "x_mm", "y_mm", "u_px", "v_px", "sigma_mm", "status")
-FITS_COLUMNS = ("sample", "model", "base_x_mm", "base_y_mm", "base_phi_rad", "rms_mm", "max_mm",
+FITS_COLUMNS = ("sample", "model", "a", "b", "base_x_mm", "base_y_mm", "base_phi_rad", "rms_mm", "max_mm",
                 "n_points")
 POINTWISE_COLUMNS = ("sample", "model", "point", "err_mm")
 SIMULATION_COLUMNS = ("sample", "regime", "a", "b")
@@ -180,7 +180,7 @@ def _parse_int(text: str) -> int:
 
 
 def read_csv_table(path, *, required, integer=(), numeric=(), optional_numeric=(), nan_ok=(),
-                   text=(), extra_ok=True) -> tuple[pd.DataFrame, np.ndarray]:
+                   text=(), extra_ok=True, auto_extra=False) -> tuple[pd.DataFrame, np.ndarray]:
     """Read a CSV file with validated columns.
 
     Parameters
@@ -197,7 +197,10 @@ def read_csv_table(path, *, required, integer=(), numeric=(), optional_numeric=(
     text : sequence of str
         Columns kept as strings.
     extra_ok : bool
-        Keep unknown columns as strings (True) or reject them.
+        Keep unknown columns (True) or reject them.
+    auto_extra : bool
+        Unknown columns become floats when every cell is a number (or
+        empty), booleans when every cell is ``True``/``False``, else strings.
 
     Returns
     -------
@@ -247,10 +250,22 @@ def read_csv_table(path, *, required, integer=(), numeric=(), optional_numeric=(
             data[h] = pd.Series(cols[h], dtype="int64")
         elif h in numeric or h in optional_numeric or h in nan_ok:
             data[h] = pd.Series(cols[h], dtype="float64")
+        elif auto_extra and h not in known:
+            data[h] = _auto_series(cols[h])
         else:
             data[h] = pd.Series(cols[h], dtype="str")
     frame = pd.DataFrame(data, columns=order)
     return frame, np.array([ln for ln, _ in rows], dtype=int)
+
+
+def _auto_series(values: list) -> pd.Series:
+    if values and all(v in ("True", "False", "true", "false") for v in values):
+        return pd.Series([v.lower() == "true" for v in values], dtype=bool)
+    try:
+        return pd.Series([_parse_float(v, allow_empty=True, allow_nan=True) for v in values],
+                         dtype="float64")
+    except ValueError:
+        return pd.Series(values, dtype="str")
 
 
 # ----------------------------------------------------------------------------- TOML
@@ -762,11 +777,9 @@ def load_detected_points(exp: Experiment, detections, *, ok_status=("ok",)) -> E
 
 def read_fits(path) -> pd.DataFrame:
     """Read ``fits.csv`` (``fit``): one row per sample and shape model."""
-    path = Path(path)
-    header, _ = _read_csv_rows(path)
-    numeric = [h for h in header if h not in ("sample", "model", "n_points")]
     df, _ = read_csv_table(path, required=FITS_COLUMNS, integer=("sample", "n_points"),
-                           nan_ok=tuple(numeric), text=("model",))
+                           nan_ok=("a", "b", "base_x_mm", "base_y_mm", "base_phi_rad", "rms_mm", "max_mm"),
+                           text=("model", "message"), auto_extra=True)
     return df
 
 
@@ -779,11 +792,8 @@ def read_pointwise(path) -> pd.DataFrame:
 
 def read_simulation(path) -> pd.DataFrame:
     """Read ``simulation.csv`` (``simulate``): sample, regime, a, b, theta_1..theta_n, ..."""
-    path = Path(path)
-    header, _ = _read_csv_rows(path)
-    numeric = [h for h in header if h not in ("sample", "regime")]
     df, _ = read_csv_table(path, required=SIMULATION_COLUMNS, integer=("sample",),
-                           nan_ok=tuple(numeric), text=("regime",))
+                           nan_ok=("a", "b"), text=("regime",), auto_extra=True)
     return df
 
 
