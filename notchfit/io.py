@@ -775,6 +775,52 @@ def load_detected_points(exp: Experiment, detections, *, ok_status=("ok",)) -> E
     return with_points(exp, points_from_table(df, exp.sample_ids, exp.geometry.n_points))
 
 
+def attach_detections(exps, detections_dir, *, require: bool = True) -> tuple[list, dict]:
+    """Give experiments without ``notch_points.csv`` the points ``detect`` found.
+
+    Looks for ``detections.csv`` of each experiment in ``detections_dir``
+    (``DIR/<name>/detections.csv`` for a study run, ``DIR/detections.csv``
+    for a single experiment).
+
+    Returns
+    -------
+    experiments : list of Experiment
+        Those that have points (measured or detected).
+    problems : dict
+        ``{name: reason}`` for experiments left out.
+    """
+    found = find_output(detections_dir, "detections.csv") if detections_dir is not None else {}
+    out, problems = [], {}
+    for e in exps:
+        if e.points is not None:
+            out.append(e)
+            continue
+        path = found.get(e.name) or (found.get("") if len(exps) == 1 else None)
+        if path is None:
+            problems[e.name] = ("no notch_points.csv and no detections.csv for it"
+                                + (f" in {detections_dir}" if detections_dir is not None else "")
+                                + " (run `notchfit detect` first)")
+            continue
+        try:
+            out.append(load_detected_points(e, path))
+        except (ValueError, FileNotFoundError) as exc:
+            problems[e.name] = str(exc)
+    if require and not out:
+        raise ValueError("no experiment has notch points: " + "; ".join(f"{k}: {v}" for k, v in problems.items()))
+    return out, problems
+
+
+def provenance(command: str, input_path, **extra) -> dict:
+    """The ``<command>_run.json`` record: what ran on which input (the report finds the study here)."""
+    import datetime
+    import sys
+
+    from . import __version__
+    return {"command": command, "input": str(Path(input_path).resolve()), "notchfit": __version__,
+            "python": sys.version.split()[0],
+            "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"), **extra}
+
+
 def read_fits(path) -> pd.DataFrame:
     """Read ``fits.csv`` (``fit``): one row per sample and shape model."""
     df, _ = read_csv_table(path, required=FITS_COLUMNS, integer=("sample", "n_points"),

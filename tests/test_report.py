@@ -131,3 +131,15 @@ def test_broken_input_is_reported_not_fatal(full_run):
     secs = _sections(report.build_report(out, force=True).read_text())
     assert "not available" in secs["diagnosis"] and "missing key(s)" in secs["diagnosis"]
     assert "missing column(s)" in secs["fit"]
+
+
+def test_report_command(full_run, capsys):
+    from notchfit.cli import main
+
+    out, study = full_run
+    assert main(["report", str(out), "--study", str(study)]) == 0
+    text = capsys.readouterr().out
+    assert "cause: proximal_friction" in text and f"report: {out / 'report.html'}" in text
+    assert main(["report", str(out)]) == 2            # exists, no --force
+    assert "use --force" in capsys.readouterr().err
+    assert main(["report", str(out / "nope")]) == 2

@@ -1,0 +1,143 @@
+"""``notchfit fit``: least-squares shape fits of measured notch points (Sec. IV-A)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+NAME = "fit"
+ORDER = 40
+HELP = "fit shape models (cc, linear, ...) to the notch points of an experiment or a study"
+DESCRIPTION = """Fit shape models to every sample of an experiment (or of every experiment of a
+study): the plane transform of each experiment is estimated once for all its samples, then
+each sample is fitted with each model (Sec. IV-A, Figs. 12-15). Points come from the
+experiment's notch_points.csv, or from detect's detections.csv (--points DIR, default: the
+--out folder).
+
+Writes fits.csv (one row per sample and model: sample,model,a,b,...,base_x_mm,base_y_mm,
+base_phi_rad,rms_mm,max_mm,n_points,...), pointwise.csv (sample,model,point,err_mm) and the
+figures of Figs. 12-15; for a study, into OUT/<experiment>/. Experiments run in parallel
+(--jobs, or a Dask cluster with --scheduler); one that fails is listed and the others finish
+(exit code 1).
+
+Models: cc (constant curvature), linear (a + b j), quadratic, pw<k> (piecewise constant on
+k segments), free (every joint), free_smooth[=lambda].
+
+Examples:
+  notchfit fit study/ --out out/
+  notchfit fit study/L045 --models cc,linear,quadratic --out out_L045/
+  notchfit fit study/ --out out/ --jobs 2
+  notchfit fit study/ --out out/ --scheduler tcp://10.0.0.5:8786
+"""
+
+_MM = 1e-3
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("input", type=Path, help="experiment folder or study folder")
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--models", default="cc,linear", help="comma-separated shape models (default cc,linear)")
+    parser.add_argument("--points", type=Path, default=None,
+                        help="folder with detect's detections.csv (default: --out) for experiments "
+                             "without notch_points.csv")
+    parser.add_argument("--sigma-mm", type=float, default=None,
+                        help="point uncertainty [mm] (default: [uncertainty] point_mm, else estimated)")
+    parser.add_argument("--loss", default="linear", help="linear, soft_l1, huber, cauchy or arctan")
+    parser.add_argument("--no-figures", action="store_true", help="skip the Figs. 12-15 PNGs")
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; 0 = all CPUs)")
+    parser.add_argument("--scheduler", default=None, help="Dask distributed scheduler address")
+    parser.add_argument("--force", action="store_true", help="replace existing fits in --out")
+
+
+def fit_one(item: dict) -> dict:
+    """Fit one experiment (a batch item; module level so that it pickles)."""
+    from ..fitting import fit_experiment, fits_table, pointwise_table
+
+    res = fit_experiment(item["points"], item["geometry"], item["models"], mirror=item["mirror"],
+                         sigma=item["sigma"], loss=item["loss"], samples=item["samples"])
+    return {"result": res, "fits": fits_table(res), "pointwise": pointwise_table(res)}
+
+
+def fit_figures(result, out_dir: Path, name: str) -> list[Path]:
+    """Figs. 12-15 of one experiment through notchfit.figures.fitting (when installed)."""
+    try:
+        from ..figures import fitting as ff
+    except ImportError:
+        return []
+    fn = getattr(ff, "experiment_figures", None)
+    if fn is None:
+        return []
+    return list(fn(result, out_dir, title=name) or [])
+
+
+def run(args) -> int:
+    from .. import io
+    from ..batch import run_batch
+    from ..cli import InputError
+    from ..shapes import get_model
+
+    models = tuple(m.strip() for m in args.models.split(",") if m.strip())
+    if not models:
+        raise InputError("--models needs at least one model")
+    exps = io.read_study(args.input)
+    for m in models:
+        try:
+            get_model(m, exps[0].geometry.n_joints)
+        except ValueError as exc:
+            raise InputError(f"--models: {exc}") from None
+    study = not io.is_experiment_dir(args.input)
+    exps, problems = io.attach_detections(exps, args.points if args.points is not None else args.out)
+    sigma_cli = None if args.sigma_mm is None else args.sigma_mm * _MM
+    items = [{"points": e.points, "geometry": e.geometry, "models": models, "mirror": e.mirror,
+              "sigma": sigma_cli if sigma_cli is not None else e.point_sigma, "loss": args.loss,
+              "samples": tuple(int(s) for s in e.sample_ids)} for e in exps]
+    names = [e.name for e in exps]
+    outputs = ["fit_run.json"] + [str(io.experiment_output_dir("", n, study) / f)
+                                  for n in names for f in ("fits.csv", "pointwise.csv")]
+    with io.OutputRun(args.out, outputs=outputs, force=args.force, name="fit") as run_:
+        res = run_batch(fit_one, items, keys=names, jobs=args.jobs, scheduler=args.scheduler,
+                        desc="fit")
+        failed = {r.key: r.error for r in res.failures}
+        failed.update(problems)
+        bad_samples = []
+        for e, r in zip(exps, res.items):
+            if not r.ok:
+                continue
+            sub = io.experiment_output_dir("", e.name, study)
+            io.write_table_atomic(r.value["fits"], run_.path(sub / "fits.csv"))
+            io.write_table_atomic(r.value["pointwise"], run_.path(sub / "pointwise.csv"))
+            f = r.value["fits"]
+            if "success" in f:
+                for _, row in f[~f["success"].astype(bool)].iterrows():
+                    bad_samples.append(f"{e.name} sample {row['sample']} ({row['model']}): {row.get('message', '')}")
+            if not args.no_figures:
+                try:
+                    fit_figures(r.value["result"], run_.path(sub / "x").parent, e.name)
+                except Exception as exc:  # noqa: BLE001 - a figure must not lose the fits
+                    failed[f"{e.name} figures"] = f"{type(exc).__name__}: {exc}"
+        io.write_json_atomic(io.provenance("fit", args.input, models=list(models), experiments=names,
+                                           failures=failed, failed_samples=bad_samples),
+                             run_.path("fit_run.json"))
+    _print_summary(res, len(exps) + len(problems), failed, bad_samples, args.out)
+    return 1 if (failed or bad_samples) else 0
+
+
+def _print_summary(res, n_total, failed, bad_samples, out):
+    import numpy as np
+    import pandas as pd
+
+    frames = [r.value["fits"] for r in res.items if r.ok]
+    if frames:
+        df = pd.concat(frames, ignore_index=True)
+        ok = df["success"].astype(bool) if "success" in df else np.ones(len(df), bool)
+        for model, g in df[ok].groupby("model", sort=False):
+            r = g["rms_mm"].to_numpy(float)
+            print(f"  {model:12s} rms {np.sqrt(np.mean(r ** 2)):.4f} mm, max {g['max_mm'].max():.4f} mm "
+                  f"over {len(g)} samples")
+    n_ok = sum(r.ok for r in res.items)
+    print(f"fit: {n_ok} of {n_total} experiments fitted in {res.seconds:.1f} s; outputs in {out}")
+    for k, v in failed.items():
+        print(f"  FAILED {k}: {v}")
+    for s in bad_samples[:20]:
+        print(f"  FAILED {s}")
+    if len(bad_samples) > 20:
+        print(f"  ... and {len(bad_samples) - 20} more failed samples")
