@@ -1,0 +1,114 @@
+"""`notchfit figure`: discovery of figure modules, data + PNG output, no silent overwrite."""
+import sys
+import textwrap
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from notchfit import cables as C
+from notchfit.cli import main
+from notchfit.figures import discover
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+MINE = {"fig3", "fig5", "fig6", "fig7", "fig8", "fig_fea"}
+
+
+def test_discover_finds_the_paper_figures():
+    figs = discover()
+    assert MINE <= set(figs)
+    assert all(callable(f) for f in figs.values())
+
+
+def _fake_package(tmp_path, monkeypatch, name, modules):
+    pkg = tmp_path / name
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    for mod, src in modules.items():
+        (pkg / f"{mod}.py").write_text(textwrap.dedent(src))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for key in [k for k in sys.modules if k == name or k.startswith(name + ".")]:
+        monkeypatch.delitem(sys.modules, key)
+    return name
+
+
+def test_discover_merges_modules_and_skips_those_without_figures(tmp_path, monkeypatch):
+    name = _fake_package(tmp_path, monkeypatch, "nf_figs_ok", {
+        "a": "FIGURES = {'x': lambda out_dir, **kw: []}",
+        "b": "FIGURES = {'y': lambda out_dir, **kw: []}",
+        "helpers": "VALUE = 1",
+        "_private": "raise RuntimeError('never imported')",
+    })
+    assert set(discover(name)) == {"x", "y"}
+
+
+def test_discover_duplicate_name_is_an_error(tmp_path, monkeypatch):
+    name = _fake_package(tmp_path, monkeypatch, "nf_figs_dup", {
+        "a": "FIGURES = {'fig3': lambda out_dir, **kw: []}",
+        "b": "FIGURES = {'fig3': lambda out_dir, **kw: []}",
+    })
+    with pytest.raises(ValueError, match="fig3.*twice"):
+        discover(name)
+
+
+def test_discover_broken_module_is_named(tmp_path, monkeypatch):
+    name = _fake_package(tmp_path, monkeypatch, "nf_figs_bad", {"broken": "import not_a_module_xyz"})
+    with pytest.raises(ImportError, match="nf_figs_bad.broken"):
+        discover(name)
+
+
+def test_cli_list(capsys):
+    assert main(["figure", "--list"]) == 0
+    out = capsys.readouterr().out
+    for name in MINE:
+        assert name in out
+
+
+def test_cli_writes_data_and_png_and_refuses_overwrite(tmp_path, capsys):
+    out = tmp_path / "figs"
+    assert main(["figure", "fig3", "fig5", "fig6", "fig7", "fig_fea", "--out", str(out)]) == 0
+    for name in ("fig3", "fig5", "fig6", "fig7", "fig_fea"):
+        assert (out / f"{name}.png").read_bytes()[:8] == PNG_MAGIC
+        assert (out / f"{name}.csv").stat().st_size > 0
+    # Fig. 3 data are the cable model's numbers (µm)
+    df = pd.read_csv(out / "fig3.csv")
+    assert list(df.columns) == ["theta_i_rad", "theta_ip1_rad", "error_um"]
+    assert df.theta_i_rad.min() == pytest.approx(-0.14) and df.theta_ip1_rad.max() == pytest.approx(0.14)
+    from notchfit.geometry import default_geometry
+    g = default_geometry()
+    row = df.iloc[1234]
+    expect = (C.segment_length(row.theta_i_rad, row.theta_ip1_rad, g)
+              - C.segment_length_simple(row.theta_i_rad, row.theta_ip1_rad, g)) * 1e6
+    assert row.error_um == pytest.approx(expect, rel=1e-6, abs=1e-9)
+    df6 = pd.read_csv(out / "fig6.csv")
+    assert df6.length_um.min() == pytest.approx(810 - 2 * 0.14 * 2500, abs=1e-6)   # Fig. 6 range
+    # no silent overwrite: exit 2 and the file is untouched
+    before = (out / "fig7.png").stat().st_mtime_ns
+    capsys.readouterr()
+    assert main(["figure", "fig7", "--out", str(out)]) == 2
+    assert "--force" in capsys.readouterr().err
+    assert (out / "fig7.png").stat().st_mtime_ns == before
+    assert main(["figure", "fig7", "--out", str(out), "--force"]) == 0
+
+
+def test_cli_input_errors(tmp_path, capsys):
+    assert main(["figure", "fig99", "--out", str(tmp_path)]) == 2
+    assert "unknown figure" in capsys.readouterr().err
+    assert main(["figure", "--out", str(tmp_path)]) == 2
+    f = tmp_path / "afile"
+    f.write_text("x")
+    assert main(["figure", "fig7", "--out", str(f)]) == 2
+
+
+def test_fig8_data(tmp_path):
+    """Fig. 8 writes both equilibria; they differ (see test_statics.test_fig8_path_dependence)."""
+    paths = discover()["fig8"](tmp_path)
+    assert {p.name for p in paths} == {"fig8.csv", "fig8_history.csv", "fig8.png"}
+    df = pd.read_csv(tmp_path / "fig8.csv")
+    a = df[df.solution == "A"].theta_rad.dropna().to_numpy()
+    b = df[df.solution == "B"].theta_rad.dropna().to_numpy()
+    assert a.size == b.size == 27
+    assert np.abs(a - b).max() == pytest.approx(0.273, abs=0.002)
+    h = pd.read_csv(tmp_path / "fig8_history.csv")
+    assert h.time_s.iloc[-1] == pytest.approx(6.0)
+    assert h.tip_phi_rad_A.iloc[-1] == pytest.approx(a.sum(), abs=1e-6)
