@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 
+import numba
 import numpy as np
 
 from .geometry import Geometry, notch_layout
@@ -33,10 +34,7 @@ __all__ = [
 @functools.lru_cache(maxsize=32)
 def _tables(geom: Geometry):
     lay = notch_layout(geom)
-    n = geom.n_joints
-    # mask[i, k] = 1 if joint k+1 moves point i (k+1 <= link[i])
-    mask = (np.arange(1, n + 1)[None, :] <= lay.link[:, None]).astype(float)
-    return lay.link, lay.local[:, 0].copy(), lay.local[:, 1].copy(), mask
+    return lay.link, lay.local[:, 0].copy(), lay.local[:, 1].copy()
 
 
 def _frames(theta, geom: Geometry):
@@ -58,7 +56,7 @@ def _frames(theta, geom: Geometry):
 
 
 def _points(s, c, q, geom):
-    link, lx, lz, _ = _tables(geom)
+    link, lx, lz = _tables(geom)
     # link l >= 1 has its origin at joint l (q[l-1]); link 0 at the origin (= q[0])
     org = q[..., np.maximum(link - 1, 0), :]
     sl, cl = s[..., link], c[..., link]
@@ -90,6 +88,8 @@ def notch_points_and_jacobian(theta, geom: Geometry):
 
     A joint ``k`` rotates every point on links ``l ≥ k`` about ``q_k``:
     ``∂Q̃_i/∂θ_k = (z_i - z_{q_k}, -(x_i - x_{q_k}))`` if ``k ≤ link(i)``, else 0.
+    Computed by a compiled (numba) kernel that writes both outputs in one pass
+    over the configurations; see ``benchmarks/bench_kinematics.py``.
 
     Parameters
     ----------
@@ -100,14 +100,53 @@ def notch_points_and_jacobian(theta, geom: Geometry):
     points : ndarray, shape (..., m, 2) [m]
     jac : ndarray, shape (..., m, 2, n) [m/rad]
     """
-    s, c, q = _frames(theta, geom)
-    pts = _points(s, c, q, geom)
-    mask = _tables(geom)[3]
-    qj = q[..., :-1, :]                                 # joints 1..n
-    jac = np.empty(pts.shape[:-1] + (2, geom.n_joints))
-    np.multiply(pts[..., :, 1, None] - qj[..., None, :, 1], mask, out=jac[..., 0, :])
-    np.multiply(qj[..., None, :, 0] - pts[..., :, 0, None], mask, out=jac[..., 1, :])
-    return pts, jac
+    th = np.asarray(theta, dtype=float)
+    n = geom.n_joints
+    if th.ndim == 0 or th.shape[-1] != n:
+        raise ValueError(f"joint angles must have shape (..., {n}), got {np.shape(theta)}")
+    if not np.isfinite(th).all():
+        raise ValueError("joint angles contain NaN or inf")
+    link, lx, lz = _tables(geom)
+    lead = th.shape[:-1]
+    m = link.shape[0]
+    flat = np.ascontiguousarray(th).reshape(-1, n)
+    pts = np.empty((flat.shape[0], m, 2))
+    jac = np.empty((flat.shape[0], m, 2, n))
+    _points_jac_kernel(flat, geom.p, link, lx, lz, pts, jac)
+    return pts.reshape(lead + (m, 2)), jac.reshape(lead + (m, 2, n))
+
+
+@numba.njit(cache=True, nogil=True)
+def _points_jac_kernel(th, p, link, lx, lz, pts, jac):  # pragma: no cover - compiled
+    nb, n = th.shape
+    m = link.shape[0]
+    s = np.empty(n + 1)
+    c = np.empty(n + 1)
+    qx = np.empty(n + 1)
+    qz = np.empty(n + 1)
+    for b in range(nb):
+        phi = 0.0
+        s[0], c[0], qx[0], qz[0] = 0.0, 1.0, 0.0, 0.0
+        for k in range(n):
+            phi += th[b, k]
+            s[k + 1] = np.sin(phi)
+            c[k + 1] = np.cos(phi)
+            qx[k + 1] = qx[k] + p * s[k + 1]
+            qz[k + 1] = qz[k] + p * c[k + 1]
+        for i in range(m):
+            L = link[i]
+            o = L - 1 if L > 0 else 0
+            x = qx[o] + c[L] * lx[i] + s[L] * lz[i]
+            z = qz[o] - s[L] * lx[i] + c[L] * lz[i]
+            pts[b, i, 0] = x
+            pts[b, i, 1] = z
+            for k in range(n):
+                if k < L:
+                    jac[b, i, 0, k] = z - qz[k]
+                    jac[b, i, 1, k] = qx[k] - x
+                else:
+                    jac[b, i, 0, k] = 0.0
+                    jac[b, i, 1, k] = 0.0
 
 
 # --------------------------------------------------------------------------
