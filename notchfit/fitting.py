@@ -676,7 +676,7 @@ def _lm(prob: _Problem, t, P, *, joint: bool, loss: str, f_scale: float, ftol: f
         A = np.einsum("sri,srj->sij", JpW, Jp) + DtD
         g = np.einsum("sri,sr->si", JpW, r) + P @ DtD
         dA = np.diagonal(A, axis1=1, axis2=2)
-        dA = np.maximum(dA, 1e-12 * np.maximum(dA.max(-1, keepdims=True), 1e-300))
+        dA = np.maximum(dA, np.maximum(1e-12 * dA.max(-1, keepdims=True), 1e-30))
         if joint:
             JtW = Jt * w[..., None]
             Bm = np.einsum("sri,srj->sij", JpW, Jt)
@@ -771,9 +771,14 @@ def _schur_cov(Jp, Jt, r, w_rho, DtD, tol):
     C = np.einsum("sri,srj->ij", Jt * w_rho[..., None], Jt)
     Ainv = _psd_inverse(A)
     Mt = C - np.einsum("sia,sij,sjb->ab", Bm, Ainv, Bm)
+    # identifiable when the shape parameters leave the transform some information of
+    # its own: the Schur diagonal relative to the full diagonal (the fraction of each
+    # transform parameter's information not explained away by the shapes), and no
+    # near-degenerate combination of the three (correlation-normalized eigenvalues)
+    kept = np.diag(Mt) / np.maximum(np.diag(C), 1e-300)
     d = np.sqrt(np.maximum(np.diag(Mt), 1e-300))
     eig = np.linalg.eigvalsh(Mt / np.outer(d, d))
-    identifiable = bool(eig.min() > tol)
+    identifiable = bool(kept.min() > tol and eig.min() > tol)
     return (np.linalg.inv(Mt) if identifiable else np.full((3, 3), np.inf)), identifiable
 
 
@@ -783,7 +788,7 @@ def _schur_cov(Jp, Jt, r, w_rho, DtD, tol):
 def fit_transform(points, geom: Geometry, model="free", *, mirror: bool = False, sigma=2e-5,
                   loss: str = "linear", f_scale: float = 2.0, x0=None, theta0=None,
                   ftol: float = 1e-10, xtol: float = 1e-10, max_iter: int = 100,
-                  identifiability_tol: float = 1e-9):
+                  identifiability_tol: float = 1e-8):
     """Jointly fit the shared plane transform and every sample's shape.
 
     One least-squares problem over (t_x, t_y, φ) and each sample's parameters
@@ -814,9 +819,13 @@ def fit_transform(points, geom: Geometry, model="free", *, mirror: bool = False,
     max_iter : int
         Iteration limit.
     identifiability_tol : float
-        Smallest allowed eigenvalue of the correlation-normalized Schur
-        complement of the transform; below it the transform is reported as
-        not identifiable (infinite covariance).
+        Smallest allowed fraction of each transform parameter's information
+        that survives eliminating the shapes (Schur-complement diagonal over
+        the full diagonal; about 1e-3 for φ with the three base-link points,
+        1e-14 without them under the ``free`` model) and smallest
+        eigenvalue of the correlation-normalized Schur complement; below
+        either the transform is reported as not identifiable (infinite
+        covariance).
 
     Returns
     -------
@@ -970,9 +979,16 @@ def fit_samples(points, geom: Geometry, model, transform, *, sigma=2e-5, loss: s
     chi2 = (r * r).sum(-1)
     for j, s in enumerate(ui):
         ok = bool(conv[j] and np.isfinite(P[j]).all())
+        msg = msgs[j]
+        if model.n_prior == 0 and k_eff[j] < k - 0.5:
+            # a parameter the points do not determine (e.g. only base-link points, or a
+            # free-model joint whose links lost all their points)
+            ok = False
+            msg = (f"the {npts[s]} valid points determine only {k_eff[j]:.0f} of the {k} "
+                   f"parameters of model {model.name!r}")
         out[s] = SampleFit(samples[s], model.name, model.param_names, P[j], cov[j], theta[j],
                            model.basis, plane[j], resid[j], sig[s], int(npts[s]), float(k_eff[j]),
-                           float(chi2[j]), ok, msgs[j], int(nfev[j]))
+                           float(chi2[j]), ok, msg, int(nfev[j]))
     return tuple(out)
 
 
