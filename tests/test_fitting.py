@@ -102,8 +102,8 @@ def test_fig13_friction_shapes_cc_max_error_much_larger_than_linear(geom):
     """θ_j = a (1 - 0.03 j), base joints bent more; regime I ramp to a = -0.10 rad.
 
     The paper (mirrored view, real manipulator): CC max 3.36 mm, linear 0.35 mm.
-    Measured here at 0.02 mm noise (seed 20151103): CC max 3.05 mm, linear max
-    0.10 mm (noise-limited), ratio about 31 (the paper's 9.6 includes its 0.15 mm
+    Measured here at 0.02 mm noise (seed 20151103): CC max 3.04 mm, linear max
+    0.071 mm (noise-limited), ratio 42.5 (the paper's 9.6 includes its 0.15 mm
     digitization error and real deviations from the linear model).
     """
     rng = np.random.default_rng(20151103)
