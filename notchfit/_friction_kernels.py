@@ -1,0 +1,763 @@
+"""Numba kernels of the friction simulator (Sec. IV-B); see :mod:`notchfit.friction`.
+
+Everything here works on plain float64 arrays. Parameters are packed in one
+vector ``par`` (indices ``P_*`` below) and a per-joint spring scale vector.
+Indices are 0-based: joint ``i`` is the paper's joint ``i + 1``; link ``i``
+(``i = 0..n-2``) lies between joints ``i`` and ``i + 1`` (the paper's link
+``i + 1``); the tension profile ``T[i]`` is the cable tension where it
+crosses joint ``i`` (``T[0]`` = base tension).
+
+Cable states: ``+1`` sliding toward the base, ``-1`` sliding toward the tip,
+``0`` sticking (as in ``SimulationResult``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# ---- packed parameter vector
+P_K1, P_K2, P_K3, P_TM, P_TS, P_MUD, P_MUS, P_B, P_VTHR, P_BETA, P_H, P_FX, P_FZ, P_RX, P_P = range(15)
+N_PAR = 15
+
+# relative slack on the stick test |ΔT| <= μ_s N (1 + slack): lets a link stick when N = 0
+# (straight joints) or μ_s == μ_d, where the paper's strict |ΔT| < μ_s N can never hold
+STICK_SLACK = 1e-9
+
+
+@njit(cache=True, inline="always")
+def spring_mag(x, k1, k2, k3, tm, ts):
+    """Unscaled spring torque magnitude for ``x = |θ| >= 0`` (Fig. 17)."""
+    if x < tm:
+        return k1 * x
+    if x < ts:
+        return k1 * tm + k2 * (x - tm)
+    return k1 * tm + k2 * (ts - tm) + k3 * (x - ts)
+
+
+@njit(cache=True, inline="always")
+def spring_torque(th, k1, k2, k3, tm, ts, s):
+    """Odd spring torque ``τ(θ)`` with joint scale ``s`` [N m]."""
+    if th >= 0.0:
+        return s * spring_mag(th, k1, k2, k3, tm, ts)
+    return -(s * spring_mag(-th, k1, k2, k3, tm, ts))
+
+
+@njit(cache=True, inline="always")
+def spring_rate(th, k1, k2, k3, tm, ts, s):
+    """Tangent stiffness ``dτ/dθ`` (right-continuous in ``|θ|``)."""
+    x = abs(th)
+    if x < tm:
+        return s * k1
+    if x < ts:
+        return s * k2
+    return s * k3
+
+
+@njit(cache=True, inline="always")
+def spring_angle(tq, k1, k2, k3, tm, ts, s):
+    """Inverse spring ``θ(τ)`` [rad]; odd."""
+    y = abs(tq) / s
+    y1 = k1 * tm
+    y2 = y1 + k2 * (ts - tm)
+    if y < y1:
+        x = y / k1
+    elif y < y2:
+        x = tm + (y - y1) / k2
+    else:
+        x = ts + (y - y2) / k3
+    return x if tq >= 0.0 else -x
+
+
+@njit(cache=True, inline="always")
+def slide_next(T0, sa, sb, mu, state):
+    """``T[j+1]`` of a sliding link from ``T[j+1] = T[j] ∓ μ (T[j+1] sb + T[j] sa)``.
+
+    ``state = +1`` (toward the base): ``T[j+1] = T[j] (1 - μ sa)/(1 + μ sb)``;
+    ``state = -1`` (toward the tip): ``T[j+1] = T[j] (1 + μ sa)/(1 - μ sb)``.
+    ``sa = |sin θ_j|``, ``sb = |sin θ_{j+1}|``.
+    """
+    if state > 0:
+        return T0 * (1.0 - mu * sa) / (1.0 + mu * sb)
+    return T0 * (1.0 + mu * sa) / (1.0 - mu * sb)
+
+
+@njit(cache=True)
+def tip_torques(theta, p, fx, fz, out):
+    """``J_X(θ)^T (f_x, f_z, 0)`` (Eqs. 18-20) into ``out`` [N m].
+
+    ``J_xk = p Σ_{i≥k} cos φ_i``, ``J_zk = -p Σ_{i≥k} sin φ_i``, ``φ_i = Σ_{l≤i} θ_l``.
+    """
+    n = theta.shape[0]
+    phi = 0.0
+    cphi = np.empty(n)
+    sphi = np.empty(n)
+    for i in range(n):
+        phi += theta[i]
+        cphi[i] = math.cos(phi)
+        sphi[i] = math.sin(phi)
+    sc = 0.0
+    ss = 0.0
+    for i in range(n - 1, -1, -1):
+        sc += cphi[i]
+        ss += sphi[i]
+        out[i] = p * sc * fx - p * ss * fz
+
+
+@njit(cache=True, inline="always")
+def band_update(tb, tm, ebeta, embeta):
+    """Play operator of the proximal capstan band on ``log T`` (multiplicative bounds)."""
+    lo = tm * embeta
+    hi = tm * ebeta
+    if tb < lo:
+        return lo
+    if tb > hi:
+        return hi
+    return tb
+
+
+@njit(cache=True)
+def reference_kernel(t_s, TLm, TRm, par, scale, dt_max, ramp_time, settle_time):
+    """The paper's four-step algorithm, explicit Euler (Sec. IV-B).
+
+    Input protocol: before ``t_s[0]`` the model starts at rest (θ = 0, zero
+    tension, all sticking) at ``t_s[0] - settle_time``; in every interval
+    ``[t_{k-1}, t_k]`` the measured tensions move linearly from sample
+    ``k-1`` to sample ``k`` during the first ``min(ramp_time, interval)``
+    seconds and are held until ``t_k`` (``ramp_time <= 0``: a step).
+    The step in each interval is ``interval / ceil(interval / dt_max)`` and
+    the input used for the step from ``t`` to ``t + dt`` is its value at
+    ``t + dt``.
+
+    Returns per sample: θ (S, n), tension profiles L, R (S, n), base tensions
+    after the band L, R (S,), the last slip direction of each link during
+    the interval L, R (S, n-1) int8, and the number of steps taken.
+    """
+    S = t_s.shape[0]
+    n = scale.shape[0]
+    k1, k2, k3 = par[P_K1], par[P_K2], par[P_K3]
+    tm, ts = par[P_TM], par[P_TS]
+    mud, mus, bdamp, vthr = par[P_MUD], par[P_MUS], par[P_B], par[P_VTHR]
+    beta, h, fx, fz, rx, p = par[P_BETA], par[P_H], par[P_FX], par[P_FZ], par[P_RX], par[P_P]
+    ebeta = math.exp(beta)
+    embeta = math.exp(-beta)
+    use_tip = fx != 0.0 or fz != 0.0
+    stick_fac = mus * (1.0 + STICK_SLACK)
+
+    th = np.zeros(n)
+    thd = np.zeros(n)
+    TL = np.zeros(n)
+    TR = np.zeros(n)
+    sL = np.zeros(max(n - 1, 0), np.int8)
+    sR = np.zeros(max(n - 1, 0), np.int8)
+    lastL = np.zeros(max(n - 1, 0), np.int8)
+    lastR = np.zeros(max(n - 1, 0), np.int8)
+    sinabs = np.zeros(n)
+    tip = np.zeros(n)
+    tbL = 0.0
+    tbR = 0.0
+
+    o_th = np.empty((S, n))
+    o_TL = np.empty((S, n))
+    o_TR = np.empty((S, n))
+    o_bL = np.empty(S)
+    o_bR = np.empty(S)
+    o_sL = np.empty((S, max(n - 1, 0)), np.int8)
+    o_sR = np.empty((S, max(n - 1, 0)), np.int8)
+    nsteps_total = 0
+
+    for k in range(S):
+        if k == 0:
+            t0 = t_s[0] - settle_time
+            aL, aR = 0.0, 0.0
+        else:
+            t0 = t_s[k - 1]
+            aL, aR = TLm[k - 1], TRm[k - 1]
+        interval = t_s[k] - t0
+        bL, bR = TLm[k], TRm[k]
+        nst = int(math.ceil(interval / dt_max - 1e-9))
+        if nst < 1:
+            nst = 1
+        dt = interval / nst
+        ramp = min(ramp_time, interval)
+        for i in range(n - 1):
+            lastL[i] = 0
+            lastR[i] = 0
+        for it in range(nst):
+            # ---- input at the end of the step (linear ramp, then hold)
+            if ramp <= 0.0:
+                frac = 1.0
+            else:
+                frac = (it + 1) * dt / ramp
+                if frac > 1.0:
+                    frac = 1.0
+            mL = aL + (bL - aL) * frac
+            mR = aR + (bR - aR) * frac
+            if beta > 0.0:
+                if k == 0 and it == 0:
+                    tbL, tbR = mL, mR
+                tbL = band_update(tbL, mL, ebeta, embeta)
+                tbR = band_update(tbR, mR, ebeta, embeta)
+            else:
+                tbL, tbR = mL, mR
+            # ---- Step 1: tension propagation, base to tip
+            for i in range(n):
+                sinabs[i] = abs(math.sin(th[i]))
+            TL[0] = tbL
+            TR[0] = tbR
+            for i in range(n - 1):
+                if sL[i] != 0:
+                    TL[i + 1] = slide_next(TL[i], sinabs[i], sinabs[i + 1], mud, sL[i])
+                if sR[i] != 0:
+                    TR[i + 1] = slide_next(TR[i], sinabs[i], sinabs[i + 1], mud, sR[i])
+            # ---- Step 2: first-order dynamics
+            if use_tip:
+                tip_torques(th, p, fx, fz, tip)
+            for i in range(n):
+                x = rx * (TR[i] - TL[i]) - spring_torque(th[i], k1, k2, k3, tm, ts, scale[i])
+                if use_tip:
+                    x += tip[i]
+                if h > 0.0:
+                    if x > h:
+                        x = x - h
+                    elif x < -h:
+                        x = x + h
+                    else:
+                        x = 0.0
+                thd[i] = x / bdamp
+            # ---- Step 3 + Step 4: cable speeds and the stick/slip state machine
+            ssum = 0.0
+            for i in range(n - 2, -1, -1):
+                ssum += thd[i + 1]
+                vR = rx * ssum
+                vL = -vR
+                # right cable
+                dT = TR[i + 1] - TR[i]
+                N = TR[i + 1] * sinabs[i + 1] + TR[i] * sinabs[i]
+                if sR[i] != 0:
+                    if abs(vR) < vthr and abs(dT) <= stick_fac * N:
+                        sR[i] = 0
+                else:
+                    if -dT > mus * N:
+                        sR[i] = 1
+                    elif dT > mus * N:
+                        sR[i] = -1
+                # left cable
+                dT = TL[i + 1] - TL[i]
+                N = TL[i + 1] * sinabs[i + 1] + TL[i] * sinabs[i]
+                if sL[i] != 0:
+                    if abs(vL) < vthr and abs(dT) <= stick_fac * N:
+                        sL[i] = 0
+                else:
+                    if -dT > mus * N:
+                        sL[i] = 1
+                    elif dT > mus * N:
+                        sL[i] = -1
+                if sL[i] != 0:
+                    lastL[i] = sL[i]
+                if sR[i] != 0:
+                    lastR[i] = sR[i]
+            # ---- explicit Euler update
+            for i in range(n):
+                th[i] += dt * thd[i]
+        nsteps_total += nst
+        for i in range(n):
+            o_th[k, i] = th[i]
+            o_TL[k, i] = TL[i]
+            o_TR[k, i] = TR[i]
+        o_bL[k] = tbL
+        o_bR[k] = tbR
+        for i in range(n - 1):
+            o_sL[k, i] = lastL[i]
+            o_sR[k, i] = lastR[i]
+    return o_th, o_TL, o_TR, o_bL, o_bR, o_sL, o_sR, nsteps_total
+
+
+# --------------------------------------------------------------------------
+# fast solver
+# --------------------------------------------------------------------------
+@njit(cache=True)
+def relax(th0, y, b, h, k1, k2, k3, tm, ts, s):
+    """Exact ``θ(h)`` of ``b dθ/dt = y - τ(θ)`` from ``θ(0) = th0`` (τ piecewise linear).
+
+    Within one spring segment the motion is an exponential toward that
+    segment's virtual equilibrium; segment boundaries are crossed at their
+    exact times. Unconditionally stable (the hard stop's b/k = 3 ms is no
+    limit on the step).
+    """
+    target = spring_angle(y, k1, k2, k3, tm, ts, s)
+    th = th0
+    t = h
+    for _ in range(8):
+        if th == target:
+            return th
+        d = 1.0 if target > th else -1.0
+        x = abs(th)
+        sgn = 1.0 if (th > 0.0 or (th == 0.0 and d > 0.0)) else -1.0
+        if d == sgn:  # moving away from 0
+            if x < tm:
+                k, bnd = k1, tm
+            elif x < ts:
+                k, bnd = k2, ts
+            else:
+                k, bnd = k3, -1.0
+        else:
+            if x > ts:
+                k, bnd = k3, ts
+            elif x > tm:
+                k, bnd = k2, tm
+            else:
+                k, bnd = k1, 0.0
+        k *= s
+        thv = th + (y - spring_torque(th, k1, k2, k3, tm, ts, s)) / k
+        if bnd < 0.0:
+            return thv + (th - thv) * math.exp(-k * t / b)
+        bth = sgn * bnd
+        if (thv - bth) * d <= 0.0:
+            return thv + (th - thv) * math.exp(-k * t / b)
+        tb = b / k * math.log((th - thv) / (bth - thv))
+        if tb >= t:
+            return thv + (th - thv) * math.exp(-k * t / b)
+        t -= tb
+        th = bth
+    return th
+
+
+@njit(cache=True, inline="always")
+def drive_target(F, tq, hyst):
+    """Target torque of the (dead-zone) joint dynamics, or NaN if the joint holds.
+
+    ``b θ̇ = F - τ`` without hysteresis; with a play-operator hysteresis
+    ``h``: ``b θ̇ = F - τ ∓ h`` outside the band ``|F - τ| <= h``, 0 inside.
+    """
+    if hyst <= 0.0:
+        return F
+    x = F - tq
+    if x > hyst:
+        return F - hyst
+    if x < -hyst:
+        return F + hyst
+    return math.nan
+
+
+@njit(cache=True)
+def _propagate(T, st, sinabs, tb, mud):
+    n = T.shape[0]
+    T[0] = tb
+    for i in range(n - 1):
+        if st[i] != 0:
+            T[i + 1] = slide_next(T[i], sinabs[i], sinabs[i + 1], mud, st[i])
+
+
+@njit(cache=True)
+def _geometry_terms(th, par, sinabs, tip):
+    """|sin θ_j| and the tip-load joint torques at a configuration."""
+    n = th.shape[0]
+    for i in range(n):
+        sinabs[i] = abs(math.sin(th[i]))
+    if par[P_FX] != 0.0 or par[P_FZ] != 0.0:
+        tip_torques(th, par[P_P], par[P_FX], par[P_FZ], tip)
+
+
+@njit(cache=True)
+def _forces(th, TL, TR, sL, sR, tbL, tbR, par, scale, sinabs, tip, F, thd, v):
+    """Steps 1-3 at a state: tension propagation, drive torques ``F``, rates, cable speeds.
+
+    ``v[i]`` is the right cable's speed through link ``i`` (the left one's is ``-v[i]``).
+    """
+    n = th.shape[0]
+    k1, k2, k3, tm, ts = par[P_K1], par[P_K2], par[P_K3], par[P_TM], par[P_TS]
+    mud, bd, hyst, rx = par[P_MUD], par[P_B], par[P_H], par[P_RX]
+    _propagate(TL, sL, sinabs, tbL, mud)
+    _propagate(TR, sR, sinabs, tbR, mud)
+    for i in range(n):
+        F[i] = rx * (TR[i] - TL[i]) + tip[i]
+        x = F[i] - spring_torque(th[i], k1, k2, k3, tm, ts, scale[i])
+        if hyst > 0.0:
+            if x > hyst:
+                x -= hyst
+            elif x < -hyst:
+                x += hyst
+            else:
+                x = 0.0
+        thd[i] = x / bd
+    ssum = 0.0
+    for i in range(n - 2, -1, -1):
+        ssum += thd[i + 1]
+        v[i] = rx * ssum
+
+
+@njit(cache=True)
+def _state_machine(TL, TR, sL, sR, sinabs, v, mus, vthr, lastL, lastR, flags,
+                   phiL, phiR, TLp, TRp):
+    """Step 4 (the paper's rules, as in :func:`reference_kernel`).
+
+    ``flags[0]`` = some link went from sticking to sliding, ``flags[1]`` =
+    some link is sliding afterwards, ``flags[2]`` = a frozen tension was
+    corrected. A link that sticks with ``phi[i] >= 0`` (its speed crossed
+    ``v_thr`` at the fraction ``phi`` of the last step) freezes the tension
+    it had then, ``Tp + phi (T - Tp)``, instead of the one at the step's end.
+    """
+    m = sL.shape[0]
+    stick_fac = mus * (1.0 + STICK_SLACK)
+    slipped = 0
+    anyslide = 0
+    corrected = 0
+    for i in range(m):
+        vR = v[i]
+        vL = -vR
+        dT = TR[i + 1] - TR[i]
+        N = TR[i + 1] * sinabs[i + 1] + TR[i] * sinabs[i]
+        if sR[i] != 0:
+            if abs(vR) < vthr and abs(dT) <= stick_fac * N:
+                sR[i] = 0
+                if phiR[i] >= 0.0:
+                    TR[i + 1] = TRp[i + 1] + phiR[i] * (TR[i + 1] - TRp[i + 1])
+                    corrected = 1
+        else:
+            if -dT > mus * N:
+                sR[i] = 1
+                slipped = 1
+            elif dT > mus * N:
+                sR[i] = -1
+                slipped = 1
+        dT = TL[i + 1] - TL[i]
+        N = TL[i + 1] * sinabs[i + 1] + TL[i] * sinabs[i]
+        if sL[i] != 0:
+            if abs(vL) < vthr and abs(dT) <= stick_fac * N:
+                sL[i] = 0
+                if phiL[i] >= 0.0:
+                    TL[i + 1] = TLp[i + 1] + phiL[i] * (TL[i + 1] - TLp[i + 1])
+                    corrected = 1
+        else:
+            if -dT > mus * N:
+                sL[i] = 1
+                slipped = 1
+            elif dT > mus * N:
+                sL[i] = -1
+                slipped = 1
+        if sL[i] != 0:
+            lastL[i] = sL[i]
+            anyslide = 1
+        if sR[i] != 0:
+            lastR[i] = sR[i]
+            anyslide = 1
+        phiL[i] = -1.0
+        phiR[i] = -1.0
+    flags[0] = slipped
+    flags[1] = anyslide
+    flags[2] = corrected
+
+
+@njit(cache=True, inline="always")
+def _segment(x, tm, ts):
+    """Piece of the spring law holding ``x``: 0 linear, ±1 mid range, ±2 beyond the stop."""
+    a = abs(x)
+    if a < tm:
+        return 0
+    s = 1 if x > 0.0 else -1
+    if a < ts:
+        return s
+    return 2 * s
+
+
+@njit(cache=True)
+def _advance(th, F, h, par, scale, out):
+    """Every joint by the exact relaxation over ``h`` with its drive ``F`` held.
+
+    Fast path: when the target lies on the same piece of the spring law as
+    ``θ`` the motion is one exponential, ``θ* + (θ - θ*) e^{-k h/b}``
+    (the three decay factors are shared by all joints of equal scale);
+    otherwise :func:`relax` crosses the breaks at their exact times.
+    """
+    n = th.shape[0]
+    k1, k2, k3, tm, ts = par[P_K1], par[P_K2], par[P_K3], par[P_TM], par[P_TS]
+    bd, hyst = par[P_B], par[P_H]
+    e1 = math.exp(-k1 * h / bd)
+    e2 = math.exp(-k2 * h / bd)
+    e3 = math.exp(-k3 * h / bd)
+    for i in range(n):
+        s = scale[i]
+        y = drive_target(F[i], spring_torque(th[i], k1, k2, k3, tm, ts, s), hyst)
+        if math.isnan(y):
+            out[i] = th[i]
+            continue
+        target = spring_angle(y, k1, k2, k3, tm, ts, s)
+        seg = _segment(th[i], tm, ts)
+        if seg == _segment(target, tm, ts):
+            a = abs(seg)
+            if s == 1.0:
+                e = e1 if a == 0 else (e2 if a == 1 else e3)
+            else:
+                kk = k1 if a == 0 else (k2 if a == 1 else k3)
+                e = math.exp(-kk * s * h / bd)
+            out[i] = target + (th[i] - target) * e
+        else:
+            out[i] = relax(th[i], y, bd, h, k1, k2, k3, tm, ts, s)
+
+
+@njit(cache=True)
+def _margins(T, st, sinabs, v, mus, vthr, g):
+    """Event functions per link: sticking -> ``μ_s N - |ΔT|`` (slips when < 0);
+    sliding -> ``|v| - v_thr`` (sticks when < 0)."""
+    n = T.shape[0]
+    for i in range(n - 1):
+        if st[i] == 0:
+            N = T[i + 1] * sinabs[i + 1] + T[i] * sinabs[i]
+            g[i] = mus * N - abs(T[i + 1] - T[i])
+        else:
+            g[i] = abs(v[i]) - vthr
+
+
+@njit(cache=True)
+def _settle(th, TL, TR, par, scale, out, work, tol, maxiter):
+    """Rest state with every link sticking (all tensions frozen).
+
+    Per joint ``τ(θ) = F`` (or the play operator ``θ ∈ [τ⁻¹(F - h), τ⁻¹(F + h)]``
+    nearest to the current ``θ``); the tip-load torques depend on the whole
+    configuration and are iterated to a fixed point (``tol`` [rad], ``maxiter``).
+    """
+    n = th.shape[0]
+    k1, k2, k3, tm, ts = par[P_K1], par[P_K2], par[P_K3], par[P_TM], par[P_TS]
+    hyst, fx, fz, rx = par[P_H], par[P_FX], par[P_FZ], par[P_RX]
+    use_tip = fx != 0.0 or fz != 0.0
+    for i in range(n):
+        out[i] = th[i]
+        work[i] = 0.0
+    for it in range(maxiter):
+        if use_tip:
+            tip_torques(out, par[P_P], fx, fz, work)
+        delta = 0.0
+        for i in range(n):
+            F = rx * (TR[i] - TL[i]) + work[i]
+            if hyst > 0.0:
+                lo = spring_angle(F - hyst, k1, k2, k3, tm, ts, scale[i])
+                hi = spring_angle(F + hyst, k1, k2, k3, tm, ts, scale[i])
+                new = min(max(th[i], lo), hi)
+            else:
+                new = spring_angle(F, k1, k2, k3, tm, ts, scale[i])
+            delta = max(delta, abs(new - out[i]))
+            out[i] = new
+        if not use_tip or delta <= tol:
+            return it + 1
+    return maxiter
+
+
+@njit(cache=True)
+def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max, growth,
+                max_events, max_micro, settle_tol, settle_maxiter, land_sticks):
+    """Same model and input protocol as :func:`reference_kernel`, in large exact steps.
+
+    * Steps 1-4 are the reference's, in the reference's order (tensions from
+      the previous states, then the state machine), so a slip front advances
+      one link per pass as in the reference. Right after a link slips, the
+      passes are repeated with θ frozen until no link slips any more: the
+      reference's dt -> 0 limit of its front (its front takes n dt).
+    * Between passes every joint moves by the exact solution of
+      ``b θ̇ = F - τ(θ)`` with its drive ``F`` held over the step
+      (piecewise exponential: stable for any step, exact once all tensions
+      are frozen); the coupling through sliding tensions is explicit.
+      The step grows geometrically from ``h_min`` to ``h_max`` after each
+      change of the input.
+    * Events inside a step (a sticking link reaching ``|ΔT| = μ_s N``, a
+      sliding link's speed falling to ``v_thr``) are located by linear
+      interpolation of their margins between the step's ends, and the step
+      is shortened to land on the first (at most ``max_events`` times per
+      interval; then events act at step ends). ``max_micro`` caps the frozen
+      passes per interval (chattering stick-slip as joints straighten).
+    * Once every link sticks and the input is held, the rest state is solved
+      in closed form (:func:`_settle`) unless a sticking link would slip there.
+    """
+    S = t_s.shape[0]
+    n = scale.shape[0]
+    m = max(n - 1, 0)
+    mus, vthr, beta = par[P_MUS], par[P_VTHR], par[P_BETA]
+    ebeta = math.exp(beta)
+    embeta = math.exp(-beta)
+
+    th = np.zeros(n)
+    TL = np.zeros(n)
+    TR = np.zeros(n)
+    sL = np.zeros(m, np.int8)
+    sR = np.zeros(m, np.int8)
+    lastL = np.zeros(m, np.int8)
+    lastR = np.zeros(m, np.int8)
+    sinabs = np.zeros(n)
+    tip = np.zeros(n)
+    F = np.zeros(n)
+    thd = np.zeros(n)
+    v = np.zeros(m)
+    gL = np.zeros(m)
+    gR = np.zeros(m)
+    flags = np.zeros(3, np.int64)
+    phiL = np.full(m, -1.0)
+    phiR = np.full(m, -1.0)
+    TLp = np.zeros(n)
+    TRp = np.zeros(n)
+    # trial state
+    th_e = np.zeros(n)
+    TL_e = np.zeros(n)
+    TR_e = np.zeros(n)
+    sin_e = np.zeros(n)
+    tip_e = np.zeros(n)
+    F_e = np.zeros(n)
+    thd_e = np.zeros(n)
+    v_e = np.zeros(m)
+    gL_e = np.zeros(m)
+    gR_e = np.zeros(m)
+    work = np.zeros(n)
+    tbL = 0.0
+    tbR = 0.0
+
+    o_th = np.empty((S, n))
+    o_TL = np.empty((S, n))
+    o_TR = np.empty((S, n))
+    o_bL = np.empty(S)
+    o_bR = np.empty(S)
+    o_sL = np.empty((S, m), np.int8)
+    o_sR = np.empty((S, m), np.int8)
+    nsteps_total = 0
+
+    for k in range(S):
+        if k == 0:
+            t0 = t_s[0] - settle_time
+            aL, aR = 0.0, 0.0
+        else:
+            t0 = t_s[k - 1]
+            aL, aR = TLm[k - 1], TRm[k - 1]
+        interval = t_s[k] - t0
+        bL, bR = TLm[k], TRm[k]
+        ramp = max(min(ramp_time, interval), 0.0)
+        for i in range(m):
+            lastL[i] = 0
+            lastR[i] = 0
+        t = 0.0
+        hnom = h_min
+        nev = 0
+        nmicro = 0
+        fresh = False  # the arrays hold Steps 1-3 at the current state and input
+        while t < interval:
+            in_ramp = ramp > 0.0 and t < ramp
+            # ---- input (measured tension at the end of the step) and the proximal band
+            if in_ramp:
+                h = min(hnom, h_max, ramp / 50.0, ramp - t)
+                frac = (t + h) / ramp
+            else:
+                h = min(hnom, interval - t)
+                frac = 1.0
+            mL = aL + (bL - aL) * frac
+            mR = aR + (bR - aR) * frac
+            if beta > 0.0:
+                if k == 0 and t == 0.0:
+                    tbL, tbR = mL, mR
+                tbL = band_update(tbL, mL, ebeta, embeta)
+                tbR = band_update(tbR, mR, ebeta, embeta)
+            else:
+                tbL, tbR = mL, mR
+            # ---- Steps 1-3
+            if not fresh:
+                _geometry_terms(th, par, sinabs, tip)
+                _forces(th, TL, TR, sL, sR, tbL, tbR, par, scale, sinabs, tip, F, thd, v)
+            # ---- Step 4, repeated with θ frozen while links keep slipping
+            _state_machine(TL, TR, sL, sR, sinabs, v, mus, vthr, lastL, lastR, flags,
+                           phiL, phiR, TLp, TRp)
+            while flags[0] == 1 and nmicro < max_micro:
+                nmicro += 1
+                nsteps_total += 1
+                _forces(th, TL, TR, sL, sR, tbL, tbR, par, scale, sinabs, tip, F, thd, v)
+                _state_machine(TL, TR, sL, sR, sinabs, v, mus, vthr, lastL, lastR, flags,
+                               phiL, phiR, TLp, TRp)
+            if flags[0] == 1 or flags[2] == 1:
+                # cap reached (slipped links take their law) or frozen tensions corrected
+                _forces(th, TL, TR, sL, sR, tbL, tbR, par, scale, sinabs, tip, F, thd, v)
+            # ---- rest state in closed form once everything sticks
+            if not in_ramp and flags[1] == 0:
+                _settle(th, TL, TR, par, scale, th_e, work, settle_tol, settle_maxiter)
+                ok = True
+                for i in range(n):
+                    sin_e[i] = abs(math.sin(th_e[i]))
+                for i in range(m):
+                    N = TL[i + 1] * sin_e[i + 1] + TL[i] * sin_e[i]
+                    if abs(TL[i + 1] - TL[i]) > mus * N:
+                        ok = False
+                    N = TR[i + 1] * sin_e[i + 1] + TR[i] * sin_e[i]
+                    if abs(TR[i + 1] - TR[i]) > mus * N:
+                        ok = False
+                if ok:
+                    for i in range(n):
+                        th[i] = th_e[i]
+                    nsteps_total += 1
+                    break
+            # ---- trial step, event location (h_max bounds the step while a link
+            # slides: the explicit tension coupling; with every tension frozen
+            # the relaxation is exact (up to the weak tip-load coupling, a
+            # contraction) and the step may grow on)
+            if flags[1] == 1:
+                h = min(h, h_max)
+            _advance(th, F, h, par, scale, th_e)
+            fresh = False
+            if not in_ramp:
+                for i in range(n):
+                    TL_e[i] = TL[i]
+                    TR_e[i] = TR[i]
+                _geometry_terms(th_e, par, sin_e, tip_e)
+                _forces(th_e, TL_e, TR_e, sL, sR, tbL, tbR, par, scale, sin_e, tip_e, F_e, thd_e, v_e)
+                phi = 1.0
+                if nev < max_events:
+                    _margins(TL, sL, sinabs, v, mus, vthr, gL)
+                    _margins(TR, sR, sinabs, v, mus, vthr, gR)
+                    _margins(TL_e, sL, sin_e, v_e, mus, vthr, gL_e)
+                    _margins(TR_e, sR, sin_e, v_e, mus, vthr, gR_e)
+                    # sticking -> sliding events: shorten the step to land on the first;
+                    # sliding -> sticking: remember where v crossed v_thr (frozen tension)
+                    for i in range(m):
+                        if gL_e[i] < 0.0 and gL[i] > 0.0:
+                            if sL[i] == 0 or land_sticks:
+                                phi = min(phi, gL[i] / (gL[i] - gL_e[i]))
+                            else:
+                                phiL[i] = gL[i] / (gL[i] - gL_e[i])
+                        if gR_e[i] < 0.0 and gR[i] > 0.0:
+                            if sR[i] == 0 or land_sticks:
+                                phi = min(phi, gR[i] / (gR[i] - gR_e[i]))
+                            else:
+                                phiR[i] = gR[i] / (gR[i] - gR_e[i])
+                if phi < 1.0:
+                    nev += 1
+                    h = h * phi * (1.0 + 1e-6)
+                    _advance(th, F, h, par, scale, th_e)
+                    for i in range(m):
+                        phiL[i] = -1.0
+                        phiR[i] = -1.0
+                else:
+                    fresh = True
+                    for i in range(n):
+                        TLp[i] = TL[i]
+                        TRp[i] = TR[i]
+            for i in range(n):
+                th[i] = th_e[i]
+            if fresh:
+                for i in range(n):
+                    TL[i] = TL_e[i]
+                    TR[i] = TR_e[i]
+                    sinabs[i] = sin_e[i]
+                    tip[i] = tip_e[i]
+                    F[i] = F_e[i]
+                    thd[i] = thd_e[i]
+                for i in range(m):
+                    v[i] = v_e[i]
+            t += h
+            nsteps_total += 1
+            if h >= hnom:
+                hnom = hnom * growth
+        for i in range(n):
+            o_th[k, i] = th[i]
+            o_TL[k, i] = TL[i]
+            o_TR[k, i] = TR[i]
+        o_bL[k] = tbL
+        o_bR[k] = tbR
+        for i in range(m):
+            o_sL[k, i] = lastL[i]
+            o_sR[k, i] = lastR[i]
+    return o_th, o_TL, o_TR, o_bL, o_bR, o_sL, o_sR, nsteps_total

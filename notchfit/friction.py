@@ -1,0 +1,677 @@
+"""Friction simulator of Sec. IV-B: cable stick/slip in the channels, first-order joints.
+
+The model (``../shared/spec/models.md``, the paper's four-step algorithm):
+
+1. **Tension propagation**, base to tip, per cable ``c`` and link ``j``
+   (between joints ``j`` and ``j+1``): ``N_j = T_c[j+1] |sin θ_{j+1}| +
+   T_c[j] |sin θ_j|``; sliding toward the base ``T_c[j+1] = T_c[j] - μ_d N_j``,
+   toward the tip ``T_c[j+1] = T_c[j] + μ_d N_j`` (both solved exactly for
+   ``T_c[j+1]``), sticking: ``T_c[j+1]`` keeps its value.
+2. **First-order dynamics** ``b θ̇_j = r_x (T_R[j] - T_L[j]) - τ_j(θ_j)``
+   (+ the extensions below).
+3. **Cable speed** through link ``j``: ``v_c[j] = s_c r_x Σ_{k>j} θ̇_k``
+   (``s_R = +1``, ``s_L = -1``; positive = toward the base).
+4. **State machine**: a sliding link sticks when ``|v| < v_thr`` and
+   ``|ΔT| <= μ_s N``; a sticking link slides toward the base when
+   ``T[j] - T[j+1] > μ_s N``, toward the tip when ``T[j+1] - T[j] > μ_s N``.
+   (The paper writes ``|ΔT| < μ_s N`` for sticking; with ``N = 0`` — straight
+   joints — that can never hold and a link would slide forever, so the
+   test is ``<=`` with a relative slack of 1e-9.)
+
+Start: ``θ = 0``, zero tension, every link sticking.
+
+**Input protocol** (the paper: "moved slowly between sample points, and at
+rest when the sample data were taken", ~5 s apart). The measured tensions of
+sample ``k-1`` move linearly to those of sample ``k`` during the first
+``ramp_time`` seconds of the interval and are then held until sample ``k``
+is taken; before the first sample the model starts at rest with no tension
+``settle_time`` seconds earlier. The default ``ramp_time = 0`` (the tension
+steps to its new value and the manipulator then comes to rest) is the
+protocol whose rest states are well defined: with ramps of 0.5–5 s the
+cable speed in the distal links stays below ``v_thr`` during the ramp and
+they stick-slip in a sawtooth between ``μ_d N`` and ``μ_s N``; the rest
+state then depends on the sawtooth's phase, i.e. on the time step of the
+reference itself (4e-4 rad between dt = 1e-4 and 2.5e-5 s) and on the
+ramp time (up to 1.9e-3 rad). See ``benchmarks/bench_friction.py``.
+
+Two solvers of the same model (``method=``):
+
+* ``"reference"``: the four steps verbatim, explicit Euler, fixed step
+  ``dt`` (default :data:`DEFAULT_DT`), numba.
+* ``"fast"``: the same steps and state machine in the same order, but every
+  joint moves by the exact solution of its piecewise-linear relaxation over
+  large steps, state changes are located inside steps, slip fronts are
+  resolved with the joints frozen (the reference's ``dt -> 0`` limit) and the
+  rest state is solved in closed form once every link sticks
+  (:func:`notchfit._friction_kernels.fast_kernel`).
+
+**Extensions** (all off by default; each is a cause id of data-format.md):
+
+* ``proximal_beta`` (``proximal_friction``): a capstan band between the
+  load cell and the base. The base tension is a play operator on
+  ``log T``: it stays put while inside ``[T_meas e^-β, T_meas e^β]`` and is
+  dragged along by the nearer bound. The cable between load cell and base
+  does not move while the band sticks, consistent with the base tension
+  (and hence the manipulator) not changing. Rate independent; its output
+  has kinks where the band starts to slip (non-smooth in β there).
+* ``mu_s > mu_d + 0.01`` (``static_friction``): a larger static coefficient
+  (no presliding/Dahl state: a clean one needs a cable-compliance state
+  per link that the paper's lumped model does not have). The rest state
+  jumps when a link's slip decision flips (non-smooth in μ_s).
+* ``hysteresis_torque`` ``h`` (``joint_hysteresis``): a play operator in each
+  joint, ``b θ̇ = F - τ(θ) ∓ h`` outside the band ``|F - τ(θ)| <= h`` and
+  ``θ̇ = 0`` inside (``F`` = applied torque): rate independent, leaves a
+  residual bend up to ``τ⁻¹(h)`` at zero tension difference.
+* ``tip_force_x``, ``tip_force_z`` (``external_load``): a constant
+  manipulator-frame force at the tool point ``(0, 0, n p)``, joint torques
+  ``J_X(θ)^T (f_x, f_z, 0)`` (Eqs. 18–20, as
+  :func:`notchfit.kinematics.joint_torques_from_tip_wrench`).
+  Smooth.
+* ``stiffness_gradient`` ``g`` (``stiffness_gradient``): every rate of joint
+  ``j`` is scaled by ``1 + g (2 (j-1)/(n-1) - 1)``. Smooth.
+
+**Cable displacement** (what the actuator draws in, from the cable model):
+``Δ_L = -r_x Σ_j θ_j + T_L,meas / k_c`` and ``Δ_R = +r_x Σ_j θ_j + T_R,meas / k_c``
+[m], relative to the straight, unloaded cable, with ``k_c = E A / L_0``
+(Sec. III-B, the cable as an inextensible cable in series with a spring;
+the lumped stretch uses the measured tension).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import _friction_kernels as _k
+from .geometry import Geometry, default_geometry
+from .springs import PiecewiseLinearSpring, friction_spring
+
+__all__ = [
+    "DEFAULT_DT",
+    "FrictionParams",
+    "SimulationResult",
+    "cable_displacement",
+    "classify_regimes",
+    "load_params",
+    "save_params",
+    "shape_ab",
+    "simulate",
+    "simulation_table",
+]
+
+#: Default time step of the reference solver [s] (converged: see the module docstring).
+DEFAULT_DT = 1e-4
+
+# TOML key (SI, with unit) for each parameter
+PARAM_KEYS = {
+    "k_lin": "k_lin_Nm_per_rad",
+    "k_mid": "k_mid_Nm_per_rad",
+    "k_stop": "k_stop_Nm_per_rad",
+    "theta_mid": "theta_mid_rad",
+    "theta_stop": "theta_stop_rad",
+    "mu_d": "mu_d",
+    "mu_s": "mu_s",
+    "b": "b_Nms_per_rad",
+    "v_thr": "v_thr_m_per_s",
+    "proximal_beta": "proximal_beta",
+    "hysteresis_torque": "hysteresis_torque_Nm",
+    "tip_force_x": "tip_force_x_N",
+    "tip_force_z": "tip_force_z_N",
+    "stiffness_gradient": "stiffness_gradient",
+}
+
+
+@dataclass(frozen=True)
+class FrictionParams:
+    """Parameters of the friction simulator (SI units; defaults = Sec. IV-B, models.md).
+
+    Attributes
+    ----------
+    k_lin, k_mid, k_stop : float
+        Spring rates [N m/rad]: below ``theta_mid`` (0.4829), mid range
+        (0.25, fitted), beyond ``theta_stop`` (slot closure, 10) (Fig. 17).
+    theta_mid, theta_stop : float
+        Breaks of the spring [rad] (0.07, 0.14).
+    mu_d, mu_s : float
+        Sliding and static friction coefficients (0.29, 0.30); ``0 <= mu_d < 1``,
+        ``mu_s >= mu_d``.
+    b : float
+        First-order damping [N m s/rad] (0.03).
+    v_thr : float
+        Cable speed below which a sliding link sticks [m/s] (5e-5).
+    proximal_beta : float
+        Capstan band between load cell and base, ``β = μ × wrap angle`` (>= 0).
+    hysteresis_torque : float
+        Play-operator joint hysteresis ``h`` [N m] (>= 0).
+    tip_force_x, tip_force_z : float
+        Constant manipulator-frame force at the tool point [N].
+    stiffness_gradient : float
+        ``g`` in (-1, 1): joint ``j``'s rates scaled by ``1 + g (2 (j-1)/(n-1) - 1)``.
+    """
+
+    k_lin: float = 0.4829
+    k_mid: float = 0.25
+    k_stop: float = 10.0
+    theta_mid: float = 0.07
+    theta_stop: float = 0.14
+    mu_d: float = 0.29
+    mu_s: float = 0.30
+    b: float = 0.03
+    v_thr: float = 5e-5
+    proximal_beta: float = 0.0
+    hysteresis_torque: float = 0.0
+    tip_force_x: float = 0.0
+    tip_force_z: float = 0.0
+    stiffness_gradient: float = 0.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+                raise ValueError(f"friction parameter {f.name} must be a number, got {v!r}")
+            v = float(v)
+            if not math.isfinite(v):
+                raise ValueError(f"friction parameter {f.name} must be finite, got {v}")
+            object.__setattr__(self, f.name, v)
+        for name in ("k_lin", "k_mid", "k_stop", "b", "v_thr", "theta_mid"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"friction parameter {name} must be positive, got {getattr(self, name)}")
+        if self.theta_stop <= self.theta_mid:
+            raise ValueError(f"need theta_mid < theta_stop, got {self.theta_mid} and {self.theta_stop}")
+        if not 0.0 <= self.mu_d < 1.0:
+            raise ValueError(f"mu_d must be in [0, 1), got {self.mu_d}")
+        if self.mu_s < self.mu_d:
+            raise ValueError(f"mu_s must be >= mu_d (static >= sliding), got mu_s={self.mu_s}, mu_d={self.mu_d}")
+        if self.proximal_beta < 0:
+            raise ValueError(f"proximal_beta must be >= 0, got {self.proximal_beta}")
+        if self.hysteresis_torque < 0:
+            raise ValueError(f"hysteresis_torque must be >= 0, got {self.hysteresis_torque}")
+        if not -1.0 < self.stiffness_gradient < 1.0:
+            raise ValueError(f"stiffness_gradient must be in (-1, 1), got {self.stiffness_gradient}")
+
+    def joint_scale(self, n: int) -> np.ndarray:
+        """Per-joint stiffness factor ``1 + g (2 (j-1)/(n-1) - 1)`` (n,)."""
+        if n == 1:
+            return np.ones(1)
+        return 1.0 + self.stiffness_gradient * (2.0 * np.arange(n) / (n - 1) - 1.0)
+
+    def spring(self, n: int | None = None) -> PiecewiseLinearSpring:
+        """The Fig. 17 spring, with the per-joint gradient scale when ``n`` is given."""
+        scale = 1.0 if n is None else self.joint_scale(n)
+        return friction_spring(self.k_lin, self.k_mid, self.k_stop, self.theta_mid, self.theta_stop, scale)
+
+    def replace(self, **changes) -> "FrictionParams":
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        """``{field: value}`` (SI)."""
+        return dataclasses.asdict(self)
+
+    def packed(self, geom: Geometry) -> np.ndarray:
+        """The kernels' parameter vector (``_friction_kernels.P_*``)."""
+        par = np.zeros(_k.N_PAR)
+        par[_k.P_K1], par[_k.P_K2], par[_k.P_K3] = self.k_lin, self.k_mid, self.k_stop
+        par[_k.P_TM], par[_k.P_TS] = self.theta_mid, self.theta_stop
+        par[_k.P_MUD], par[_k.P_MUS], par[_k.P_B], par[_k.P_VTHR] = self.mu_d, self.mu_s, self.b, self.v_thr
+        par[_k.P_BETA], par[_k.P_H] = self.proximal_beta, self.hysteresis_torque
+        par[_k.P_FX], par[_k.P_FZ] = self.tip_force_x, self.tip_force_z
+        par[_k.P_RX], par[_k.P_P] = geom.r_x, geom.p
+        return par
+
+
+def _ro(a, dtype=float) -> np.ndarray:
+    a = np.array(a, dtype=dtype)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationResult:
+    """Output of :func:`simulate`: the rest state at every sample (S samples, n joints).
+
+    Attributes
+    ----------
+    time : ndarray (S,) [s]
+    input_left, input_right : ndarray (S,) [N]
+        Measured (load-cell) tensions, the input.
+    theta : ndarray (S, n) [rad]
+    tension_left, tension_right : ndarray (S, n) [N]
+        Cable tension where it crosses joints 1..n (index 0 = base).
+    base_tension_left, base_tension_right : ndarray (S,) [N]
+        Tension at the base, after the proximal band (= input without it).
+    state_left, state_right : ndarray (S, n-1) int8
+        Per link 1..n-1, how its cable moved on the way into the sample:
+        +1 slid toward the base, -1 toward the tip, 0 stuck throughout (the
+        last sliding direction of the interval; at rest every link sticks,
+        so the tension of a link marked ±1 sits at its sliding bound).
+    displacement_left, displacement_right : ndarray (S,) [m]
+        Cable drawn in by the actuator (module docstring).
+    a, b : ndarray (S,) [rad]
+        Least-squares ``θ_j = a + b j`` (j = 1..n) of the prediction (Sec. IV-A).
+    regime : ndarray (S,) str
+        ``"I"`` loading, ``"II"`` holding, ``"III"`` releasing (:func:`classify_regimes`).
+    params : FrictionParams
+    geom : Geometry
+    method : str
+        ``"fast"`` or ``"reference"``.
+    n_steps : int
+        Time steps the solver took (fast: steps + frozen passes).
+    """
+
+    time: np.ndarray
+    input_left: np.ndarray
+    input_right: np.ndarray
+    theta: np.ndarray
+    tension_left: np.ndarray
+    tension_right: np.ndarray
+    base_tension_left: np.ndarray
+    base_tension_right: np.ndarray
+    state_left: np.ndarray
+    state_right: np.ndarray
+    displacement_left: np.ndarray
+    displacement_right: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    regime: np.ndarray
+    params: FrictionParams
+    geom: Geometry
+    method: str = "fast"
+    n_steps: int = 0
+
+    @property
+    def n_samples(self) -> int:
+        return self.theta.shape[0]
+
+    @property
+    def tip_angle(self) -> np.ndarray:
+        """Tip orientation ``Σ_j θ_j`` (S,) [rad]."""
+        return self.theta.sum(axis=1)
+
+    def points(self) -> np.ndarray:
+        """Manipulator-frame notch points of the prediction (S, m, 2) [m]."""
+        from .notches import notch_points
+
+        return notch_points(self.theta, self.geom)
+
+
+# =============================================================================
+# small pure functions
+# =============================================================================
+def shape_ab(theta) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares ``θ_j = a + b j`` (j = 1..n) (Sec. IV-A, the linear shape model).
+
+    Parameters
+    ----------
+    theta : array_like, shape (..., n) [rad]
+
+    Returns
+    -------
+    a, b : ndarray, shape (...) [rad]
+    """
+    th = np.asarray(theta, dtype=float)
+    n = th.shape[-1]
+    if n < 2:
+        return th[..., 0].copy(), np.zeros(th.shape[:-1])
+    j = np.arange(1, n + 1, dtype=float)
+    jc = j - j.mean()
+    b = (th * jc).sum(axis=-1) / (jc @ jc)
+    a = th.mean(axis=-1) - b * j.mean()
+    return a, b
+
+
+def cable_displacement(theta, tension_left, tension_right, geom: Geometry):
+    """Cable drawn in by each actuator ``(Δ_L, Δ_R)`` [m] (module docstring).
+
+    ``Δ_L = -r_x Σθ + T_L/k_c``, ``Δ_R = r_x Σθ + T_R/k_c``, ``k_c = E A / L_0``.
+
+    Parameters
+    ----------
+    theta : array_like, shape (..., n) [rad]
+    tension_left, tension_right : array_like, shape (...) [N]
+    """
+    s = np.asarray(theta, dtype=float).sum(axis=-1)
+    kc = geom.cable_stiffness
+    return (-geom.r_x * s + np.asarray(tension_left, float) / kc,
+            geom.r_x * s + np.asarray(tension_right, float) / kc)
+
+
+def classify_regimes(tension_left, tension_right, shape, *, tension_tol: float = 0.05,
+                     hold_fraction: float = 0.25) -> np.ndarray:
+    """Regime of each sample from the data: I loading, II holding, III releasing (Sec. IV, Fig. 11).
+
+    The pulled cable is the one whose tension varies more; ``load`` is its
+    tension minus the other's and ``shape`` (e.g. the tip angle, or the
+    pulled cable's displacement) is taken with the sign that grows with the
+    load. For the step into sample ``k``:
+
+    * load rises by more than ``tension_tol``: **I**;
+    * load falls by more than ``tension_tol``: **III** if the shape returns by
+      at least ``hold_fraction`` of what the loading compliance (median of
+      Δshape/Δload over the I steps) predicts for that fall — or if an
+      earlier step of this release already did — else **II** (the shape
+      holds while the tension drops);
+    * otherwise the previous label (holding still).
+
+    The first sample is I unless the load falls right after it (then II).
+
+    Parameters
+    ----------
+    tension_left, tension_right : array_like, shape (S,) [N]
+    shape : array_like, shape (S,)
+        Any scalar shape measure per sample.
+    tension_tol : float
+        Tension change below which the load is "unchanged" [N].
+    hold_fraction : float
+        Fraction of the loading compliance separating II from III.
+
+    Returns
+    -------
+    ndarray of str, shape (S,)
+    """
+    tl = np.asarray(tension_left, dtype=float)
+    tr = np.asarray(tension_right, dtype=float)
+    sh = np.asarray(shape, dtype=float)
+    if not (tl.shape == tr.shape == sh.shape) or tl.ndim != 1:
+        raise ValueError(f"tensions and shape must be 1-D arrays of one length, got {tl.shape}, {tr.shape}, {sh.shape}")
+    S = tl.size
+    out = np.empty(S, dtype="<U3")
+    if S == 0:
+        return out
+    left_pulled = np.ptp(tl) >= np.ptp(tr)
+    load = tl - tr if left_pulled else tr - tl
+    dload = np.diff(load)
+    dshape = np.diff(sh)
+    up = dload > tension_tol
+    if up.any():
+        sgn = 1.0 if np.sum(dshape[up]) >= 0 else -1.0
+    else:
+        sgn = 1.0 if np.sum(dshape * dload) >= 0 else -1.0
+    dshape = sgn * dshape
+    if up.any():
+        comp = float(np.median(dshape[up] / dload[up]))
+    else:
+        big = np.abs(dload) > tension_tol
+        comp = float(np.median(np.abs(dshape[big] / dload[big]))) if big.any() else 0.0
+    comp = max(comp, 0.0)
+    out[0] = "II" if (S > 1 and dload[0] < -tension_tol) else "I"
+    released = False
+    for k in range(1, S):
+        dl, ds = dload[k - 1], dshape[k - 1]
+        if dl > tension_tol:
+            out[k] = "I"
+            released = False
+        elif dl < -tension_tol:
+            moved = -ds >= hold_fraction * comp * (-dl)
+            if released or moved:
+                out[k] = "III"
+                released = True
+            else:
+                out[k] = "II"
+        else:
+            out[k] = out[k - 1]
+    return out
+
+
+# =============================================================================
+# the simulator
+# =============================================================================
+def _check_inputs(time, tension_left, tension_right):
+    t = np.asarray(time, dtype=float)
+    tl = np.asarray(tension_left, dtype=float)
+    tr = np.asarray(tension_right, dtype=float)
+    if t.ndim != 1 or t.size == 0:
+        raise ValueError(f"time must be a non-empty 1-D array [s], got shape {t.shape}")
+    if tl.shape != t.shape or tr.shape != t.shape:
+        raise ValueError(f"tension_left, tension_right must have the shape of time {t.shape}, "
+                         f"got {tl.shape} and {tr.shape}")
+    for name, a in (("time", t), ("tension_left", tl), ("tension_right", tr)):
+        if not np.isfinite(a).all():
+            bad = int(np.flatnonzero(~np.isfinite(a))[0])
+            raise ValueError(f"{name} contains NaN or inf (first at sample index {bad})")
+    for name, a in (("tension_left", tl), ("tension_right", tr)):
+        if (a < 0).any():
+            bad = int(np.flatnonzero(a < 0)[0])
+            raise ValueError(f"{name} must be >= 0 N (cables only pull), got {a[bad]} at sample index {bad}")
+    if t.size > 1 and not (np.diff(t) > 0).all():
+        bad = int(np.flatnonzero(np.diff(t) <= 0)[0])
+        raise ValueError(f"time must increase strictly, got {t[bad]} then {t[bad + 1]} s at sample index {bad + 1}")
+    return (np.ascontiguousarray(t), np.ascontiguousarray(tl), np.ascontiguousarray(tr))
+
+
+def simulate(time, tension_left, tension_right, params: FrictionParams | None = None,
+             geom: Geometry | None = None, *, method: str = "fast", dt: float | None = None,
+             ramp_time: float = 0.0, settle_time: float | None = None,
+             h_min: float = 3e-3, h_max: float = 1e-2, growth: float = 1.5,
+             max_events: int | None = None, max_micro: int | None = None,
+             settle_tol: float = 1e-13, settle_maxiter: int = 200,
+             tension_tol: float = 0.05, hold_fraction: float = 0.25) -> SimulationResult:
+    """Simulate a tension history with the friction model (Sec. IV-B).
+
+    Parameters
+    ----------
+    time : array_like, shape (S,) [s]
+        Sample times, strictly increasing.
+    tension_left, tension_right : array_like, shape (S,) [N]
+        Measured (load-cell) tensions, >= 0. Between samples: the protocol
+        of the module docstring.
+    params : FrictionParams, optional
+        The paper's values by default.
+    geom : Geometry, optional
+        The default manipulator by default (``n_joints``, ``r_x``, ``p``, cable).
+    method : {"fast", "reference"}
+    dt : float, optional
+        Reference solver's largest step [s] (default :data:`DEFAULT_DT`).
+    ramp_time : float
+        Seconds of each interval over which the tension moves linearly to
+        the next sample's (0: a step; then held until the sample).
+    settle_time : float, optional
+        Time at rest before the first sample [s] (default: the median
+        sample interval, 5 s for one sample).
+    h_min, h_max, growth : float
+        Fast solver: first step after an input change, largest step while a
+        link slides [s], and the step's growth factor.
+    max_events, max_micro : int, optional
+        Fast solver: located events and frozen slip passes per interval
+        (default ``8 n`` each).
+    settle_tol, settle_maxiter :
+        Fast solver: fixed point of the closed-form rest state (tip load) [rad].
+    tension_tol, hold_fraction :
+        Passed to :func:`classify_regimes`.
+
+    Returns
+    -------
+    SimulationResult
+
+    Raises
+    ------
+    ValueError
+        Bad input (shapes, NaN, negative tension, time not increasing) or options.
+    """
+    params = FrictionParams() if params is None else params
+    geom = default_geometry() if geom is None else geom
+    if not isinstance(params, FrictionParams):
+        raise ValueError(f"params must be a FrictionParams, got {type(params).__name__}")
+    t, tl, tr = _check_inputs(time, tension_left, tension_right)
+    n = geom.n_joints
+    if not (math.isfinite(ramp_time) and ramp_time >= 0):
+        raise ValueError(f"ramp_time must be >= 0 s, got {ramp_time}")
+    if settle_time is None:
+        settle_time = float(np.median(np.diff(t))) if t.size > 1 else 5.0
+    if not (math.isfinite(settle_time) and settle_time > 0):
+        raise ValueError(f"settle_time must be > 0 s, got {settle_time}")
+    par = params.packed(geom)
+    scale = np.ascontiguousarray(params.joint_scale(n), dtype=float)
+    if method == "reference":
+        dt = DEFAULT_DT if dt is None else float(dt)
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be > 0 s, got {dt}")
+        out = _k.reference_kernel(t, tl, tr, par, scale, dt, float(ramp_time), float(settle_time))
+    elif method == "fast":
+        for name, v in (("h_min", h_min), ("h_max", h_max)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be > 0 s, got {v}")
+        if not (math.isfinite(growth) and growth >= 1):
+            raise ValueError(f"growth must be >= 1, got {growth}")
+        me = 8 * n if max_events is None else int(max_events)
+        mm = 8 * n if max_micro is None else int(max_micro)
+        if me < 0 or mm < 0:
+            raise ValueError("max_events and max_micro must be >= 0")
+        out = _k.fast_kernel(t, tl, tr, par, scale, float(ramp_time), float(settle_time),
+                             float(h_min), float(h_max), float(growth), me, mm,
+                             float(settle_tol), int(settle_maxiter), True)
+    else:
+        raise ValueError(f"method must be 'fast' or 'reference', got {method!r}")
+    theta, TL, TR, bL, bR, sL, sR, nsteps = out
+    dl, dr = cable_displacement(theta, tl, tr, geom)
+    a, b = shape_ab(theta)
+    left_pulled = np.ptp(tl) >= np.ptp(tr)
+    regime = classify_regimes(tl, tr, theta.sum(axis=1) * (-1.0 if left_pulled else 1.0),
+                              tension_tol=tension_tol, hold_fraction=hold_fraction)
+    return SimulationResult(
+        time=_ro(t), input_left=_ro(tl), input_right=_ro(tr), theta=_ro(theta),
+        tension_left=_ro(TL), tension_right=_ro(TR), base_tension_left=_ro(bL),
+        base_tension_right=_ro(bR), state_left=_ro(sL, np.int8), state_right=_ro(sR, np.int8),
+        displacement_left=_ro(dl), displacement_right=_ro(dr), a=_ro(a), b=_ro(b),
+        regime=_ro(regime, regime.dtype), params=params, geom=geom, method=method,
+        n_steps=int(nsteps))
+
+
+def simulation_table(result: SimulationResult, sample_ids=None):
+    """The ``simulation.csv`` table (data-format.md) of a result.
+
+    Columns: ``sample, time_s, regime, a, b, theta_1..theta_n`` [rad],
+    ``tension_left_N, tension_right_N`` (measured input),
+    ``tension_base_left_N, tension_base_right_N`` (after the proximal band),
+    ``tension_tip_left_N, tension_tip_right_N`` (at joint n),
+    ``displacement_left_mm, displacement_right_mm``.
+
+    Parameters
+    ----------
+    result : SimulationResult
+    sample_ids : array_like of int, shape (S,), optional
+        The experiment's sample numbers (default 1..S).
+    """
+    import pandas as pd
+
+    S, n = result.theta.shape
+    ids = np.arange(1, S + 1) if sample_ids is None else np.asarray(sample_ids)
+    if ids.shape != (S,):
+        raise ValueError(f"sample_ids must have {S} entries, got shape {ids.shape}")
+    cols = {"sample": ids, "time_s": result.time, "regime": np.asarray(result.regime).astype(str),
+            "a": result.a, "b": result.b}
+    for j in range(n):
+        cols[f"theta_{j + 1}"] = result.theta[:, j]
+    cols.update({
+        "tension_left_N": result.input_left, "tension_right_N": result.input_right,
+        "tension_base_left_N": result.base_tension_left, "tension_base_right_N": result.base_tension_right,
+        "tension_tip_left_N": result.tension_left[:, -1], "tension_tip_right_N": result.tension_right[:, -1],
+        "displacement_left_mm": result.displacement_left * 1e3,
+        "displacement_right_mm": result.displacement_right * 1e3,
+    })
+    return pd.DataFrame(cols)
+
+
+# =============================================================================
+# parameter files
+# =============================================================================
+def load_params(path) -> FrictionParams:
+    """Friction parameters from a TOML file (keys with units, :data:`PARAM_KEYS`).
+
+    Missing keys take the paper's values; a ``[metadata]`` table is ignored.
+    Plain field names (``k_lin``) are accepted too.
+
+    Raises
+    ------
+    ValueError
+        Naming the file and key for an unknown key, a non-number or an invalid value.
+    """
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise ValueError(f"{path}: friction parameter file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not valid TOML ({exc})") from None
+    by_key = {v: k for k, v in PARAM_KEYS.items()}
+    kw = {}
+    for key, val in data.items():
+        if key == "metadata" and isinstance(val, dict):
+            continue
+        field = by_key.get(key, key if key in PARAM_KEYS else None)
+        if field is None:
+            raise ValueError(f"{path}: unknown friction parameter {key!r} "
+                             f"(known: {', '.join(PARAM_KEYS.values())})")
+        if field in kw:
+            raise ValueError(f"{path}: parameter {field} given twice")
+        if isinstance(val, bool) or not isinstance(val, (int, float)):
+            raise ValueError(f"{path}: {key} must be a number, got {val!r}")
+        kw[field] = float(val)
+    try:
+        return FrictionParams(**kw)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        v = float(v)
+        if not math.isfinite(v):
+            raise ValueError(f"metadata value {v} is not finite (TOML cannot hold it portably)")
+        return repr(v)
+    if isinstance(v, (str, os.PathLike)):
+        s = str(v).replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+        return f'"{s}"'
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise ValueError(f"metadata value {v!r} of type {type(v).__name__} cannot be written to TOML")
+
+
+def save_params(params: FrictionParams, path, **metadata) -> Path:
+    """Write ``params`` as TOML (SI keys with units) plus a ``[metadata]`` table.
+
+    Floats are written with ``repr`` (exact round trip through :func:`load_params`).
+    Metadata values: numbers, strings, booleans, lists of those, or one level of dicts.
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    lines = ["# notchfit friction-model parameters (Sec. IV-B), SI units; read by notchfit.friction.load_params"]
+    for f, key in PARAM_KEYS.items():
+        lines.append(f"{key} = {_toml_value(getattr(params, f))}")
+    if metadata:
+        simple = {k: v for k, v in metadata.items() if not isinstance(v, dict)}
+        tables = {k: v for k, v in metadata.items() if isinstance(v, dict)}
+        lines.append("")
+        lines.append("[metadata]")
+        for k, v in simple.items():
+            lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
+        for k, sub in tables.items():
+            lines.append("")
+            lines.append(f"[metadata.{_toml_key(k)}]")
+            for k2, v2 in sub.items():
+                if isinstance(v2, dict):
+                    raise ValueError(f"metadata {k}.{k2}: only one level of tables is supported")
+                lines.append(f"{_toml_key(k2)} = {_toml_value(v2)}")
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def _toml_key(k) -> str:
+    k = str(k)
+    if k and all(c.isalnum() or c in "_-" for c in k):
+        return k
+    return _toml_value(k)
