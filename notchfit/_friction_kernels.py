@@ -25,6 +25,7 @@ N_PAR = 15
 # relative slack on the stick test |ΔT| <= μ_s N (1 + slack): lets a link stick when N = 0
 # (straight joints) or μ_s == μ_d, where the paper's strict |ΔT| < μ_s N can never hold
 STICK_SLACK = 1e-9
+LAND_SLACK = 1e-6
 
 
 @njit(cache=True, inline="always")
@@ -342,39 +343,57 @@ def drive_target(F, tq, hyst):
     return math.nan
 
 
-@njit(cache=True)
-def _propagate(T, st, sinabs, tb, mud):
-    n = T.shape[0]
-    T[0] = tb
-    for i in range(n - 1):
-        if st[i] != 0:
-            T[i + 1] = slide_next(T[i], sinabs[i], sinabs[i + 1], mud, st[i])
+# rows of the per-configuration table of the fast solver
+G_SIN, G_TIP, G_TAU, G_FB, G_FT, G_IB, G_IT = range(7)
 
 
 @njit(cache=True)
-def _geometry_terms(th, par, sinabs, tip):
-    """|sin θ_j| and the tip-load joint torques at a configuration."""
-    n = th.shape[0]
-    for i in range(n):
-        sinabs[i] = abs(math.sin(th[i]))
-    if par[P_FX] != 0.0 or par[P_FZ] != 0.0:
-        tip_torques(th, par[P_P], par[P_FX], par[P_FZ], tip)
+def _geometry_terms(th, par, scale, G):
+    """Everything that depends on θ alone, for the passes at a frozen configuration.
 
-
-@njit(cache=True)
-def _forces(th, TL, TR, sL, sR, tbL, tbR, par, scale, sinabs, tip, F, thd, v):
-    """Steps 1-3 at a state: tension propagation, drive torques ``F``, rates, cable speeds.
-
-    ``v[i]`` is the right cable's speed through link ``i`` (the left one's is ``-v[i]``).
+    Rows of ``G`` (7, n): ``|sin θ_j|``, tip-load torque, spring torque
+    ``τ_j(θ_j)``, and the factors of the slide law ``1 - μ_d s``,
+    ``1 + μ_d s``, ``1/(1 + μ_d s)``, ``1/(1 - μ_d s)`` (``s = |sin θ_j|``).
     """
     n = th.shape[0]
-    k1, k2, k3, tm, ts = par[P_K1], par[P_K2], par[P_K3], par[P_TM], par[P_TS]
-    mud, bd, hyst, rx = par[P_MUD], par[P_B], par[P_H], par[P_RX]
-    _propagate(TL, sL, sinabs, tbL, mud)
-    _propagate(TR, sR, sinabs, tbR, mud)
+    k1, k2, k3, tm, ts, mud = par[P_K1], par[P_K2], par[P_K3], par[P_TM], par[P_TS], par[P_MUD]
     for i in range(n):
-        F[i] = rx * (TR[i] - TL[i]) + tip[i]
-        x = F[i] - spring_torque(th[i], k1, k2, k3, tm, ts, scale[i])
+        sa = abs(math.sin(th[i]))
+        G[G_SIN, i] = sa
+        G[G_TAU, i] = spring_torque(th[i], k1, k2, k3, tm, ts, scale[i])
+        fb = 1.0 - mud * sa
+        ft = 1.0 + mud * sa
+        d = 1.0 / (fb * ft)
+        G[G_FB, i] = fb
+        G[G_FT, i] = ft
+        G[G_IB, i] = fb * d
+        G[G_IT, i] = ft * d
+        G[G_TIP, i] = 0.0
+    if par[P_FX] != 0.0 or par[P_FZ] != 0.0:
+        tip_torques(th, par[P_P], par[P_FX], par[P_FZ], G[G_TIP])
+
+
+@njit(cache=True)
+def _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v):
+    """Steps 1-3 at a configuration (its table ``G``): tension propagation, drive torques
+    ``F``, rates, cable speeds. ``v[i]`` is the right cable's speed through link ``i``
+    (the left one's is ``-v[i]``)."""
+    n = TL.shape[0]
+    ib, hyst, rx = 1.0 / par[P_B], par[P_H], par[P_RX]
+    TL[0] = tbL
+    TR[0] = tbR
+    for i in range(n - 1):
+        if sL[i] > 0:
+            TL[i + 1] = TL[i] * G[G_FB, i] * G[G_IB, i + 1]
+        elif sL[i] < 0:
+            TL[i + 1] = TL[i] * G[G_FT, i] * G[G_IT, i + 1]
+        if sR[i] > 0:
+            TR[i + 1] = TR[i] * G[G_FB, i] * G[G_IB, i + 1]
+        elif sR[i] < 0:
+            TR[i + 1] = TR[i] * G[G_FT, i] * G[G_IT, i + 1]
+    for i in range(n):
+        F[i] = rx * (TR[i] - TL[i]) + G[G_TIP, i]
+        x = F[i] - G[G_TAU, i]
         if hyst > 0.0:
             if x > hyst:
                 x -= hyst
@@ -382,7 +401,7 @@ def _forces(th, TL, TR, sL, sR, tbL, tbR, par, scale, sinabs, tip, F, thd, v):
                 x += hyst
             else:
                 x = 0.0
-        thd[i] = x / bd
+        thd[i] = x * ib
     ssum = 0.0
     for i in range(n - 2, -1, -1):
         ssum += thd[i + 1]
@@ -464,7 +483,7 @@ def _segment(x, tm, ts):
 
 
 @njit(cache=True)
-def _advance(th, F, h, par, scale, out):
+def _advance(th, F, tau, h, par, scale, out):
     """Every joint by the exact relaxation over ``h`` with its drive ``F`` held.
 
     Fast path: when the target lies on the same piece of the spring law as
@@ -480,7 +499,7 @@ def _advance(th, F, h, par, scale, out):
     e3 = math.exp(-k3 * h / bd)
     for i in range(n):
         s = scale[i]
-        y = drive_target(F[i], spring_torque(th[i], k1, k2, k3, tm, ts, s), hyst)
+        y = drive_target(F[i], tau[i], hyst)
         if math.isnan(y):
             out[i] = th[i]
             continue
@@ -509,6 +528,15 @@ def _margins(T, st, sinabs, v, mus, vthr, g):
             g[i] = mus * N - abs(T[i + 1] - T[i])
         else:
             g[i] = abs(v[i]) - vthr
+
+
+@njit(cache=True, inline="always")
+def _cross_fraction(v0, v1, vthr):
+    """Fraction of a step at which a speed decaying from ``v0`` to ``v1`` (> 0) crosses
+    ``vthr``, interpolating ``log v`` (exact for an exponential decay)."""
+    if v1 > 0.0 and v0 > v1:
+        return math.log(v0 / vthr) / math.log(v0 / v1)
+    return (v0 - vthr) / (v0 - v1)
 
 
 @njit(cache=True)
@@ -547,7 +575,7 @@ def _settle(th, TL, TR, par, scale, out, work, tol, maxiter):
 
 @njit(cache=True)
 def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max, growth,
-                max_events, max_micro, settle_tol, settle_maxiter, land_sticks):
+                max_events, max_micro, settle_tol, settle_maxiter, land_sticks, dth_max, order):
     """Same model and input protocol as :func:`reference_kernel`, in large exact steps.
 
     * Steps 1-4 are the reference's, in the reference's order (tensions from
@@ -558,22 +586,30 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
     * Between passes every joint moves by the exact solution of
       ``b θ̇ = F - τ(θ)`` with its drive ``F`` held over the step
       (piecewise exponential: stable for any step, exact once all tensions
-      are frozen); the coupling through sliding tensions is explicit.
-      The step grows geometrically from ``h_min`` to ``h_max`` after each
-      change of the input.
+      are frozen); the coupling through sliding tensions is explicit
+      (``order = 1``) or corrected with the drive's mean over the step
+      (``order = 2``). The step grows geometrically from ``h_min`` after each
+      change of the input; while a link slides it is at most ``h_max`` and no
+      joint may move more than ``dth_max`` [rad] in it.
     * Events inside a step (a sticking link reaching ``|ΔT| = μ_s N``, a
       sliding link's speed falling to ``v_thr``) are located by linear
       interpolation of their margins between the step's ends, and the step
       is shortened to land on the first (at most ``max_events`` times per
       interval; then events act at step ends). ``max_micro`` caps the frozen
       passes per interval (chattering stick-slip as joints straighten).
+      With ``land_sticks = False`` a speed event does not shorten the step;
+      the link freezes the tension it had at the interpolated crossing.
     * Once every link sticks and the input is held, the rest state is solved
-      in closed form (:func:`_settle`) unless a sticking link would slip there.
+      in closed form (:func:`_settle`) unless a sticking link would slip there
+      (``settle_tol < 0`` disables this shortcut, for tests).
     """
+
     S = t_s.shape[0]
     n = scale.shape[0]
     m = max(n - 1, 0)
     mus, vthr, beta = par[P_MUS], par[P_VTHR], par[P_BETA]
+    h_micro_min = 1e-6
+    use_tip = par[P_FX] != 0.0 or par[P_FZ] != 0.0
     ebeta = math.exp(beta)
     embeta = math.exp(-beta)
 
@@ -584,8 +620,7 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
     sR = np.zeros(m, np.int8)
     lastL = np.zeros(m, np.int8)
     lastR = np.zeros(m, np.int8)
-    sinabs = np.zeros(n)
-    tip = np.zeros(n)
+    G = np.zeros((7, n))
     F = np.zeros(n)
     thd = np.zeros(n)
     v = np.zeros(m)
@@ -600,9 +635,10 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
     th_e = np.zeros(n)
     TL_e = np.zeros(n)
     TR_e = np.zeros(n)
-    sin_e = np.zeros(n)
-    tip_e = np.zeros(n)
+    G_e = np.zeros((7, n))
+    sin_s = np.zeros(n)
     F_e = np.zeros(n)
+    Fa = np.zeros(n)
     thd_e = np.zeros(n)
     v_e = np.zeros(m)
     gL_e = np.zeros(m)
@@ -658,31 +694,31 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
                 tbL, tbR = mL, mR
             # ---- Steps 1-3
             if not fresh:
-                _geometry_terms(th, par, sinabs, tip)
-                _forces(th, TL, TR, sL, sR, tbL, tbR, par, scale, sinabs, tip, F, thd, v)
+                _geometry_terms(th, par, scale, G)
+                _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v)
             # ---- Step 4, repeated with θ frozen while links keep slipping
-            _state_machine(TL, TR, sL, sR, sinabs, v, mus, vthr, lastL, lastR, flags,
+            _state_machine(TL, TR, sL, sR, G[G_SIN], v, mus, vthr, lastL, lastR, flags,
                            phiL, phiR, TLp, TRp)
             while flags[0] == 1 and nmicro < max_micro:
                 nmicro += 1
                 nsteps_total += 1
-                _forces(th, TL, TR, sL, sR, tbL, tbR, par, scale, sinabs, tip, F, thd, v)
-                _state_machine(TL, TR, sL, sR, sinabs, v, mus, vthr, lastL, lastR, flags,
+                _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v)
+                _state_machine(TL, TR, sL, sR, G[G_SIN], v, mus, vthr, lastL, lastR, flags,
                                phiL, phiR, TLp, TRp)
             if flags[0] == 1 or flags[2] == 1:
                 # cap reached (slipped links take their law) or frozen tensions corrected
-                _forces(th, TL, TR, sL, sR, tbL, tbR, par, scale, sinabs, tip, F, thd, v)
+                _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v)
             # ---- rest state in closed form once everything sticks
-            if not in_ramp and flags[1] == 0:
+            if not in_ramp and flags[1] == 0 and settle_tol >= 0.0:
                 _settle(th, TL, TR, par, scale, th_e, work, settle_tol, settle_maxiter)
                 ok = True
                 for i in range(n):
-                    sin_e[i] = abs(math.sin(th_e[i]))
+                    sin_s[i] = abs(math.sin(th_e[i]))
                 for i in range(m):
-                    N = TL[i + 1] * sin_e[i + 1] + TL[i] * sin_e[i]
+                    N = TL[i + 1] * sin_s[i + 1] + TL[i] * sin_s[i]
                     if abs(TL[i + 1] - TL[i]) > mus * N:
                         ok = False
-                    N = TR[i + 1] * sin_e[i + 1] + TR[i] * sin_e[i]
+                    N = TR[i + 1] * sin_s[i + 1] + TR[i] * sin_s[i]
                     if abs(TR[i + 1] - TR[i]) > mus * N:
                         ok = False
                 if ok:
@@ -696,20 +732,36 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
             # contraction) and the step may grow on)
             if flags[1] == 1:
                 h = min(h, h_max)
-            _advance(th, F, h, par, scale, th_e)
+                rmax = 0.0
+                for i in range(n):
+                    rmax = max(rmax, abs(thd[i]))
+                if rmax * h > dth_max:
+                    h = max(dth_max / rmax, h_micro_min)
+            _advance(th, F, G[G_TAU], h, par, scale, th_e)
             fresh = False
             if not in_ramp:
                 for i in range(n):
                     TL_e[i] = TL[i]
                     TR_e[i] = TR[i]
-                _geometry_terms(th_e, par, sin_e, tip_e)
-                _forces(th_e, TL_e, TR_e, sL, sR, tbL, tbR, par, scale, sin_e, tip_e, F_e, thd_e, v_e)
+                _geometry_terms(th_e, par, scale, G_e)
+                _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, G_e, F_e, thd_e, v_e)
+                correct = order == 2 and (flags[1] == 1 or use_tip)
+                if correct:
+                    # corrector: the drive's mean over the step (trapezoid), then re-evaluate
+                    for i in range(n):
+                        Fa[i] = 0.5 * (F[i] + F_e[i])
+                    _advance(th, Fa, G[G_TAU], h, par, scale, th_e)
+                    for i in range(n):
+                        TL_e[i] = TL[i]
+                        TR_e[i] = TR[i]
+                    _geometry_terms(th_e, par, scale, G_e)
+                    _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, G_e, F_e, thd_e, v_e)
                 phi = 1.0
                 if nev < max_events:
-                    _margins(TL, sL, sinabs, v, mus, vthr, gL)
-                    _margins(TR, sR, sinabs, v, mus, vthr, gR)
-                    _margins(TL_e, sL, sin_e, v_e, mus, vthr, gL_e)
-                    _margins(TR_e, sR, sin_e, v_e, mus, vthr, gR_e)
+                    _margins(TL, sL, G[G_SIN], v, mus, vthr, gL)
+                    _margins(TR, sR, G[G_SIN], v, mus, vthr, gR)
+                    _margins(TL_e, sL, G_e[G_SIN], v_e, mus, vthr, gL_e)
+                    _margins(TR_e, sR, G_e[G_SIN], v_e, mus, vthr, gR_e)
                     # sticking -> sliding events: shorten the step to land on the first;
                     # sliding -> sticking: remember where v crossed v_thr (frozen tension)
                     for i in range(m):
@@ -717,16 +769,21 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
                             if sL[i] == 0 or land_sticks:
                                 phi = min(phi, gL[i] / (gL[i] - gL_e[i]))
                             else:
-                                phiL[i] = gL[i] / (gL[i] - gL_e[i])
+                                phiL[i] = _cross_fraction(gL[i] + vthr, gL_e[i] + vthr, vthr)
                         if gR_e[i] < 0.0 and gR[i] > 0.0:
                             if sR[i] == 0 or land_sticks:
                                 phi = min(phi, gR[i] / (gR[i] - gR_e[i]))
                             else:
-                                phiR[i] = gR[i] / (gR[i] - gR_e[i])
+                                phiR[i] = _cross_fraction(gR[i] + vthr, gR_e[i] + vthr, vthr)
                 if phi < 1.0:
                     nev += 1
-                    h = h * phi * (1.0 + 1e-6)
-                    _advance(th, F, h, par, scale, th_e)
+                    h = h * phi * (1.0 + LAND_SLACK)
+                    if correct:
+                        for i in range(n):
+                            Fa[i] = F[i] + 0.5 * phi * (F_e[i] - F[i])
+                        _advance(th, Fa, G[G_TAU], h, par, scale, th_e)
+                    else:
+                        _advance(th, F, G[G_TAU], h, par, scale, th_e)
                     for i in range(m):
                         phiL[i] = -1.0
                         phiR[i] = -1.0
@@ -741,10 +798,10 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
                 for i in range(n):
                     TL[i] = TL_e[i]
                     TR[i] = TR_e[i]
-                    sinabs[i] = sin_e[i]
-                    tip[i] = tip_e[i]
                     F[i] = F_e[i]
                     thd[i] = thd_e[i]
+                    for r in range(7):
+                        G[r, i] = G_e[r, i]
                 for i in range(m):
                     v[i] = v_e[i]
             t += h

@@ -448,7 +448,7 @@ def _check_inputs(time, tension_left, tension_right):
 def simulate(time, tension_left, tension_right, params: FrictionParams | None = None,
              geom: Geometry | None = None, *, method: str = "fast", dt: float | None = None,
              ramp_time: float = 0.0, settle_time: float | None = None,
-             h_min: float = 3e-3, h_max: float = 1e-2, growth: float = 1.5,
+             h_min: float = 3e-3, h_max: float = 0.05, growth: float = 1.5, dtheta_max: float = 5e-4, order: int | None = None,
              max_events: int | None = None, max_micro: int | None = None,
              settle_tol: float = 1e-13, settle_maxiter: int = 200,
              tension_tol: float = 0.05, hold_fraction: float = 0.25) -> SimulationResult:
@@ -477,6 +477,14 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
     h_min, h_max, growth : float
         Fast solver: first step after an input change, largest step while a
         link slides [s], and the step's growth factor.
+    dtheta_max : float
+        Fast solver: while a link slides, the step is also limited so that no
+        joint moves more than this [rad] (rates at the step's start).
+    order : {1, 2}, optional
+        Fast solver: 1 holds each joint's drive over a step; 2 adds a
+        corrector with the drive's mean over the step (trapezoid). Default:
+        2 with a tip load (its torques turn with the whole configuration),
+        else 1.
     max_events, max_micro : int, optional
         Fast solver: located events and frozen slip passes per interval
         (default ``8 n`` each).
@@ -519,13 +527,17 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
                 raise ValueError(f"{name} must be > 0 s, got {v}")
         if not (math.isfinite(growth) and growth >= 1):
             raise ValueError(f"growth must be >= 1, got {growth}")
-        me = 8 * n if max_events is None else int(max_events)
-        mm = 8 * n if max_micro is None else int(max_micro)
+        if order is None:
+            order = 2 if (params.tip_force_x != 0.0 or params.tip_force_z != 0.0) else 1
+        if order not in (1, 2):
+            raise ValueError(f"order must be 1 or 2, got {order}")
+        me = max(64, 4 * n) if max_events is None else int(max_events)
+        mm = max(1000, 40 * n) if max_micro is None else int(max_micro)
         if me < 0 or mm < 0:
             raise ValueError("max_events and max_micro must be >= 0")
         out = _k.fast_kernel(t, tl, tr, par, scale, float(ramp_time), float(settle_time),
                              float(h_min), float(h_max), float(growth), me, mm,
-                             float(settle_tol), int(settle_maxiter), True)
+                             float(settle_tol), int(settle_maxiter), True, float(dtheta_max), int(order))
     else:
         raise ValueError(f"method must be 'fast' or 'reference', got {method!r}")
     theta, TL, TR, bL, bR, sL, sR, nsteps = out

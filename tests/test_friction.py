@@ -398,3 +398,23 @@ def test_geometry_cable_parameters_are_used():
     p = FrictionParams(mu_d=0.0, mu_s=0.0)
     r = simulate([0.0, 5.0], [0.45, 5.0], [0.45, 0.45], p, geom=g)
     assert r.theta[-1, 0] == pytest.approx(float(p.spring().angle(-3e-3 * 4.55)), abs=1e-13)
+
+
+def test_friction_figures_write_data_and_png(tmp_path, paper):
+    """Figs. 11, 17, 18, 19 and the hysteresis loop: CSV + PNG, with measured data when given."""
+    import pandas as pd
+
+    from notchfit.figures.friction import FIGURES, plot_fig18, plot_fig19
+
+    assert {"fig11", "fig17", "fig18", "fig19", "hysteresis"} <= set(FIGURES)
+    for name in ("fig11", "fig17", "hysteresis"):
+        paths = FIGURES[name](tmp_path)
+        assert sorted(p.suffix for p in paths) == [".csv", ".png"] and all(p.stat().st_size > 0 for p in paths)
+    h = pd.read_csv(tmp_path / "hysteresis.csv")
+    assert set(h["model"]) == {"mu_d = 0", "mu_d = 0.1", "mu_d = 0.29"}
+    r = paper[3]
+    plot_fig18(r, tmp_path, measured_theta=r.theta + 0.001)
+    plot_fig19(r, tmp_path, measured_a=r.a, measured_b=r.b)
+    d = pd.read_csv(tmp_path / "fig19.csv")
+    assert {"a_pred_rad", "b_meas_rad", "tension_left_N", "regime"} <= set(d.columns)
+    assert len(pd.read_csv(tmp_path / "fig18.csv")) == r.theta.size

@@ -1,0 +1,130 @@
+"""Benchmark and accuracy study of the friction simulator (Sec. IV-B, issue 5).
+
+In one run:
+
+1. **Speed**: the reference solver (the paper's four steps, explicit Euler,
+   dt = ``friction.DEFAULT_DT``) and the fast solver on the same 38-sample
+   bend/unbend test (Fig. 11: 0.45 N counter-tension, 25 N peak, 5 s apart);
+   time per test and the ratio. Targets: fast < 5 ms per test, >= 50x.
+2. **Agreement**: max |Δθ| (every joint, every sample) between the fast
+   solver and the reference, on paper-like tests (counter-tensions 0.2–3 N,
+   both pull directions) for the paper's parameters and some extensions.
+   Target: < 1e-3 rad.
+3. **Convergence in dt** (``--convergence``): max over samples of the change
+   of every joint angle between dt and dt/4 for dt = 4e-4, 1e-4, 2.5e-5 s
+   (``--fine`` adds 6.25e-6 s; ~15 s more).
+4. **Input protocol** (``--protocols``): how the reference's rest states
+   depend on the ramp time (step vs linear ramps of 0.1–5 s) and, for each
+   ramp, on dt — why the default input is a step followed by a hold.
+
+Usage::
+
+    python benchmarks/bench_friction.py [--repeat 20] [--convergence] [--fine] [--protocols]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from notchfit.friction import DEFAULT_DT, FrictionParams, simulate
+from notchfit.protocols import bend_unbend
+
+
+def best_time(fn, repeat):
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def speed(repeat):
+    t, tl, tr, _ = bend_unbend(25.0, 0.45)
+    simulate(t, tl, tr)                                   # compile / load the cache
+    simulate(t[:2], tl[:2], tr[:2], method="reference")
+    tf = best_time(lambda: simulate(t, tl, tr), repeat)
+    tr_ = best_time(lambda: simulate(t, tl, tr, method="reference"), 2)
+    nf = simulate(t, tl, tr).n_steps
+    print("== speed: one 38-sample bend/unbend test (Fig. 11 protocol), best of runs")
+    print(f"reference (explicit Euler, dt = {DEFAULT_DT:g} s): {tr_ * 1e3:9.1f} ms per test")
+    print(f"fast (exact relaxation + events):          {tf * 1e3:9.3f} ms per test  ({nf} steps)")
+    print(f"ratio reference / fast: {tr_ / tf:.0f}x   (targets: fast < 5 ms, ratio >= 50)")
+
+
+def agreement():
+    print("\n== agreement: max |θ_fast - θ_ref| over every joint and sample [rad] (target < 1e-3)")
+    tests = [(0.2, 20.0), (0.45, 25.0), (1.0, 28.0), (1.5, 32.0), (3.0, 32.0)]
+    variants = [("paper values", FrictionParams()),
+                ("mu_s = 0.35", FrictionParams(mu_s=0.35)),
+                ("mu_s = 0.45", FrictionParams(mu_s=0.45)),
+                ("proximal_beta = 0.3", FrictionParams(proximal_beta=0.3)),
+                ("hysteresis 2e-3 Nm", FrictionParams(hysteresis_torque=2e-3)),
+                ("tip force (0.3, -0.3) N", FrictionParams(tip_force_x=0.3, tip_force_z=-0.3)),
+                ("gradient 0.3", FrictionParams(stiffness_gradient=0.3))]
+    head = "".join(f"  {p[0]}{c:4.2f}/{pk:2.0f}" for c, pk in tests for p in ("L", "R"))
+    print(f"{'model':24s}{head}   (L/R pulled cable, counter N / peak N)")
+    for name, params in variants:
+        errs = []
+        for c, pk in tests:
+            for pull in ("left", "right"):
+                t, tl, tr, _ = bend_unbend(pk, c, pull=pull)
+                f = simulate(t, tl, tr, params).theta
+                r = simulate(t, tl, tr, params, method="reference").theta
+                errs.append(np.abs(f - r).max())
+        print(f"{name:24s}" + "".join(f"  {e:11.1e}" for e in errs) + f"   max {max(errs):.1e}")
+
+
+def convergence(fine):
+    t, tl, tr, _ = bend_unbend(25.0, 0.45)
+    dts = [4e-4, 1e-4, 2.5e-5] + ([6.25e-6] if fine else [])
+    th = {}
+    for dt in dts:
+        t0 = time.perf_counter()
+        th[dt] = simulate(t, tl, tr, method="reference", dt=dt).theta
+        print(f"   (reference dt = {dt:g} s: {time.perf_counter() - t0:.1f} s)")
+    print("\n== convergence of the reference in dt (Fig. 11 test, step input): max over samples of "
+          "|θ_j(dt) - θ_j(dt/4)| [rad]")
+    print("joint " + "".join(f"  {d:g}->{d / 4:g}" for d in dts[:-1]))
+    for j in range(th[dts[0]].shape[1]):
+        print(f"{j + 1:5d} " + "".join(f"  {np.abs(th[d][:, j] - th[d / 4][:, j]).max():13.1e}"
+                                       for d in dts[:-1]))
+    print("  all " + "".join(f"  {np.abs(th[d] - th[d / 4]).max():13.1e}" for d in dts[:-1]))
+    f = simulate(t, tl, tr).theta
+    print("fast vs each dt: " + ", ".join(f"{d:g}: {np.abs(f - th[d]).max():.1e}" for d in dts))
+
+
+def protocols():
+    print("\n== input protocol: reference rest states vs ramp time (Fig. 11 test)")
+    print("ramp_time  |θ(dt=1e-4) - θ(dt=2.5e-5)|   |θ - θ_step| (dt=2.5e-5)   |θ_fast - θ_ref(2.5e-5)|")
+    t, tl, tr, _ = bend_unbend(25.0, 0.45)
+    step = None
+    for ramp in (0.0, 0.1, 0.5, 5.0):
+        a = simulate(t, tl, tr, method="reference", dt=1e-4, ramp_time=ramp).theta
+        b = simulate(t, tl, tr, method="reference", dt=2.5e-5, ramp_time=ramp).theta
+        step = b if step is None else step
+        f = simulate(t, tl, tr, ramp_time=ramp).theta
+        print(f"{ramp:9.2f}  {np.abs(a - b).max():26.1e}  {np.abs(b - step).max():26.1e}  "
+              f"{np.abs(f - b).max():24.1e}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeat", type=int, default=20)
+    ap.add_argument("--convergence", action="store_true")
+    ap.add_argument("--fine", action="store_true", help="with --convergence: add dt = 6.25e-6 s")
+    ap.add_argument("--protocols", action="store_true")
+    args = ap.parse_args()
+    speed(args.repeat)
+    agreement()
+    if args.convergence:
+        convergence(args.fine)
+    if args.protocols:
+        protocols()
+
+
+if __name__ == "__main__":
+    main()
