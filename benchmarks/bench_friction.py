@@ -19,7 +19,7 @@ In one run:
 
 Usage::
 
-    python benchmarks/bench_friction.py [--repeat 20] [--convergence] [--fine] [--protocols]
+    python benchmarks/bench_friction.py [--repeat 20] [--ref-dt 2.5e-5] [--convergence] [--fine] [--protocols]
 """
 
 from __future__ import annotations
@@ -55,8 +55,9 @@ def speed(repeat):
     print(f"ratio reference / fast: {tr_ / tf:.0f}x   (targets: fast < 5 ms, ratio >= 50)")
 
 
-def agreement():
-    print("\n== agreement: max |θ_fast - θ_ref| over every joint and sample [rad] (target < 1e-3)")
+def agreement(ref_dt):
+    print(f"\n== agreement: max |θ_fast - θ_ref| over every joint and sample [rad], reference dt = {ref_dt:g} s "
+          "(target < 1e-3)")
     tests = [(0.2, 20.0), (0.45, 25.0), (1.0, 28.0), (1.5, 32.0), (3.0, 32.0)]
     variants = [("paper values", FrictionParams()),
                 ("mu_s = 0.35", FrictionParams(mu_s=0.35)),
@@ -73,7 +74,7 @@ def agreement():
             for pull in ("left", "right"):
                 t, tl, tr, _ = bend_unbend(pk, c, pull=pull)
                 f = simulate(t, tl, tr, params).theta
-                r = simulate(t, tl, tr, params, method="reference").theta
+                r = simulate(t, tl, tr, params, method="reference", dt=ref_dt).theta
                 errs.append(np.abs(f - r).max())
         print(f"{name:24s}" + "".join(f"  {e:11.1e}" for e in errs) + f"   max {max(errs):.1e}")
 
@@ -117,9 +118,11 @@ def main():
     ap.add_argument("--convergence", action="store_true")
     ap.add_argument("--fine", action="store_true", help="with --convergence: add dt = 6.25e-6 s")
     ap.add_argument("--protocols", action="store_true")
+    ap.add_argument("--ref-dt", type=float, default=DEFAULT_DT,
+                    help="reference step for the agreement table (2.5e-5: converged to ~4e-5 rad, ~3 s per test)")
     args = ap.parse_args()
     speed(args.repeat)
-    agreement()
+    agreement(args.ref_dt)
     if args.convergence:
         convergence(args.fine)
     if args.protocols:

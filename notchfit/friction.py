@@ -449,6 +449,7 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
              geom: Geometry | None = None, *, method: str = "fast", dt: float | None = None,
              ramp_time: float = 0.0, settle_time: float | None = None,
              h_min: float = 3e-3, h_max: float = 0.05, growth: float = 1.5, dtheta_max: float = 5e-4, order: int | None = None,
+             land_sticks: bool = True,
              max_events: int | None = None, max_micro: int | None = None,
              settle_tol: float = 1e-13, settle_maxiter: int = 200,
              tension_tol: float = 0.05, hold_fraction: float = 0.25) -> SimulationResult:
@@ -485,6 +486,10 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         corrector with the drive's mean over the step (trapezoid). Default:
         2 with a tip load (its torques turn with the whole configuration),
         else 1.
+    land_sticks : bool
+        Fast solver: shorten steps to land on every sliding -> sticking event
+        (True) or freeze the tension interpolated at the crossing (False: faster,
+        less accurate).
     max_events, max_micro : int, optional
         Fast solver: located events and frozen slip passes per interval
         (default ``8 n`` each).
@@ -537,7 +542,8 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
             raise ValueError("max_events and max_micro must be >= 0")
         out = _k.fast_kernel(t, tl, tr, par, scale, float(ramp_time), float(settle_time),
                              float(h_min), float(h_max), float(growth), me, mm,
-                             float(settle_tol), int(settle_maxiter), True, float(dtheta_max), int(order))
+                             float(settle_tol), int(settle_maxiter), bool(land_sticks), float(dtheta_max),
+                             int(order))
     else:
         raise ValueError(f"method must be 'fast' or 'reference', got {method!r}")
     theta, TL, TR, bL, bR, sL, sR, nsteps = out
