@@ -47,7 +47,7 @@ def run(args) -> int:
     from ..diagnosis import CAUSES, diagnose_study
     from ..io import OutputRun, find_output, load_detected_points, read_study
 
-    exps = read_study(args.study, missing_images="ignore")
+    exps = read_study(args.study, missing_images="keep")
     if args.detections:
         found = find_output(args.detections, "detections.csv")
         if not found:
