@@ -124,7 +124,7 @@ CANDIDATES: dict[str, tuple[ParamSpec, ...]] = {
                                      probes=(-0.5, -0.25, 0.0, 0.25, 0.5)),),
     "calibration_error": (ParamSpec("scale_error", -0.2, 0.2, 0.0, unit="-",
                                     probes=(-0.02, 0.0, 0.02)),
-                          ParamSpec("k_radial", -0.5, 0.5, 0.0, unit="-",
+                          ParamSpec("k_radial", -0.02, 0.02, 0.0, unit="-",
                                     probes=(-0.005, 0.0, 0.005)),
                           ParamSpec("warp_center_x", -0.2, 0.2, 0.0, unit="m"),
                           ParamSpec("warp_center_y", -0.2, 0.2, 0.0, unit="m")),
@@ -135,6 +135,9 @@ REGISTRATION_BOUNDS = (0.005, 0.005, 0.1)
 _WARP = ("scale_error", "k_radial", "warp_center_x", "warp_center_y")
 #: Radius that normalises the radial warp coefficient [m] (notchfit.warp).
 WARP_RADIUS = 0.01
+#: The warp centre is fitted within this distance of the data centroid [m]; with
+#: |k_radial| <= 0.02 the warp stays one-to-one within about 70 mm of its centre.
+WARP_CENTER_RANGE = 0.03
 
 
 def _specs(cause: str | None) -> tuple[ParamSpec, ...]:
@@ -352,13 +355,19 @@ def reregister(prep: Prepared, values: dict):
     """Registration of an experiment whose points are corrected by the warp in ``values``.
 
     The calibration_error candidate corrects the measurement; the corrected
-    points are registered exactly as the baseline's (free-θ fit).
+    points are registered exactly as the baseline's (free-θ fit). A warp
+    that is not one-to-one over the points leaves the registration as is.
     """
     _, warp = _split(values)
     if not warp:
         return prep.transform
-    Q = unwarp_points(prep.measured, warp["scale_error"], warp["k_radial"],
-                      (warp["warp_center_x"], warp["warp_center_y"]), WARP_RADIUS)
+    try:
+        Q = unwarp_points(prep.measured, warp["scale_error"], warp["k_radial"],
+                          (warp["warp_center_x"], warp["warp_center_y"]), WARP_RADIUS)
+    except ValueError:
+        # the fitted warp folds over within these points: it is no correction of
+        # them; score it with the uncorrected registration
+        return prep.transform
     fit = fit_experiment(Q, prep.geom, models=("free",), mirror=prep.transform.mirror,
                          sigma=prep.sigma)
     return fit.transform
@@ -451,7 +460,7 @@ def calibrate(preps, cause: str | None = None, start: dict | None = None, *,
         c = np.nanmean(allp, axis=0)
         if "warp_center_x" not in start:
             x0[-2:] = c
-        lo[-2:], hi[-2:] = c - 0.1, c + 0.1
+        lo[-2:], hi[-2:] = c - WARP_CENTER_RANGE, c + WARP_CENTER_RANGE
         n_reg = 3 * len(preps)
         b = np.tile(REGISTRATION_BOUNDS, len(preps))
         x0, lo, hi = np.r_[x0, np.zeros(n_reg)], np.r_[lo, -b], np.r_[hi, b]
