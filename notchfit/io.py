@@ -888,8 +888,17 @@ def find_output(out_dir, filename: str) -> dict[str, Path]:
     return found
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def _tmp_path(path: Path) -> Path:
+    """A temporary file beside ``path``, with the permissions a plain write would give
+    (mkstemp creates 0600 files; outputs such as report.html are meant to be shared)."""
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.fchmod(fd, 0o666 & ~_umask())
     os.close(fd)
     return Path(tmp)
 

@@ -1,32 +1,117 @@
-"""``notchfit demo``: the main job on a built-in synthetic example."""
+"""``notchfit demo``: the main job on a built-in synthetic study with one hidden effect."""
 
 from __future__ import annotations
 
-import numpy as np
+import os
+import time
+from pathlib import Path
 
 NAME = "demo"
 ORDER = 0
-HELP = "run the pipeline on a built-in synthetic example"
-DESCRIPTION = """Run notchfit on a built-in synthetic example.
+HELP = "run the whole pipeline on a built-in synthetic study with one hidden effect"
+DESCRIPTION = """Run the main job on a built-in example: generate a small synthetic study in which
+one physical effect the paper's model lacks is hidden (default: friction between the load
+cell and the base), then run the pipeline a lab would run on its own data:
 
-Example:
+  synth -> [detect, when images are rendered] -> fit -> simulate -> diagnose -> report
+
+and print where the report is and a three-line summary: the shape-fit errors, the cause the
+diagnosis names, and the gain of the extended model on held-out experiments. The hidden
+truth (OUT/study/truth.json) is read only to print it after the summary.
+
+Outputs: OUT/study/ (the synthetic study) and OUT/results/ (fits, simulation, diagnosis,
+report.html).
+
+Examples:
   notchfit demo
+  notchfit demo --out /tmp/demo --force
+  notchfit demo --small                       # a smaller, faster study
+  notchfit demo --cause stiffness_gradient --seed 3
 """
+
+#: Built-in sizes: (experiments, samples on the loading ramp, on the unloading ramp).
+SIZES = {"full": (6, 12, 14), "small": (4, 8, 10)}
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--geometry", default="default", help="geometry TOML (default: the paper's)")
+    parser.add_argument("--out", type=Path, default=Path("notchfit-demo"),
+                        help="output folder (default ./notchfit-demo)")
+    parser.add_argument("--small", action="store_true", help="a smaller study (faster)")
+    parser.add_argument("--cause", default="proximal_friction",
+                        help="hidden effect: a recipe name in datasets/recipes (default proximal_friction)")
+    parser.add_argument("--seed", type=int, default=7, help="seed of the synthetic study (default 7)")
+    parser.add_argument("--images", action="store_true",
+                        help="render images and run detect (slower; default: points)")
+    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: up to 2)")
+    parser.add_argument("--force", action="store_true", help="replace an earlier demo in --out")
+
+
+def _step(name: str, t0: float) -> float:
+    t = time.perf_counter()
+    print(f"[{t - t0:6.1f} s] {name}", flush=True)
+    return t
 
 
 def run(args) -> int:
-    from ..geometry import load_geometry
-    from ..notches import notch_points
+    from .. import io
+    from ..cli import InputError, main as cli_main
+    from ..report import build_report, summary_lines
+    from ..synth import generate_study, load_recipe
 
-    geom = load_geometry(args.geometry)
-    j = np.arange(1, geom.n_joints + 1)
-    theta = 0.10 - 0.003 * j  # a linear shape θ_j = a + b j (Sec. IV-A)
-    pts = notch_points(theta, geom) * 1e3
-    print(f"geometry {geom.name}: {geom.n_joints} joints, {geom.n_points} notch points")
-    print(f"shape a=0.10 rad, b=-0.003 rad: tip corners at "
-          f"({pts[28, 0]:.3f}, {pts[28, 1]:.3f}) mm and ({pts[29, 0]:.3f}, {pts[29, 1]:.3f}) mm")
+    jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
+    out = Path(args.out)
+    study_dir, res_dir = out / "study", out / "results"
+    if out.exists() and any(out.iterdir()) and not args.force:
+        raise FileExistsError(f"{out}: holds an earlier demo; use --force to replace it or --out elsewhere")
+    n_exp, n_up, n_down = SIZES["small" if args.small else "full"]
+    recipe = load_recipe(args.cause).scaled(n_experiments=n_exp, n_up=n_up, n_down=n_down)
+    t0 = time.perf_counter()
+    _step(f"synth: recipe {recipe.name}, {n_exp} experiments, seed {args.seed} -> {study_dir}", t0)
+    generate_study(recipe, study_dir, seed=args.seed, force=True, jobs=jobs, images=bool(args.images))
+    if res_dir.exists() and args.force:
+        import shutil
+        shutil.rmtree(res_dir)
+    common = ["--out", str(res_dir), "--jobs", str(jobs)]
+    steps = []
+    if args.images:
+        steps.append(("detect", ["detect", str(study_dir), *common]))
+    steps += [("fit", ["fit", str(study_dir), "--models", "cc,linear", *common]),
+              ("simulate", ["simulate", str(study_dir), *common])]
+    failed = []
+    for name, argv in steps:
+        _step(f"{name}", t0)
+        rc = cli_main(argv)
+        if rc == 2:
+            raise InputError(f"the {name} step failed (see the message above)")
+        if rc == 1:
+            failed.append(name)
+    _step("diagnose", t0)
+    diagnose(study_dir, res_dir, jobs=jobs, seed=args.seed)
+    _step("report", t0)
+    path = build_report(res_dir, study=study_dir, force=True,
+                        title=f"notchfit demo: hidden effect '{recipe.cause}' (seed {args.seed})")
+    t = time.perf_counter() - t0
+    print(f"\nreport: {path.resolve()}   ({t:.0f} s)")
+    for line in summary_lines(res_dir):
+        print(line)
+    try:
+        truth = io.read_json(study_dir / "truth.json")
+        eff = ", ".join(f"{k} = {v:.4g}" for k, v in truth.get("effect", {}).items())
+        print(f"(hidden in the synthetic data: {truth.get('cause')}" + (f", {eff})" if eff else ")"))
+    except (ValueError, FileNotFoundError):
+        pass
+    if failed:
+        print(f"some items failed in: {', '.join(failed)} (listed above)")
+        return 1
     return 0
+
+
+def diagnose(study_dir: Path, out_dir: Path, *, jobs: int = 1, seed: int = 0) -> dict:
+    """The diagnose step: ``notchfit.diagnosis.diagnose_study`` on the study's experiments."""
+    from .. import io
+    from ..diagnosis import diagnose_study
+
+    exps, problems = io.attach_detections(io.read_study(study_dir), out_dir)
+    for name, why in problems.items():
+        print(f"  diagnose: leaving out {name}: {why}")
+    return diagnose_study(exps, out_dir=Path(out_dir), jobs=jobs, seed=seed)

@@ -57,16 +57,18 @@ def fit_one(item: dict) -> dict:
     return {"result": res, "fits": fits_table(res), "pointwise": pointwise_table(res)}
 
 
-def fit_figures(result, out_dir: Path, name: str) -> list[Path]:
-    """Figs. 12-15 of one experiment through notchfit.figures.fitting (when installed)."""
-    try:
-        from ..figures import fitting as ff
-    except ImportError:
-        return []
-    fn = getattr(ff, "experiment_figures", None)
-    if fn is None:
-        return []
-    return list(fn(result, out_dir, title=name) or [])
+def fit_figures(result, out_dir: Path, name: str, exp=None) -> list[Path]:
+    """Figs. 12-15 of one experiment (:func:`notchfit.figures.fitting.experiment_figures`).
+
+    Fig. 15 is drawn against the tension difference ``T_left - T_right`` [N] when the
+    experiment is given.
+    """
+    from ..figures.fitting import experiment_figures
+
+    kw = {}
+    if exp is not None:
+        kw = {"x": exp.tension_left - exp.tension_right, "xlabel": "T_left − T_right [N]"}
+    return list(experiment_figures(result, out_dir, title=name, **kw))
 
 
 def run(args) -> int:
@@ -111,7 +113,7 @@ def run(args) -> int:
                     bad_samples.append(f"{e.name} sample {row['sample']} ({row['model']}): {row.get('message', '')}")
             if not args.no_figures:
                 try:
-                    fit_figures(r.value["result"], run_.path(sub / "x").parent, e.name)
+                    fit_figures(r.value["result"], run_.path(sub / "x").parent, e.name, e)
                 except Exception as exc:  # noqa: BLE001 - a figure must not lose the fits
                     failed[f"{e.name} figures"] = f"{type(exc).__name__}: {exc}"
         io.write_json_atomic(io.provenance("fit", args.input, models=list(models), experiments=names,

@@ -1,0 +1,677 @@
+"""Synthetic studies with a known, hidden physical effect (``notchfit synth``).
+
+A *recipe* (TOML, ``datasets/recipes/*.toml``) describes a study the way a
+lab would run it: several paper-like bend/unbend tests (Sec. IV, Fig. 11:
+one cable ramped up to a peak of 20–32 N and back down, a constant
+counter-tension on the other, samples taken at rest about 5 s apart, both
+pull directions), and it describes the "truth" that produced the data:
+
+* base friction-model parameters ``k_lin``, ``k_mid``, ``μ_d`` drawn
+  uniformly in recipe ranges and *away from* the paper's values (by at least
+  ``min_rel_offset``), so an analysis must calibrate them;
+* at most one hidden physical effect, one of the cause ids of
+  data-format.md, with its size drawn from a recipe range (optionally with
+  a random sign):
+
+  ======================  =============================================
+  cause                   truth-model field(s)
+  ======================  =============================================
+  ``proximal_friction``   ``proximal_beta`` (capstan band before the base)
+  ``static_friction``     ``static_excess`` = ``μ_s - μ_d`` (paper: 0.01)
+  ``joint_hysteresis``    ``hysteresis_torque`` [N m]
+  ``external_load``       ``tip_force_x``, ``tip_force_z`` [N]
+  ``stiffness_gradient``  ``stiffness_gradient`` g
+  ``calibration_error``   ``scale_error``, ``k_radial`` (a plane-frame
+                          point warp, :func:`notchfit.warp.apply_point_warp`,
+                          one camera for the whole study)
+  ======================  =============================================
+
+* measurement noise (Gaussian, seeded): notch-point coordinates ``σ_p``,
+  load-cell tensions ``σ_T``; the actuator displacement is quantised to its
+  step; optionally a fraction of occluded points;
+* a random proper rigid plane transform per experiment (shared by its
+  samples, geometry.md "Measured points live in a plane frame"), optionally
+  mirrored.
+
+The joint angles are produced by :func:`notchfit.friction.simulate` with
+``method="reference"`` driven by the *true* tensions, while the files hold
+the noisy measured ones. The reference integrator is a different solver from
+the ``fast`` one that analyses fit with, so a diagnosis cannot win by
+reproducing the generator's discretisation.
+
+:func:`synthesize` returns the study in memory with its ground truth;
+:func:`write_study` writes it per data-format.md, plus ``truth.json`` at the
+study root, a file no analysis command reads.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import io
+from .geometry import Geometry, datasets_dir, load_geometry
+from .notches import to_plane
+
+__all__ = [
+    "CAUSES",
+    "EFFECT_FIELDS",
+    "ProtocolSpec",
+    "Recipe",
+    "SynthExperiment",
+    "SynthStudy",
+    "bend_unbend_protocol",
+    "generate_study",
+    "list_recipes",
+    "load_recipe",
+    "recipe_from_dict",
+    "synthesize",
+    "write_study",
+]
+
+_MM = 1e-3
+
+#: Cause ids of data-format.md and the recipe/truth fields that set each effect.
+EFFECT_FIELDS = {
+    "none": (),
+    "proximal_friction": ("proximal_beta",),
+    "static_friction": ("static_excess",),
+    "joint_hysteresis": ("hysteresis_torque",),
+    "external_load": ("tip_force_x", "tip_force_z"),
+    "stiffness_gradient": ("stiffness_gradient",),
+    "calibration_error": ("scale_error", "k_radial"),
+}
+CAUSES = tuple(c for c in EFFECT_FIELDS if c != "none")
+_BASE_FIELDS = ("k_lin", "k_mid", "mu_d")
+#: The paper's values of the drawn base parameters (Sec. IV-B, models.md).
+PAPER_VALUES = {"k_lin": 0.4829, "k_mid": 0.25, "mu_d": 0.29}
+_PAPER_STATIC_EXCESS = 0.01
+
+
+# ----------------------------------------------------------------------------- recipe
+@dataclass(frozen=True)
+class ProtocolSpec:
+    """One bend/unbend test (Sec. IV, Fig. 11).
+
+    Attributes
+    ----------
+    name : str
+    pull : {"left", "right"}
+        The cable ramped up and down.
+    counter_N : float
+        Constant tension on the other cable, also the start and end tension of
+        the pulled one [N].
+    peak_N : float or (lo, hi)
+        Peak tension of the pulled cable [N] (a range is drawn per experiment).
+    n_up, n_down : int
+        Samples on the loading and the unloading ramp (n_up + n_down + 1 in all).
+    dt_s : float
+        Time between samples [s].
+    """
+
+    name: str
+    pull: str
+    counter_N: float
+    peak_N: float | tuple = (20.0, 32.0)
+    n_up: int = 18
+    n_down: int = 22
+    dt_s: float = 5.0
+
+    def __post_init__(self):
+        if self.pull not in ("left", "right"):
+            raise ValueError(f"experiment {self.name!r}: pull must be 'left' or 'right', got {self.pull!r}")
+        if not (self.counter_N >= 0):
+            raise ValueError(f"experiment {self.name!r}: counter_N must be >= 0")
+        if self.n_up < 1 or self.n_down < 1:
+            raise ValueError(f"experiment {self.name!r}: n_up and n_down must be >= 1")
+        if not self.dt_s > 0:
+            raise ValueError(f"experiment {self.name!r}: dt_s must be > 0")
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """A synthetic study (see the module docstring and ``datasets/recipes/``).
+
+    Ranges are ``(lo, hi)`` tuples drawn uniformly; a range with ``lo == hi``
+    is a fixed value.
+    """
+
+    name: str
+    description: str = ""
+    seed: int = 0
+    geometry: str = "default"
+    cause: str = "none"
+    base: dict = field(default_factory=lambda: {"k_lin": (0.40, 0.58), "k_mid": (0.18, 0.32),
+                                                 "mu_d": (0.22, 0.36)})
+    min_rel_offset: float = 0.05
+    fixed: dict = field(default_factory=dict)
+    effect: dict = field(default_factory=dict)
+    random_sign: tuple = ()
+    warp_center_mm: tuple = ((-3.0, 3.0), (8.0, 20.0))
+    warp_radius_mm: float = 10.0
+    point_sigma_mm: float = 0.02
+    tension_sigma_N: float = 0.11
+    displacement_step_mm: float = 0.0079
+    missing_points: float = 0.0
+    plane_tx_mm: tuple = (-5.0, 5.0)
+    plane_ty_mm: tuple = (-5.0, 5.0)
+    plane_phi_deg: tuple = (-20.0, 20.0)
+    mirror: bool = False
+    experiments: tuple = ()
+    images: bool = False
+    image_options: dict = field(default_factory=dict)
+
+    def replace(self, **changes) -> "Recipe":
+        """A copy with fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def scaled(self, *, n_experiments: int | None = None, n_up: int | None = None,
+               n_down: int | None = None) -> "Recipe":
+        """A smaller study: the first ``n_experiments`` (alternating pull directions kept
+        by taking them in recipe order) with fewer samples per ramp."""
+        exps = list(self.experiments)
+        if n_experiments is not None:
+            exps = exps[:n_experiments]
+        exps = [dataclasses.replace(e, n_up=n_up or e.n_up, n_down=n_down or e.n_down) for e in exps]
+        return self.replace(experiments=tuple(exps))
+
+    def __post_init__(self):
+        if self.cause not in EFFECT_FIELDS:
+            raise ValueError(f"recipe {self.name!r}: cause must be one of {', '.join(EFFECT_FIELDS)}, "
+                             f"got {self.cause!r}")
+        allowed = EFFECT_FIELDS[self.cause]
+        bad = [k for k in self.effect if k not in allowed]
+        if bad:
+            raise ValueError(f"recipe {self.name!r}: effect field(s) {', '.join(bad)} do not belong to "
+                             f"cause {self.cause!r} (expected {', '.join(allowed) or 'none'})")
+        missing = [k for k in allowed if k not in self.effect]
+        if missing:
+            raise ValueError(f"recipe {self.name!r}: cause {self.cause!r} needs effect range(s) "
+                             f"{', '.join(missing)}")
+        for k in self.random_sign:
+            if k not in allowed:
+                raise ValueError(f"recipe {self.name!r}: random_sign names {k!r}, not an effect field")
+        for d, what in ((self.base, "base"), (self.effect, "effect")):
+            object.__setattr__(self, what, {k: _range(v, f"{what}.{k}") for k, v in d.items()})
+        for k in self.base:
+            if k not in _BASE_FIELDS:
+                raise ValueError(f"recipe {self.name!r}: base ranges are for {', '.join(_BASE_FIELDS)}, "
+                                 f"got {k!r}")
+        for f in ("plane_tx_mm", "plane_ty_mm", "plane_phi_deg"):
+            object.__setattr__(self, f, _range(getattr(self, f), f))
+        object.__setattr__(self, "warp_center_mm",
+                           tuple(_range(r, "warp center") for r in self.warp_center_mm))
+        object.__setattr__(self, "random_sign", tuple(self.random_sign))
+        if not self.experiments:
+            raise ValueError(f"recipe {self.name!r}: no experiments")
+        names = [e.name for e in self.experiments]
+        if len(set(names)) != len(names):
+            raise ValueError(f"recipe {self.name!r}: experiment names must be unique")
+        if self.point_sigma_mm < 0 or self.tension_sigma_N < 0:
+            raise ValueError(f"recipe {self.name!r}: noise levels must be >= 0")
+        if not 0 <= self.missing_points < 1:
+            raise ValueError(f"recipe {self.name!r}: missing_points must be in [0, 1)")
+
+
+def _range(v, what) -> tuple:
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return (float(v), float(v))
+    try:
+        lo, hi = (float(x) for x in v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what}: expected a number or a [lo, hi] range, got {v!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+        raise ValueError(f"{what}: expected finite lo <= hi, got {v!r}")
+    return (lo, hi)
+
+
+_RECIPE_KEYS = {"name", "description", "seed", "geometry", "cause", "base", "min_rel_offset", "fixed",
+                "effect", "noise", "plane", "protocol", "experiments", "images"}
+
+
+def recipe_from_dict(d: dict, origin: str = "<recipe>") -> Recipe:
+    """Build a :class:`Recipe` from the TOML layout of ``datasets/recipes/``."""
+    unknown = sorted(set(d) - _RECIPE_KEYS)
+    if unknown:
+        raise ValueError(f"{origin}: unknown key(s) {', '.join(unknown)} "
+                         f"(known: {', '.join(sorted(_RECIPE_KEYS))})")
+    kw = {k: d[k] for k in ("name", "description", "seed", "geometry", "cause", "min_rel_offset") if k in d}
+    kw.setdefault("name", Path(origin).stem)
+    if "base" in d:
+        kw["base"] = dict(d["base"])
+    if "fixed" in d:
+        kw["fixed"] = dict(d["fixed"])
+    eff = dict(d.get("effect", {}))
+    kw["random_sign"] = tuple(eff.pop("random_sign", ()))
+    c = eff.pop("center_mm", None)
+    if c is not None:
+        kw["warp_center_mm"] = tuple(c)
+    r = eff.pop("radius_mm", None)
+    if r is not None:
+        kw["warp_radius_mm"] = float(r)
+    kw["effect"] = eff
+    noise = dict(d.get("noise", {}))
+    for src, dst in (("point_mm", "point_sigma_mm"), ("tension_N", "tension_sigma_N"),
+                     ("displacement_step_mm", "displacement_step_mm"), ("missing_points", "missing_points")):
+        if src in noise:
+            kw[dst] = float(noise.pop(src))
+    if noise:
+        raise ValueError(f"{origin}: unknown [noise] key(s) {', '.join(noise)}")
+    plane = dict(d.get("plane", {}))
+    for src in ("tx_mm", "ty_mm", "phi_deg"):
+        if src in plane:
+            kw[f"plane_{src}"] = plane.pop(src)
+    if "mirror" in plane:
+        kw["mirror"] = bool(plane.pop("mirror"))
+    if plane:
+        raise ValueError(f"{origin}: unknown [plane] key(s) {', '.join(plane)}")
+    proto = dict(d.get("protocol", {}))
+    pkeys = {"peak_N", "n_up", "n_down", "dt_s", "counter_N", "pull"}
+    bad = set(proto) - pkeys
+    if bad:
+        raise ValueError(f"{origin}: unknown [protocol] key(s) {', '.join(sorted(bad))}")
+    exps = []
+    for i, e in enumerate(d.get("experiments", [])):
+        spec = {**proto, **e}
+        bad = set(spec) - pkeys - {"name"}
+        if bad:
+            raise ValueError(f"{origin}: experiment {i + 1}: unknown key(s) {', '.join(sorted(bad))}")
+        if "name" not in spec or "pull" not in spec or "counter_N" not in spec:
+            raise ValueError(f"{origin}: experiment {i + 1} needs name, pull and counter_N")
+        pk = spec.get("peak_N", (20.0, 32.0))
+        spec["peak_N"] = _range(pk, f"experiment {spec['name']} peak_N")
+        exps.append(ProtocolSpec(**spec))
+    kw["experiments"] = tuple(exps)
+    img = dict(d.get("images", {}))
+    kw["images"] = bool(img.pop("render", False))
+    kw["image_options"] = img
+    try:
+        return Recipe(**kw)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{origin}: {exc}") from None
+
+
+def list_recipes() -> list[str]:
+    """Names of the recipes shipped in ``datasets/recipes/``."""
+    return sorted(p.stem for p in (datasets_dir() / "recipes").glob("*.toml"))
+
+
+def load_recipe(source) -> Recipe:
+    """A recipe from a TOML path, or a shipped recipe by name (``"paper8"``, ``"proximal_friction"``)."""
+    p = Path(source)
+    if not p.is_file():
+        cand = datasets_dir() / "recipes" / f"{source}.toml"
+        if cand.is_file():
+            p = cand
+        else:
+            raise FileNotFoundError(f"{source}: recipe not found (a TOML path, or one of "
+                                    f"{', '.join(list_recipes())})")
+    try:
+        with open(p, "rb") as fh:
+            d = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{p}: bad TOML: {exc}") from None
+    return recipe_from_dict(d, origin=str(p))
+
+
+# ----------------------------------------------------------------------------- protocol
+def bend_unbend_protocol(pull: str, counter_N: float, peak_N: float, n_up: int, n_down: int,
+                         dt_s: float = 5.0):
+    """Tension history of one bend/unbend test (Fig. 11).
+
+    The pulled cable starts at the counter-tension, is ramped in ``n_up``
+    equal steps to ``peak_N`` and back down in ``n_down`` equal steps; the
+    other cable holds ``counter_N``. Samples are ``dt_s`` apart, starting at
+    ``t = dt_s`` (the manipulator starts at rest, untensioned, at t = 0).
+
+    Returns
+    -------
+    time : ndarray (S,) [s]
+    tension_left, tension_right : ndarray (S,) [N]
+        With ``S = n_up + n_down + 1``.
+    """
+    up = np.linspace(counter_N, peak_N, n_up + 1)
+    down = np.linspace(peak_N, counter_N, n_down + 1)[1:]
+    pulled = np.concatenate([up, down])
+    other = np.full_like(pulled, counter_N)
+    time = dt_s * np.arange(1, len(pulled) + 1, dtype=float)
+    if pull == "left":
+        return time, pulled, other
+    if pull == "right":
+        return time, other, pulled
+    raise ValueError(f"pull must be 'left' or 'right', got {pull!r}")
+
+
+def _protocol(spec: ProtocolSpec, peak: float):
+    """The tension history, through :mod:`notchfit.protocols` when it offers the same protocol."""
+    try:
+        from . import protocols
+        fn = getattr(protocols, "bend_unbend", None)
+    except ImportError:
+        fn = None
+    if fn is not None:
+        try:
+            out = fn(pull=spec.pull, counter=spec.counter_N, peak=peak, n_up=spec.n_up,
+                     n_down=spec.n_down, dt=spec.dt_s)
+            return out.time, out.tension_left, out.tension_right
+        except TypeError:
+            pass
+    return bend_unbend_protocol(spec.pull, spec.counter_N, peak, spec.n_up, spec.n_down, spec.dt_s)
+
+
+# ----------------------------------------------------------------------------- study
+@dataclass(frozen=True)
+class SynthExperiment:
+    """One synthetic experiment with its ground truth.
+
+    Attributes
+    ----------
+    name, description : str
+    pull : str
+    counter_N, peak_N : float
+    samples : DataFrame
+        ``samples.csv`` as written (measured, noisy tensions; displacements).
+    points : ndarray (S, m, 2) [m]
+        Measured plane-frame points (warp, noise, occlusions applied).
+    true_points : ndarray (S, m, 2) [m]
+        The true plane-frame points (no warp, no noise).
+    theta : ndarray (S, n) [rad]
+        True joint angles.
+    tension_left, tension_right : ndarray (S,) [N]
+        True load-cell tensions (the simulator's input).
+    plane : dict
+        ``tx, ty`` [m], ``phi`` [rad], ``mirror``.
+    regime : ndarray (S,) of str
+    """
+
+    name: str
+    description: str
+    pull: str
+    counter_N: float
+    peak_N: float
+    samples: pd.DataFrame
+    points: np.ndarray
+    true_points: np.ndarray
+    theta: np.ndarray
+    tension_left: np.ndarray
+    tension_right: np.ndarray
+    plane: dict
+    regime: np.ndarray
+
+
+@dataclass(frozen=True)
+class SynthStudy:
+    """A synthetic study and its ground truth (:func:`synthesize`)."""
+
+    recipe: Recipe
+    seed: int
+    geometry: Geometry
+    params: object                 # notchfit.friction.FrictionParams of the truth
+    effect: dict                   # the drawn effect fields (empty for "none")
+    warp: dict | None              # calibration_error: scale_error, k_radial, center [m], radius [m]
+    experiments: tuple
+
+    @property
+    def cause(self) -> str:
+        return self.recipe.cause
+
+    def truth(self) -> dict:
+        """The ground truth as written to ``truth.json`` (file units)."""
+        params = dataclasses.asdict(self.params) if dataclasses.is_dataclass(self.params) else dict(self.params)
+        warp = None
+        if self.warp is not None:
+            warp = {"scale_error": self.warp["scale_error"], "k_radial": self.warp["k_radial"],
+                    "center_mm": [c / _MM for c in self.warp["center"]],
+                    "radius_mm": self.warp["radius"] / _MM}
+        exps = {}
+        for e in self.experiments:
+            exps[e.name] = {
+                "pull": e.pull, "counter_N": e.counter_N, "peak_N": e.peak_N,
+                "plane": {"tx_mm": e.plane["tx"] / _MM, "ty_mm": e.plane["ty"] / _MM,
+                          "phi_rad": e.plane["phi"], "mirror": e.plane["mirror"]},
+                "sample": e.samples["sample"].tolist(),
+                "true_tension_left_N": e.tension_left.tolist(),
+                "true_tension_right_N": e.tension_right.tolist(),
+                "regime": [str(r) for r in e.regime],
+                "theta_rad": e.theta.tolist(),
+            }
+        return {
+            "note": "ground truth of a synthetic study; no analysis command reads this file",
+            "recipe": self.recipe.name, "seed": self.seed, "cause": self.cause,
+            "effect": dict(self.effect), "params": params, "geometry": self.geometry.name,
+            "noise": {"point_mm": self.recipe.point_sigma_mm, "tension_N": self.recipe.tension_sigma_N,
+                      "displacement_step_mm": self.recipe.displacement_step_mm,
+                      "missing_points": self.recipe.missing_points},
+            "warp": warp, "experiments": exps,
+        }
+
+
+def _draw_away(rng, lo, hi, ref, min_rel, max_tries=1000):
+    """Uniform in [lo, hi], redrawn until at least ``min_rel`` (relative) from ``ref``."""
+    if hi - lo <= 0:
+        return float(lo)
+    for _ in range(max_tries):
+        v = float(rng.uniform(lo, hi))
+        if abs(v - ref) >= min_rel * abs(ref):
+            return v
+    raise ValueError(f"range [{lo}, {hi}] leaves no room {min_rel:.0%} away from the paper's {ref}")
+
+
+def _draw_truth(recipe: Recipe, rng):
+    from .friction import FrictionParams
+
+    values = {}
+    for k in _BASE_FIELDS:
+        if k in recipe.base:
+            lo, hi = recipe.base[k]
+            values[k] = _draw_away(rng, lo, hi, PAPER_VALUES[k], recipe.min_rel_offset)
+    values.update({k: float(v) for k, v in recipe.fixed.items()})
+    effect = {}
+    for k in EFFECT_FIELDS[recipe.cause]:
+        lo, hi = recipe.effect[k]
+        v = float(rng.uniform(lo, hi)) if hi > lo else lo
+        if k in recipe.random_sign and rng.random() < 0.5:
+            v = -v
+        effect[k] = v
+    params_kw = dict(values)
+    if "static_excess" in effect:
+        mu_d = params_kw.get("mu_d", FrictionParams().mu_d)
+        params_kw["mu_s"] = mu_d + effect["static_excess"]
+    elif "mu_s" not in params_kw:
+        mu_d = params_kw.get("mu_d", FrictionParams().mu_d)
+        params_kw["mu_s"] = mu_d + _PAPER_STATIC_EXCESS
+    for k in ("proximal_beta", "hysteresis_torque", "tip_force_x", "tip_force_z", "stiffness_gradient"):
+        if k in effect:
+            params_kw[k] = effect[k]
+    try:
+        params = FrictionParams(**params_kw)
+    except TypeError as exc:
+        raise ValueError(f"recipe {recipe.name!r}: {exc}") from None
+    return params, effect
+
+
+def _simulate_one(args):
+    """Truth simulation of one experiment (module level: runs in worker processes)."""
+    from .friction import simulate
+
+    time, tl, tr, params, geom, method = args
+    res = simulate(time, tl, tr, params, geom, method=method)
+    return res
+
+
+def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: int = 1,
+               method: str = "reference") -> SynthStudy:
+    """Generate a synthetic study in memory.
+
+    Parameters
+    ----------
+    recipe : Recipe, name or path
+    seed : int, optional
+        Overrides the recipe's seed. Every draw comes from
+        ``numpy.random.default_rng`` seeded from it: the truth parameters and
+        the warp from two child streams, each experiment from its own child
+        (so an experiment's data do not change when others are added).
+    jobs : int
+        Processes for the truth simulations.
+    method : str
+        Solver of :func:`notchfit.friction.simulate` for the truth
+        (``"reference"``; ``"fast"`` only for quick tests of this module).
+
+    Returns
+    -------
+    SynthStudy
+    """
+    if not isinstance(recipe, Recipe):
+        recipe = load_recipe(recipe)
+    seed = recipe.seed if seed is None else int(seed)
+    geom = load_geometry(recipe.geometry)
+    ss = np.random.SeedSequence(seed)
+    kids = ss.spawn(2 + len(recipe.experiments))
+    rng_params, rng_warp = np.random.default_rng(kids[0]), np.random.default_rng(kids[1])
+    params, effect = _draw_truth(recipe, rng_params)
+
+    warp = None
+    if recipe.cause == "calibration_error":
+        (cx0, cx1), (cy0, cy1) = recipe.warp_center_mm
+        warp = {"scale_error": effect["scale_error"], "k_radial": effect["k_radial"],
+                "center": (float(rng_warp.uniform(cx0, cx1)) * _MM, float(rng_warp.uniform(cy0, cy1)) * _MM),
+                "radius": recipe.warp_radius_mm * _MM}
+
+    # draw each experiment's protocol, plane and noise streams, then simulate (maybe in parallel)
+    plans = []
+    for spec, kid in zip(recipe.experiments, kids[2:]):
+        rng = np.random.default_rng(kid)
+        lo, hi = spec.peak_N if isinstance(spec.peak_N, tuple) else (spec.peak_N, spec.peak_N)
+        peak = float(rng.uniform(lo, hi)) if hi > lo else float(lo)
+        time, tl, tr = _protocol(spec, peak)
+        plane = {"tx": float(rng.uniform(*recipe.plane_tx_mm)) * _MM,
+                 "ty": float(rng.uniform(*recipe.plane_ty_mm)) * _MM,
+                 "phi": math.radians(float(rng.uniform(*recipe.plane_phi_deg))),
+                 "mirror": bool(recipe.mirror)}
+        plans.append((spec, rng, peak, np.asarray(time, float), np.asarray(tl, float),
+                      np.asarray(tr, float), plane))
+    items = [(p[3], p[4], p[5], params, geom, method) for p in plans]
+    if jobs > 1 and len(items) > 1:
+        from .batch import run_batch
+        res = run_batch(_simulate_one, items, jobs=jobs, keys=[p[0].name for p in plans],
+                        desc="truth simulation")
+        res.raise_on_failure()
+        results = res.values()
+    else:
+        results = [_simulate_one(it) for it in items]
+
+    exps = []
+    for (spec, rng, peak, time, tl, tr, plane), sim in zip(plans, results):
+        exps.append(_observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp))
+    return SynthStudy(recipe=recipe, seed=seed, geometry=geom, params=params, effect=effect, warp=warp,
+                      experiments=tuple(exps))
+
+
+def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp) -> SynthExperiment:
+    """Measurement model: points in the plane frame (+warp, noise, occlusion), noisy tensions."""
+    from .notches import notch_points
+
+    theta = np.asarray(sim.theta, dtype=float)
+    true_pts = to_plane(notch_points(theta, geom), plane["tx"], plane["ty"], plane["phi"], plane["mirror"])
+    pts = true_pts
+    if warp is not None:
+        from .warp import apply_point_warp
+        pts = apply_point_warp(pts, warp["scale_error"], warp["k_radial"], warp["center"], warp["radius"])
+    S = len(time)
+    pts = pts + rng.normal(0.0, recipe.point_sigma_mm * _MM, pts.shape)
+    if recipe.missing_points > 0:
+        gone = rng.random(pts.shape[:2]) < recipe.missing_points
+        pts = pts.copy()
+        pts[gone] = np.nan
+    meas_l = np.maximum(tl + rng.normal(0.0, recipe.tension_sigma_N, S), 0.0)
+    meas_r = np.maximum(tr + rng.normal(0.0, recipe.tension_sigma_N, S), 0.0)
+
+    def disp(d):
+        d = np.asarray(d, dtype=float) / _MM
+        step = recipe.displacement_step_mm
+        return np.round(d / step) * step if step > 0 else d
+
+    samples = pd.DataFrame({
+        "sample": np.arange(1, S + 1, dtype=np.int64),
+        "time_s": time,
+        "tension_left_N": np.round(meas_l, 4),
+        "tension_right_N": np.round(meas_r, 4),
+        "displacement_left_mm": np.round(disp(sim.displacement_left), 6),
+        "displacement_right_mm": np.round(disp(sim.displacement_right), 6),
+    })
+    other = "right" if spec.pull == "left" else "left"
+    desc = (f"{spec.pull} cable ramped {spec.counter_N:g} -> {peak:.1f} -> {spec.counter_N:g} N "
+            f"in {spec.n_up}+{spec.n_down} steps, {spec.counter_N:g} N on the {other} cable "
+            f"(synthetic, recipe {recipe.name})")
+    return SynthExperiment(name=spec.name, description=desc, pull=spec.pull, counter_N=spec.counter_N,
+                           peak_N=peak, samples=samples, points=pts, true_points=true_pts, theta=theta,
+                           tension_left=tl, tension_right=tr, plane=plane,
+                           regime=np.asarray(getattr(sim, "regime", np.full(S, ""))))
+
+
+def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool | None = None,
+                jobs: int = 1) -> Path:
+    """Write a synthetic study: ``OUT/<experiment>/`` per data-format.md and ``OUT/truth.json``.
+
+    The whole study is written into a staging folder and moved into place at
+    the end (:class:`notchfit.io.OutputRun`); an existing study is replaced
+    only with ``force``.
+
+    Parameters
+    ----------
+    images : bool, optional
+        Render one image per sample (needs :mod:`notchfit.render`); default:
+        the recipe's ``[images] render``.
+    """
+    out = Path(out_dir)
+    images = study.recipe.images if images is None else images
+    names = [e.name for e in study.experiments] + ["truth.json"]
+    if images:
+        names.append("calibration")
+    with io.OutputRun(out, outputs=names, force=force, name="synth") as run:
+        calib_rel = None
+        if images:
+            calib_rel = _render_images(study, run, jobs=jobs)
+        r = study.recipe
+        for e in study.experiments:
+            samples = e.samples
+            if images:
+                samples = samples.assign(image=[f"images/{s:04d}.png" for s in samples["sample"]])
+            io.write_experiment(run.path(e.name), name=e.name, samples=samples, points=e.points,
+                                mirror=e.plane["mirror"], description=e.description,
+                                geometry=("default" if r.geometry == "default"
+                                          else str(Path(r.geometry).resolve())),
+                                calibration=calib_rel, point_sigma=r.point_sigma_mm * _MM if
+                                r.point_sigma_mm > 0 else None,
+                                tension_sigma=r.tension_sigma_N if r.tension_sigma_N > 0 else None,
+                                force=True)
+        io.write_json_atomic(study.truth(), run.path("truth.json"))
+    return out
+
+
+def _render_images(study: SynthStudy, run, *, jobs: int = 1) -> str:
+    """Render every sample's image; returns the calibration path relative to an experiment folder."""
+    try:
+        from . import render
+    except ImportError:
+        raise ValueError("rendering images needs notchfit.render (not available in this installation)") \
+            from None
+    fn = getattr(render, "render_study_images", None)
+    if fn is None:
+        raise ValueError("notchfit.render has no render_study_images(); cannot render a synthetic study")
+    return fn(study, run.path("calibration"), experiment_dir=lambda name: run.path(name), jobs=jobs,
+              **study.recipe.image_options)
+
+
+def generate_study(recipe, out_dir, *, seed: int | None = None, force: bool = False, jobs: int = 1,
+                   images: bool | None = None, method: str = "reference") -> SynthStudy:
+    """:func:`synthesize` then :func:`write_study`; returns the study with its ground truth."""
+    study = synthesize(recipe, seed, jobs=jobs, method=method)
+    write_study(study, out_dir, force=force, images=images, jobs=jobs)
+    return study

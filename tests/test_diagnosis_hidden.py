@@ -1,0 +1,111 @@
+"""Hidden-effect tests (issue 8): a synthetic study hides one physical effect; `notchfit
+diagnose` must name it from the data alone and gain >= 30% held-out rms.
+
+The test knows the cause only because it chose the recipe; it deletes the generator's
+truth.json before the analysis and decides what was found from diagnosis.json alone.
+The default run uses one reduced study per cause; `pytest -m slow` runs more seeds on the
+full six-experiment recipes.
+"""
+import json
+
+import pytest
+
+from notchfit.cli import main
+from notchfit.diagnosis import CAUSES
+from notchfit.synth import generate_study, load_recipe
+
+# reduced studies for the default job: 4 experiments (3 counter-tensions, both directions),
+# 9 + 11 samples each, two folds
+SMALL = dict(n_experiments=4, n_up=8, n_down=10)
+
+# static_friction is tested separately: see test_static_friction_is_not_misattributed
+IDENTIFIABLE = tuple(c for c in CAUSES if c != "static_friction")
+
+
+def _diagnose(tmp_path, recipe_name, seed, *, small=True, jobs=2, figures=False):
+    recipe = load_recipe(recipe_name)
+    args = []
+    if small:
+        recipe = recipe.scaled(**SMALL)
+        args = ["--max-folds", "2"]
+    study = tmp_path / "study"
+    generate_study(recipe, study, seed=seed)
+    (study / "truth.json").unlink()  # the analysis must never need it
+    out = tmp_path / "out"
+    if not figures:
+        args.append("--no-figures")
+    rc = main(["diagnose", str(study), "--out", str(out), "--jobs", str(jobs), *args])
+    assert rc == 0
+    return json.loads((out / "diagnosis.json").read_text())
+
+
+@pytest.mark.parametrize("cause", IDENTIFIABLE)
+def test_hidden_effect_is_named_with_heldout_gain(tmp_path, cause):
+    figures = cause == "joint_hysteresis"
+    d = _diagnose(tmp_path, cause, seed=1, figures=figures)
+    assert d["cause"] == cause, d["explanation"]
+    assert d["gain"]["reduction_pct"] >= 30.0
+    cand = {c["cause"]: c for c in d["candidates"]}
+    assert cand[cause]["heldout_rms_mm"] < d["baseline"]["heldout_rms_mm"]
+    assert set(cand) == set(CAUSES)
+    for reg in d["per_regime_rms_mm"].values():
+        assert reg["extended"] <= reg["baseline"] * 1.1
+    if figures:
+        from notchfit.friction import load_params
+        out = tmp_path / "out"
+        for name in d["figures"]:
+            assert (out / name).stat().st_size > 1000
+        p = load_params(out / d["extended_model_file"])
+        assert p.hysteresis_torque == pytest.approx(d["extended_model"]["params"]["hysteresis_torque"])
+        assert p.hysteresis_torque > 0
+
+
+def test_null_study_gives_none_and_never_reads_truth(tmp_path, monkeypatch):
+    """A study with no hidden effect gives `none`. The analysis runs with truth.json
+    deleted and opens no file of that name."""
+    import builtins
+    import io as _io
+
+    study = tmp_path / "study"
+    generate_study(load_recipe("null").scaled(**SMALL), study, seed=1)
+    (study / "truth.json").unlink()
+    opened = []
+
+    def spy(opener):
+        def f(file, *a, **k):
+            opened.append(str(file))
+            return opener(file, *a, **k)
+        return f
+
+    monkeypatch.setattr(builtins, "open", spy(builtins.open))
+    monkeypatch.setattr(_io, "open", spy(_io.open))
+    out = tmp_path / "out"
+    rc = main(["diagnose", str(study), "--out", str(out), "--jobs", "2", "--no-figures",
+               "--max-folds", "2"])
+    monkeypatch.undo()
+    assert rc == 0
+    assert any(p.endswith("samples.csv") for p in opened)  # the spy saw the reads
+    assert not any(p.endswith("truth.json") for p in opened)
+    d = json.loads((out / "diagnosis.json").read_text())
+    assert d["cause"] == "none", d["explanation"]
+
+
+def test_static_friction_is_not_misattributed(tmp_path):
+    """A larger static coefficient, within the paper's stick/slip state machine
+    (Sec. IV-B Step 4), only delays the slip onset inside a ramp: every rest state
+    returns to ΔT = μ_d N, so μ_s − μ_d = 0.08–0.15 changes the sampled shapes by
+    < 0.02 mm rms, far below the load-cell noise floor (~0.15 mm). The diagnosis must
+    not name another cause for it: none, unexplained or static_friction."""
+    d = _diagnose(tmp_path, "static_friction", seed=1)
+    assert d["cause"] in ("none", "unexplained", "static_friction"), d["explanation"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [11, 12, 13])
+@pytest.mark.parametrize("cause", CAUSES + ("null",))
+def test_hidden_effect_full_studies(tmp_path, cause, seed):
+    d = _diagnose(tmp_path, cause, seed=seed, small=False)
+    want = "none" if cause == "null" else cause
+    assert d["cause"] == want, d["explanation"]
+    if want != "none":
+        assert d["gain"]["reduction_pct"] >= 30.0
