@@ -1,0 +1,690 @@
+"""Synthetic images with exact ground truth (round trips for calibration and detection).
+
+Two scenes, both seen through a :class:`~notchfit.camera.CameraModel` with
+its lens distortion:
+
+* :func:`render_board`: a ChArUco board or chessboard at a chosen pose. Every
+  supersample (pixel-centre sampling of an ``S x S`` grid inside each pixel)
+  is traced back to the board plane (undistortion + ray-plane intersection)
+  and the board pattern is evaluated analytically there; the samples are
+  block-averaged.
+* :func:`render_manipulator`: the notched tube for joint angles ``θ`` as the
+  silhouette of geometry.md ("What a camera sees"): a band ``|x| <= R`` from
+  the base edge to the tip face, each link rigid, rectangular slots ``w``
+  wide and ``d`` deep from the open side, the flexure side continuous (the
+  two links' edges meet where their lines intersect, no gap, no overlap), the
+  mount band below the base edge, a straight tip face. The outline is placed
+  in the plane by :func:`notchfit.notches.to_plane` (plane pose and mirror
+  flag), subdivided densely, projected with distortion
+  (``cv2.projectPoints``) and rasterised by an unbiased scanline fill:
+  pixel-centre sampling on ``S`` sub-rows per pixel and the exact covered
+  length along each sub-row (the limit of pixel-centre sampling in x).
+  ``cv2.fillPoly`` is not used: it pushes edges outward by 0.1-0.7 px.
+
+Image formation (both scenes): supersampled coverage -> a non-flat
+background (smooth additive texture) and the object level -> a smooth
+multiplicative illumination field -> Gaussian optical blur (``blur_sigma``
+px) -> Gaussian sensor noise (``noise`` x contrast, from a seeded
+``numpy.random.Generator``) -> rounding to the output dtype.
+
+Every function returns the exact ground truth beside the image.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .camera import Board, CameraModel
+from .geometry import Geometry
+from .notches import notch_points, to_plane
+
+__all__ = [
+    "RenderedBoard",
+    "RenderedManipulator",
+    "camera_for_shapes",
+    "manipulator_outline",
+    "place_in_view",
+    "polygon_coverage",
+    "render_board",
+    "render_manipulator",
+    "render_study_images",
+]
+
+
+# ----------------------------------------------------------------------------- rasteriser
+def polygon_coverage(polygons, shape, *, supersample: int = 8, offset=(0, 0)) -> np.ndarray:
+    """Fraction of each pixel inside a set of polygons (even-odd rule).
+
+    Pixel ``(row, col)`` covers ``[col - 0.5, col + 0.5] x [row - 0.5, row + 0.5]``
+    (CONVENTIONS.md). Each pixel is sampled on ``supersample`` sub-rows at
+    their centres; along a sub-row the covered length is exact. This is the
+    unbiased pixel-centre sampling of ``skimage.draw.polygon`` on a
+    supersampled grid, with the x supersampling taken to its limit, and it
+    costs O(crossings) instead of O(pixels x vertices).
+
+    Parameters
+    ----------
+    polygons : sequence of array_like (K_i, 2)
+        Closed polygons as (u, v) vertices [px] (the last vertex joins the first).
+    shape : (height, width)
+        Output size.
+    supersample : int
+        Sub-rows per pixel.
+    offset : (u0, v0)
+        Pixel coordinates of the output's pixel (0, 0) (to render a region).
+
+    Returns
+    -------
+    ndarray (height, width) float64 in [0, 1]
+    """
+    H, W = int(shape[0]), int(shape[1])
+    S = int(supersample)
+    if S < 1:
+        raise ValueError(f"supersample must be >= 1, got {supersample}")
+    x0s, y0s, x1s, y1s = [], [], [], []
+    for poly in polygons:
+        p = np.asarray(poly, float)
+        if p.ndim != 2 or p.shape[1] != 2 or len(p) < 3:
+            raise ValueError("each polygon must be an array of shape (K >= 3, 2)")
+        if not np.isfinite(p).all():
+            raise ValueError("polygon vertices must be finite (part of the outline is behind the camera?)")
+        q = np.roll(p, -1, axis=0)
+        x0s.append(p[:, 0] - offset[0]); y0s.append(p[:, 1] - offset[1])
+        x1s.append(q[:, 0] - offset[0]); y1s.append(q[:, 1] - offset[1])
+    x0, y0, x1, y1 = (np.concatenate(a) for a in (x0s, y0s, x1s, y1s))
+    # sub-row r (0 .. H*S-1) is at v = (r + 0.5)/S - 0.5 ; in sub-row units Y = (v + 0.5) S - 0.5
+    Y0 = (y0 + 0.5) * S - 0.5
+    Y1 = (y1 + 0.5) * S - 0.5
+    lo, hi = np.minimum(Y0, Y1), np.maximum(Y0, Y1)
+    r_lo = np.maximum(np.ceil(lo), 0).astype(np.int64)
+    r_hi = np.minimum(np.ceil(hi), H * S).astype(np.int64)      # rows r with lo <= r < hi
+    cnt = np.maximum(r_hi - r_lo, 0)
+    cov = np.zeros((H, W + 2))
+    if cnt.sum() == 0:
+        return cov[:, 1:W + 1]
+    e = np.repeat(np.arange(len(cnt)), cnt)
+    start = np.repeat(np.cumsum(cnt) - cnt, cnt)
+    r = r_lo[e] + (np.arange(len(e)) - start)
+    t = (r - Y0[e]) / (Y1[e] - Y0[e])
+    x = x0[e] + t * (x1[e] - x0[e])
+    order = np.lexsort((x, r))
+    r, x = r[order], x[order]
+    if len(r) % 2:
+        raise ValueError("polygon scanline has an odd number of crossings (not closed?)")
+    ra, xa, xb = r[0::2], x[0::2], x[1::2]
+    if not np.array_equal(ra, r[1::2]):
+        raise ValueError("polygon scanline crossings do not pair up")
+    row = ra // S
+    # clip spans to the output; pixel c spans [c - 0.5, c + 0.5)
+    xa = np.clip(xa, -0.5, W - 0.5)
+    xb = np.clip(xb, -0.5, W - 0.5)
+    keep = xb > xa
+    row, xa, xb = row[keep], xa[keep], xb[keep]
+    ca = np.floor(xa + 0.5).astype(np.int64)
+    cb = np.floor(xb + 0.5).astype(np.int64)
+    same = ca == cb
+    # columns shifted by +1 in `cov` so that index -1 and W are harmless
+    np.add.at(cov, (row[same], ca[same] + 1), xb[same] - xa[same])
+    d = ~same
+    np.add.at(cov, (row[d], ca[d] + 1), (ca[d] + 0.5) - xa[d])
+    np.add.at(cov, (row[d], cb[d] + 1), xb[d] - (cb[d] - 0.5))
+    full = np.zeros((H, W + 3))
+    np.add.at(full, (row[d], ca[d] + 2), 1.0)
+    np.add.at(full, (row[d], cb[d] + 1), -1.0)
+    cov += np.cumsum(full, axis=1)[:, :W + 2]
+    return np.clip(cov[:, 1:W + 1] / S, 0.0, 1.0)
+
+
+def _subdivide(poly, max_len):
+    """Insert points so that no edge of the closed polygon is longer than ``max_len``."""
+    p = np.asarray(poly, float)
+    q = np.roll(p, -1, axis=0)
+    seg = np.linalg.norm(q - p, axis=1)
+    k = np.maximum(np.ceil(seg / max_len).astype(int), 1)
+    idx = np.repeat(np.arange(len(p)), k)
+    frac = (np.arange(k.sum()) - np.repeat(np.cumsum(k) - k, k)) / np.repeat(k, k)
+    return p[idx] + frac[:, None] * (q[idx] - p[idx])
+
+
+# ----------------------------------------------------------------------------- image formation
+def _smooth_field(shape, rng, n_waves=4, min_wavelength=150.0, max_wavelength=600.0):
+    """A smooth random field of unit peak-to-peak amplitude (sum of plane waves)."""
+    H, W = shape
+    v, u = np.mgrid[0:H, 0:W].astype(np.float32)
+    f = np.zeros((H, W), np.float32)
+    for _ in range(n_waves):
+        lam = rng.uniform(min_wavelength, max_wavelength)
+        ang = rng.uniform(0, 2 * np.pi)
+        ph = rng.uniform(0, 2 * np.pi)
+        f += np.cos((np.cos(ang) * u + np.sin(ang) * v) * (2 * np.pi / lam) + ph).astype(np.float32)
+    ptp = float(f.max() - f.min())
+    return (f - f.mean()) / ptp if ptp > 0 else f
+
+
+def _illumination(shape, rng, amplitude):
+    """A smooth multiplicative field: linear gradient + broad hot spot, peak-to-peak ``amplitude``."""
+    H, W = shape
+    if amplitude <= 0:
+        return None
+    v, u = np.mgrid[0:H, 0:W].astype(np.float32)
+    un, vn = u / max(W - 1, 1) - 0.5, v / max(H - 1, 1) - 0.5
+    g = rng.normal(size=2)
+    cu, cv = rng.uniform(-0.3, 0.3, size=2)
+    f = (g[0] * un + g[1] * vn).astype(np.float32) + np.exp(-((un - cu) ** 2 + (vn - cv) ** 2) / 0.18).astype(np.float32)
+    f = (f - f.min()) / max(float(f.max() - f.min()), 1e-12)
+    return (1.0 - amplitude / 2.0 + amplitude * f).astype(np.float32)
+
+
+def _form_image(coverage, *, rng, background, foreground, blur_sigma, noise, illumination, texture,
+                dtype, texture_under_object=False):
+    """coverage (object fraction) -> camera image."""
+    H, W = coverage.shape
+    contrast = abs(background - foreground)
+    bg = np.full((H, W), background, np.float32)
+    if texture > 0:
+        bg += np.float32(texture * contrast) * _smooth_field((H, W), rng)
+    img = bg * (1.0 - coverage.astype(np.float32)) + np.float32(foreground) * coverage.astype(np.float32)
+    illum = _illumination((H, W), rng, illumination)
+    if illum is not None:
+        img *= illum
+    if blur_sigma > 0:
+        img = cv2.GaussianBlur(img, (0, 0), sigmaX=float(blur_sigma), sigmaY=float(blur_sigma),
+                               borderType=cv2.BORDER_REFLECT)
+    if noise > 0:
+        img = img + rng.normal(0.0, noise * contrast, size=(H, W)).astype(np.float32)
+    dtype = np.dtype(dtype)
+    if dtype.kind in "ui":
+        info = np.iinfo(dtype)
+        return np.clip(np.rint(img), info.min, info.max).astype(dtype)
+    return img.astype(dtype)
+
+
+def _check_rng(rng):
+    if rng is None:
+        raise ValueError("pass a seeded numpy.random.Generator as rng (e.g. np.random.default_rng(1))")
+    if not isinstance(rng, np.random.Generator):
+        rng = np.random.default_rng(rng)
+    return rng
+
+
+# ----------------------------------------------------------------------------- boards
+@dataclass(frozen=True)
+class RenderedBoard:
+    """A rendered board and its ground truth.
+
+    Attributes
+    ----------
+    image : ndarray (H, W)
+    corners_px : ndarray (N, 2)
+        Exact image position of every inner corner (id order), with distortion [px].
+    ids : ndarray (N,)
+    object_points : ndarray (N, 3) [m]
+    visible : ndarray (N,) bool
+        Corner at least ``margin`` px inside the image.
+    rvec, tvec : ndarray (3,)
+        Board pose in the camera frame (tvec [m]).
+    """
+
+    image: np.ndarray
+    corners_px: np.ndarray
+    ids: np.ndarray
+    object_points: np.ndarray
+    visible: np.ndarray
+    rvec: np.ndarray
+    tvec: np.ndarray
+
+
+def _board_pattern(board: Board, X, Y, margin_squares=1.0):
+    """Reflectance (1 white, 0 black, 0.5 outside the printed sheet) at board points [m]."""
+    s = board.square_size
+    bw, bh = board.size
+    out = np.full(X.shape, 0.5, np.float32)
+    sheet = (X >= -margin_squares * s) & (X < bw + margin_squares * s) & \
+            (Y >= -margin_squares * s) & (Y < bh + margin_squares * s)
+    out[sheet] = 1.0
+    inb = (X >= 0) & (X < bw) & (Y >= 0) & (Y < bh)
+    i = np.floor(X[inb] / s).astype(np.int64)
+    j = np.floor(Y[inb] / s).astype(np.int64)
+    val = np.ones(i.shape, np.float32)
+    if board.kind == "chessboard":
+        val[(i + j) % 2 == 0] = 0.0
+    else:
+        cvb = board.cv_board()
+        obj = np.asarray(cvb.getObjPoints(), float) * 1e-3          # (M, 4, 3) [m]
+        ids = np.asarray(cvb.getIds()).ravel()
+        d = cvb.getDictionary()
+        nb = int(d.markerSize)
+        table = np.full((board.squares_y, board.squares_x), -1, np.int64)
+        bits = np.zeros((len(ids), nb + 2, nb + 2), np.float32)
+        for k, (mid, corners) in enumerate(zip(ids, obj)):
+            ci = int(np.floor(corners[:, 0].mean() / s))
+            cj = int(np.floor(corners[:, 1].mean() / s))
+            table[cj, ci] = k
+            bits[k] = cv2.aruco.generateImageMarker(d, int(mid), nb + 2, borderBits=1) / 255.0
+        mk = table[j, i]
+        val[mk < 0] = 0.0
+        has = mk >= 0
+        x0 = obj[mk[has], 0, 0]
+        y0 = obj[mk[has], 0, 1]
+        cell = board.marker_size / (nb + 2)
+        lx = (X[inb][has] - x0) / cell
+        ly = (Y[inb][has] - y0) / cell
+        inside = (lx >= 0) & (lx < nb + 2) & (ly >= 0) & (ly < nb + 2)
+        v2 = np.ones(lx.shape, np.float32)
+        kk = mk[has][inside]
+        v2[inside] = bits[kk, np.floor(ly[inside]).astype(np.int64), np.floor(lx[inside]).astype(np.int64)]
+        val[has] = v2
+    out[inb] = val
+    return out
+
+
+def render_board(board: Board, camera: CameraModel, rvec, tvec, *, rng, supersample: int = 4,
+                 white: float = 220.0, black: float = 30.0, blur_sigma: float = 0.7,
+                 noise: float = 0.01, illumination: float = 0.1, margin: float = 3.0,
+                 dtype=np.uint8) -> RenderedBoard:
+    """Render a calibration board at pose ``(rvec, tvec)`` (``X_cam = R X_board + t``, t [m]).
+
+    Parameters
+    ----------
+    board : Board
+    camera : CameraModel
+        Intrinsics, distortion and image size (its plane pose is not used).
+    rvec, tvec : array_like (3,)
+    rng : numpy.random.Generator or int seed
+    supersample : int
+        ``S x S`` samples per pixel (pixel-centre sampling).
+    white, black : float
+        Reflectance levels [DN]; outside the printed sheet the scene is mid-gray.
+    blur_sigma : float [px]; noise : float (fraction of white - black);
+    illumination : float (peak-to-peak relative variation)
+    margin : float
+        Corners closer than this to the image border are not ``visible`` [px].
+
+    Returns
+    -------
+    RenderedBoard
+    """
+    rng = _check_rng(rng)
+    W, H = camera.image_size
+    S = int(supersample)
+    # exact undistortion at pixel corners, bilinear in between (the map is smooth)
+    gu, gv = np.meshgrid(np.arange(W + 1) - 0.5, np.arange(H + 1) - 0.5)
+    nrm = camera.undistort_pixels(np.stack([gu, gv], -1), normalized=True)       # (H+1, W+1, 2)
+    R = cv2.Rodrigues(np.asarray(rvec, float).reshape(3))[0]
+    t = np.asarray(tvec, float).reshape(3)
+    nvec = R[:, 2]
+    acc = np.zeros((H, W), np.float32)
+    a00, a01, a10, a11 = nrm[:-1, :-1], nrm[:-1, 1:], nrm[1:, :-1], nrm[1:, 1:]
+    for sy in range(S):
+        fy = (sy + 0.5) / S
+        for sx in range(S):
+            fx = (sx + 0.5) / S
+            d = (a00 * ((1 - fx) * (1 - fy)) + a01 * (fx * (1 - fy)) + a10 * ((1 - fx) * fy) + a11 * (fx * fy))
+            lam = (nvec @ t) / (d[..., 0] * nvec[0] + d[..., 1] * nvec[1] + nvec[2])
+            Xc = np.stack([d[..., 0] * lam, d[..., 1] * lam, lam], -1) - t
+            P = Xc @ R
+            val = _board_pattern(board, P[..., 0], P[..., 1])
+            val[lam <= 0] = 0.5
+            acc += val
+    refl = acc / (S * S)
+    # reflectance -> object coverage of the black level
+    cov = (1.0 - refl).astype(np.float32)
+    img = _form_image(cov, rng=rng, background=white, foreground=black, blur_sigma=blur_sigma,
+                      noise=noise, illumination=illumination, texture=0.0, dtype=dtype)
+    obj = board.corner_points()
+    proj, _ = cv2.projectPoints(obj, np.asarray(rvec, float).reshape(3), t, camera.camera_matrix,
+                                camera.dist_coeffs)
+    proj = proj.reshape(-1, 2)
+    vis = (proj[:, 0] >= margin) & (proj[:, 0] <= W - 1 - margin) & (proj[:, 1] >= margin) & \
+          (proj[:, 1] <= H - 1 - margin)
+    return RenderedBoard(img, proj, np.arange(len(obj)), obj, vis, np.asarray(rvec, float).reshape(3), t)
+
+
+# ----------------------------------------------------------------------------- manipulator
+def _link_frames(theta, geom: Geometry):
+    """Orientation φ_l and origin o_l of links 0..n (closed-form planar chain)."""
+    th = np.asarray(theta, float)
+    if th.shape != (geom.n_joints,):
+        raise ValueError(f"theta must have shape ({geom.n_joints},), got {th.shape}")
+    if not np.isfinite(th).all():
+        raise ValueError("theta contains NaN or inf")
+    phi = np.concatenate([[0.0], np.cumsum(th)])
+    org = np.zeros((geom.n_joints + 1, 2))
+    # origin of link l >= 1 is joint l: q_l = sum_{k < l} p (sin φ_k, cos φ_k), k = 1..l-1
+    steps = geom.p * np.stack([np.sin(phi[1:]), np.cos(phi[1:])], -1)      # link k's step, k = 1..n
+    org[2:] = np.cumsum(steps[:-1], axis=0)
+    return phi, org
+
+
+def manipulator_outline(theta, geom: Geometry, *, include_mount: bool = True) -> np.ndarray:
+    """Silhouette outline of the tube (geometry.md, "What a camera sees").
+
+    Parameters
+    ----------
+    theta : array_like (n,)
+        Joint angles [rad]; ``|θ_j|`` must not exceed the slot-closure angle.
+    geom : Geometry
+    include_mount : bool
+        Include the mount band below the base edge.
+
+    Returns
+    -------
+    ndarray (K, 2)
+        Vertices (x, z) [m] in the manipulator frame, anticlockwise, a simple
+        polygon. Every notch point is a vertex.
+    """
+    th = np.asarray(theta, float)
+    phi, org = _link_frames(th, geom)
+    if np.any(np.abs(th) > geom.closure_angle * (1 + 1e-9)):
+        j = int(np.argmax(np.abs(th)))
+        raise ValueError(f"|theta_{j + 1}| = {abs(th[j]):.4f} rad exceeds the slot-closure angle "
+                         f"{geom.closure_angle:.4f} rad: the slot faces would overlap")
+    n, p, R, w, d = geom.n_joints, geom.p, geom.outer_radius, geom.slot_width, geom.slot_depth
+
+    def P(link, x, z):
+        """Straight-configuration point (x, z) rigidly attached to `link` -> world."""
+        z0 = (link - 1) * p if link > 0 else 0.0
+        c, s = math.cos(phi[link]), math.sin(phi[link])
+        lz = z - z0
+        return (org[link, 0] + c * x + s * lz, org[link, 1] - s * x + c * lz)
+
+    def join(j, a):
+        """Where the lines x = a of links j-1 and j meet (joint j at q_j = origin of link j)."""
+        n0 = np.array([math.cos(phi[j - 1]), -math.sin(phi[j - 1])])
+        n1 = np.array([math.cos(phi[j]), -math.sin(phi[j])])
+        X = a * (n0 + n1) / (1.0 + math.cos(phi[j] - phi[j - 1]))
+        return (org[j, 0] + X[0], org[j, 1] + X[1])
+
+    zb = geom.base_edge_z
+    pts = []
+    if include_mount:
+        M = geom.mount_half_width
+        pts += [(-M, geom.mount_bottom_z), (M, geom.mount_bottom_z), (M, zb)]
+    pts.append((R, zb))
+    for j in range(1, n + 1):
+        zj = (j - 1) * p
+        if geom.slot_sides[j - 1] == +1:
+            pts += [P(j - 1, R, zj - w / 2), P(j - 1, R - d, zj - w / 2), join(j, R - d),
+                    P(j, R - d, zj + w / 2), P(j, R, zj + w / 2)]
+        else:
+            pts.append(join(j, R))
+    pts += [P(n, R, n * p), P(n, -R, n * p)]
+    for j in range(n, 0, -1):
+        zj = (j - 1) * p
+        if geom.slot_sides[j - 1] == -1:
+            pts += [P(j, -R, zj + w / 2), P(j, -(R - d), zj + w / 2), join(j, -(R - d)),
+                    P(j - 1, -(R - d), zj - w / 2), P(j - 1, -R, zj - w / 2)]
+        else:
+            pts.append(join(j, -R))
+    pts.append((-R, zb))
+    if include_mount:
+        pts.append((-geom.mount_half_width, zb))
+    return np.asarray(pts, float)
+
+
+@dataclass(frozen=True)
+class RenderedManipulator:
+    """A rendered manipulator image and its ground truth.
+
+    Attributes
+    ----------
+    image : ndarray (H, W)
+    points_px : ndarray (m, 2)
+        Exact notch points in the raw (distorted) image [px].
+    points_plane : ndarray (m, 2)
+        Exact notch points in the plane frame [m].
+    theta : ndarray (n,) [rad]
+    plane : tuple (tx [m], ty [m], phi [rad], mirror)
+    visible : ndarray (m,) bool
+        Inside the image by at least ``margin`` px.
+    """
+
+    image: np.ndarray
+    points_px: np.ndarray
+    points_plane: np.ndarray
+    theta: np.ndarray
+    plane: tuple
+    visible: np.ndarray
+
+    @property
+    def points_mm(self) -> np.ndarray:
+        """Notch points in the plane frame [mm]."""
+        return self.points_plane * 1e3
+
+
+def outline_in_plane(theta, geom, tx, ty, phi, mirror=False, include_mount=True):
+    """The outline (:func:`manipulator_outline`) mapped into the plane frame [m], (K, 2)."""
+    poly = manipulator_outline(theta, geom, include_mount=include_mount)
+    return to_plane(poly, tx, ty, phi, mirror)
+
+
+def render_manipulator(theta, geom: Geometry, camera: CameraModel, *, plane=(0.0, 0.0, 0.0, False),
+                       rng, supersample: int = 8, background: float = 200.0, foreground: float = 40.0,
+                       blur_sigma: float = 1.0, noise: float = 0.02, illumination: float = 0.15,
+                       texture: float = 0.05, max_segment_px: float = 0.5, margin: float = 2.0,
+                       dtype=np.uint8) -> RenderedManipulator:
+    """Render the notched tube at joint angles ``θ`` through a calibrated camera.
+
+    Parameters
+    ----------
+    theta : array_like (n,) [rad]
+    geom : Geometry
+    camera : CameraModel
+        Must have a plane pose.
+    plane : (tx, ty, phi, mirror)
+        Manipulator -> plane transform (:func:`notchfit.notches.to_plane`), tx, ty [m].
+    rng : numpy.random.Generator or int seed
+    supersample : int
+        Sub-rows per pixel of the scanline rasteriser.
+    background, foreground : float
+        Background and tube levels [DN] (a dark silhouette on a bright
+        background by default; the reverse works too).
+    blur_sigma : float
+        Gaussian optical blur [px].
+    noise : float
+        Sensor noise standard deviation as a fraction of ``|background - foreground|``.
+    illumination : float
+        Peak-to-peak relative variation of a smooth multiplicative light field.
+    texture : float
+        Peak-to-peak amplitude of a smooth additive background texture, as a
+        fraction of the contrast.
+    max_segment_px : float
+        Outline edges are subdivided to at most this length before projection [px].
+    margin : float
+        Points closer than this to the border are not ``visible`` [px].
+    dtype : numpy dtype
+        ``uint8`` (default), ``uint16`` or a float type.
+
+    Returns
+    -------
+    RenderedManipulator
+    """
+    rng = _check_rng(rng)
+    tx, ty, phi, mirror = plane
+    th = np.asarray(theta, float)
+    W, H = camera.image_size
+    poly = outline_in_plane(th, geom, tx, ty, phi, mirror)
+    scale = camera.plane_scale(poly.mean(axis=0))               # px per m
+    poly = _subdivide(poly, max_segment_px / scale)
+    uv = camera.plane_to_pixel(poly)
+    if not np.isfinite(uv).all():
+        raise ValueError("part of the manipulator outline is behind the camera")
+    # rasterise only the region the outline touches (plus the blur margin)
+    pad = int(math.ceil(4 * blur_sigma)) + 3
+    u0 = int(max(math.floor(uv[:, 0].min()) - pad, 0))
+    v0 = int(max(math.floor(uv[:, 1].min()) - pad, 0))
+    u1 = int(min(math.ceil(uv[:, 0].max()) + pad, W - 1))
+    v1 = int(min(math.ceil(uv[:, 1].max()) + pad, H - 1))
+    cov = np.zeros((H, W), np.float32)
+    if u1 >= u0 and v1 >= v0:
+        cov[v0:v1 + 1, u0:u1 + 1] = polygon_coverage([uv], (v1 - v0 + 1, u1 - u0 + 1),
+                                                     supersample=supersample, offset=(u0, v0))
+    img = _form_image(cov, rng=rng, background=background, foreground=foreground, blur_sigma=blur_sigma,
+                      noise=noise, illumination=illumination, texture=texture, dtype=dtype)
+    pts_plane = to_plane(notch_points(th, geom), tx, ty, phi, mirror)
+    pts_px = camera.plane_to_pixel(pts_plane)
+    vis = (pts_px[:, 0] >= margin) & (pts_px[:, 0] <= W - 1 - margin) & \
+          (pts_px[:, 1] >= margin) & (pts_px[:, 1] <= H - 1 - margin)
+    return RenderedManipulator(img, pts_px, pts_plane, th.copy(), (float(tx), float(ty), float(phi), bool(mirror)),
+                               vis)
+
+
+# ----------------------------------------------------------------------------- placement
+def place_in_view(theta_list, geom: Geometry, camera: CameraModel, *, phi: float = 0.0, mirror: bool = False):
+    """A plane translation that centres the shapes (outline with mount) in the image.
+
+    Parameters
+    ----------
+    theta_list : array_like (n,) or (S, n)
+    phi : float, mirror : bool
+        The rotation and mirror of the manipulator -> plane transform.
+
+    Returns
+    -------
+    plane : tuple (tx, ty, phi, mirror)
+    fits : bool
+        Every outline point of every shape is inside the image.
+    """
+    ths = np.atleast_2d(np.asarray(theta_list, float))
+    outl = np.concatenate([outline_in_plane(t, geom, 0.0, 0.0, phi, mirror) for t in ths])
+    c_img = np.array([(camera.image_size[0] - 1) / 2, (camera.image_size[1] - 1) / 2])
+    # iterate: centre the projected bounding box on the image centre
+    t = camera.pixel_to_plane(c_img) - 0.5 * (outl.min(0) + outl.max(0))
+    for _ in range(3):
+        uv = camera.plane_to_pixel(outl + t)
+        mid = 0.5 * (uv.min(0) + uv.max(0))
+        t = t + (camera.pixel_to_plane(c_img) - camera.pixel_to_plane(mid))
+    uv = camera.plane_to_pixel(outl + t)
+    W, H = camera.image_size
+    fits = bool(np.isfinite(uv).all() and uv[:, 0].min() >= 0 and uv[:, 1].min() >= 0
+                and uv[:, 0].max() <= W - 1 and uv[:, 1].max() <= H - 1)
+    return (float(t[0]), float(t[1]), float(phi), bool(mirror)), fits
+
+
+def camera_for_shapes(theta_list, geom: Geometry, *, mm_per_px: float = 0.03, margin_px: int = 60,
+                      phi: float = 0.0, mirror: bool = False, planes=None, max_size: int = 4096,
+                      **synthetic_kw):
+    """A synthetic camera just large enough for the given shapes (small test images).
+
+    Parameters
+    ----------
+    theta_list : array_like (n,) or (S, n)
+    mm_per_px : float
+        Image scale at the image centre.
+    margin_px : int
+        Free border around the shapes.
+    phi, mirror : the manipulator -> plane rotation and mirror used when ``planes`` is None.
+    planes : sequence of (tx, ty, phi, mirror), optional
+        Given plane transforms (one per shape): the camera is then centred on them.
+    **synthetic_kw : passed to :meth:`CameraModel.synthetic` (focal_px, dist, tilt_deg, ...).
+
+    Returns
+    -------
+    camera : CameraModel
+    planes : list of (tx, ty, phi, mirror)
+        One per shape, all inside the image.
+    """
+    ths = np.atleast_2d(np.asarray(theta_list, float))
+    if planes is None:
+        planes0 = [(0.0, 0.0, phi, mirror)] * len(ths)
+    else:
+        planes0 = [tuple(pl) for pl in planes]
+        if len(planes0) != len(ths):
+            raise ValueError(f"{len(planes0)} planes for {len(ths)} shapes")
+    outl = np.concatenate([outline_in_plane(t, geom, *pl) for t, pl in zip(ths, planes0)]) * 1e3
+    lo, hi = outl.min(0), outl.max(0)
+    angle = synthetic_kw.get("plane_angle_deg", -90.0)
+    ca, sa = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+    # extent along the image axes (plane rotated by `angle` about the optical axis)
+    corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
+    img_xy = corners @ np.array([[ca, sa], [-sa, ca]])
+    ext = img_xy.max(0) - img_xy.min(0)
+    W = int(math.ceil(ext[0] / mm_per_px * 1.03 + 2 * margin_px))
+    H = int(math.ceil(ext[1] / mm_per_px * 1.03 + 2 * margin_px))
+    if max(W, H) > max_size:
+        raise ValueError(f"the shapes need a {W}x{H} px image at {mm_per_px} mm/px (max {max_size})")
+    center = 0.5 * (lo + hi)
+    for _ in range(4):
+        cam = CameraModel.synthetic(W, H, mm_per_px=mm_per_px, plane_center_mm=tuple(center), **synthetic_kw)
+        uv = cam.plane_to_pixel(outl * 1e-3)
+        lo_px, hi_px = uv.min(0), uv.max(0)
+        need = np.maximum(hi_px - lo_px + 2 * margin_px, 1)
+        mid = 0.5 * (lo_px + hi_px)
+        c_img = np.array([(W - 1) / 2, (H - 1) / 2])
+        center = center + (cam.pixel_to_plane(c_img) - cam.pixel_to_plane(mid)) * 1e3
+        if need[0] > W or need[1] > H:
+            W, H = int(math.ceil(max(W, need[0]))), int(math.ceil(max(H, need[1])))
+    cam = CameraModel.synthetic(W, H, mm_per_px=mm_per_px, plane_center_mm=tuple(center), **synthetic_kw)
+    return cam, planes0
+
+
+def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_per_px: float = 0.03,
+                        seed: int | None = None, **render_kw) -> str:
+    """Render one image per sample of a synthetic study (for ``notchfit synth``).
+
+    One camera serves the whole study (its plane frame is the study's plane
+    frame): :func:`camera_for_shapes` over every sample's true shape and plane
+    transform. Writes ``calib_dir/camera.yml`` and
+    ``experiment_dir(name)/images/NNNN.png`` per sample.
+
+    Parameters
+    ----------
+    study : notchfit.synth.SynthStudy
+    calib_dir : path
+    experiment_dir : callable name -> path
+    jobs : int
+        Worker processes.
+    mm_per_px : float
+    seed : int, optional
+        Noise seed (default: the study's seed).
+    **render_kw : passed to :func:`render_manipulator` (blur_sigma, noise, ...).
+
+    Returns
+    -------
+    str
+        The camera file's path relative to an experiment folder
+        (``../calibration/camera.yml`` for the synth layout).
+    """
+    import os
+    from pathlib import Path
+
+    from .batch import run_batch
+    from .camera import write_camera
+
+    geom = study.geometry
+    thetas, planes, keys = [], [], []
+    for e in study.experiments:
+        pl = (e.plane["tx"], e.plane["ty"], e.plane["phi"], e.plane["mirror"])
+        for s, th in zip(e.samples["sample"], e.theta):
+            thetas.append(th)
+            planes.append(pl)
+            keys.append((e.name, int(s)))
+    clip = np.clip(np.asarray(thetas, float), -geom.closure_angle, geom.closure_angle)
+    cam, _ = camera_for_shapes(clip, geom, mm_per_px=mm_per_px, planes=planes)
+    calib_dir = Path(calib_dir)
+    calib_dir.mkdir(parents=True, exist_ok=True)
+    write_camera(cam, calib_dir / "camera.yml")
+    base = int(study.seed if seed is None else seed)
+    items = []
+    for k, ((name, s), th, pl) in enumerate(zip(keys, clip, planes)):
+        out = Path(experiment_dir(name)) / "images" / f"{s:04d}.png"
+        items.append((th, geom, cam, pl, [base, k], out, render_kw))
+    res = run_batch(_render_one, items, keys=[f"{n}/{s}" for n, s in keys], jobs=jobs, desc="render")
+    if res.failures:
+        raise ValueError("rendering failed: " + "; ".join(f"{r.key}: {r.error}" for r in res.failures[:5]))
+    exp_parent = Path(experiment_dir(keys[0][0])).parent if keys else calib_dir.parent
+    return Path(os.path.relpath(calib_dir / "camera.yml", Path(experiment_dir(keys[0][0])))).as_posix() \
+        if keys else str(calib_dir / "camera.yml")
+
+
+def _render_one(item):
+    th, geom, cam, pl, seed, out, kw = item
+    r = render_manipulator(th, geom, cam, plane=pl, rng=np.random.default_rng(seed), **kw)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(out), r.image):
+        raise OSError(f"could not write {out}")
+    return str(out)
