@@ -608,17 +608,21 @@ def camera_for_shapes(theta_list, geom: Geometry, *, mm_per_px: float = 0.03, ma
     if max(W, H) > max_size:
         raise ValueError(f"the shapes need a {W}x{H} px image at {mm_per_px} mm/px (max {max_size})")
     center = 0.5 * (lo + hi)
-    for _ in range(4):
+    for _ in range(12):
         cam = CameraModel.synthetic(W, H, mm_per_px=mm_per_px, plane_center_mm=tuple(center), **synthetic_kw)
         uv = cam.plane_to_pixel(outl * 1e-3)
         lo_px, hi_px = uv.min(0), uv.max(0)
+        if (lo_px.min() >= 0.9 * margin_px and hi_px[0] <= W - 1 - 0.9 * margin_px
+                and hi_px[1] <= H - 1 - 0.9 * margin_px):
+            break
         need = np.maximum(hi_px - lo_px + 2 * margin_px, 1)
         mid = 0.5 * (lo_px + hi_px)
         c_img = np.array([(W - 1) / 2, (H - 1) / 2])
         center = center + (cam.pixel_to_plane(c_img) - cam.pixel_to_plane(mid)) * 1e3
         if need[0] > W or need[1] > H:
             W, H = int(math.ceil(max(W, need[0]))), int(math.ceil(max(H, need[1])))
-    cam = CameraModel.synthetic(W, H, mm_per_px=mm_per_px, plane_center_mm=tuple(center), **synthetic_kw)
+    else:
+        raise ValueError("camera_for_shapes: could not fit the shapes in the image (extreme tilt or distortion?)")
     return cam, planes0
 
 
