@@ -1,0 +1,93 @@
+"""CLI: ``notchfit detect`` and ``notchfit calibrate`` on small rendered images (issue 6)."""
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+
+from notchfit import io
+from notchfit.camera import CameraModel, load_board, read_camera, write_camera
+from notchfit.cli import main
+from notchfit.render import camera_for_shapes, render_board, render_manipulator
+
+
+def _experiment(tmp_path, geom, thetas, *, corrupt=None, missing=None):
+    cam, planes = camera_for_shapes(thetas, geom, mm_per_px=0.03, phi=0.4)
+    folder = tmp_path / "exp"
+    (folder / "images").mkdir(parents=True)
+    write_camera(cam, folder / "camera.yml")
+    rng = np.random.default_rng(3)
+    rows, truth = [], []
+    for s, th in enumerate(thetas, start=1):
+        r = render_manipulator(th, geom, cam, plane=planes[0], rng=rng)
+        p = folder / "images" / f"{s:04d}.png"
+        if s == corrupt:
+            p.write_bytes(b"not a png")
+        elif s != missing:
+            cv2.imwrite(str(p), r.image)
+        truth.append(r.points_plane)
+        rows.append({"sample": s, "time_s": float(s), "tension_left_N": 1.0, "tension_right_N": 0.5,
+                     "displacement_left_mm": np.nan, "displacement_right_mm": np.nan,
+                     "image": f"images/{s:04d}.png"})
+    (folder / "experiment.toml").write_text('name = "exp"\ngeometry = "default"\nmirror = false\n'
+                                            'calibration = "camera.yml"\n')
+    pd.DataFrame(rows).to_csv(folder / "samples.csv", index=False)
+    return folder, np.stack(truth)
+
+
+def test_detect_cli_writes_detections_and_overlays(tmp_path, geom, capsys):
+    thetas = [np.zeros(geom.n_joints), np.full(geom.n_joints, 0.04)]
+    folder, truth = _experiment(tmp_path, geom, thetas)
+    out = tmp_path / "out"
+    assert main(["detect", str(folder), "--out", str(out)]) == 0
+    df = io.read_detections(out / "detections.csv", n_points=58, sample_ids=[1, 2])
+    assert list(df.columns)[:8] == ["sample", "point", "x_mm", "y_mm", "u_px", "v_px", "sigma_mm", "status"]
+    assert (df["status"] == "ok").all() and len(df) == 116
+    exp = io.load_detected_points(io.read_experiment(folder), out / "detections.csv")
+    assert np.abs(exp.points - truth).max() < 0.03e-3
+    assert (out / "overlays" / "0001.png").is_file() and (out / "detect_run.json").is_file()
+    # nothing overwritten without --force
+    assert main(["detect", str(folder), "--out", str(out)]) == 2
+    assert main(["detect", str(folder), "--out", str(out), "--force"]) == 0
+
+
+def test_detect_cli_reports_corrupt_and_missing_images(tmp_path, geom, capsys):
+    thetas = [np.zeros(geom.n_joints)] * 3
+    folder, truth = _experiment(tmp_path, geom, thetas, corrupt=2, missing=3)
+    out = tmp_path / "out"
+    assert main(["detect", str(folder), "--out", str(out), "--no-overlays"]) == 1
+    text = capsys.readouterr().out
+    assert "sample 2" in text and "corrupt" in text and "sample 3" in text and "missing" in text
+    df = pd.read_csv(out / "detections.csv")
+    assert set(df["sample"]) == {1} and (df["status"] == "ok").all()
+
+
+def test_calibrate_cli(tmp_path, capsys):
+    board = load_board("charuco_a4")
+    K = np.array([[800.0, 0, 322.0], [0, 805.0, 236.0], [0, 0, 1]])
+    cam = CameraModel(K, np.array([-0.1, 0.05, 0.001, -0.0005, 0.0]), (640, 480))
+    rng = np.random.default_rng(4)
+    paths = []
+    c = np.array([board.size[0] / 2, board.size[1] / 2, 0.0])
+    for k in range(6):
+        rv = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-0.3, 0.3)])
+        tv = np.array([rng.uniform(-0.03, 0.03), rng.uniform(-0.02, 0.02), 0.38]) - cv2.Rodrigues(rv)[0] @ c
+        p = tmp_path / f"view{k}.png"
+        cv2.imwrite(str(p), render_board(board, cam, rv, tv, rng=rng).image)
+        paths.append(str(p))
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
+    # the board lying in the plane, seen from the front
+    rvp, tvp = np.array([0.05, -0.04, 0.0]), np.array([-0.1, -0.07, 0.40])
+    plane = tmp_path / "plane.png"
+    cv2.imwrite(str(plane), render_board(board, cam, rvp, tvp, rng=rng).image)
+    out = tmp_path / "camera.yml"
+    code = main(["calibrate", *paths, str(blank), "--board", "charuco_a4", "--out", str(out),
+                 "--plane-image", str(plane)])
+    assert code == 1                                   # the blank view is rejected and listed
+    assert "REJECTED blank.png: board not found" in capsys.readouterr().out
+    got = read_camera(out)
+    assert abs(got.camera_matrix[0, 0] / 800 - 1) < 0.005 and got.has_plane
+    assert np.allclose(got.plane_tvec, tvp, atol=2e-3)
+    assert main(["calibrate", *paths, "--board", "charuco_a4", "--out", str(out)]) == 2     # exists
+    assert main(["calibrate", *paths, "--board", "no_such_board", "--out", str(tmp_path / "x.yml")]) == 2
