@@ -118,27 +118,25 @@ def _to_float_gray(image):
 
 
 def _segment(gray, smooth_sigma, min_area_px):
+    """Otsu segmentation -> (object mask uint8 0/1, smoothed image, contrast, largest outer contour)."""
     sm = cv2.GaussianBlur(gray, (0, 0), smooth_sigma) if smooth_sigma > 0 else gray
     lo, hi = float(sm.min()), float(sm.max())
     if hi - lo < 1e-6:
-        return None, sm, 0.0
-    s8 = np.round((sm - lo) * (255.0 / (hi - lo))).astype(np.uint8)
-    thr, mask = cv2.threshold(s8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-    border = np.concatenate([mask[0], mask[-1], mask[:, 0], mask[:, -1]]) > 0
+        return None, sm, 0.0, None
+    s8 = cv2.convertScaleAbs(sm, alpha=255.0 / (hi - lo), beta=-lo * 255.0 / (hi - lo))
+    _, mask = cv2.threshold(s8, 0, 1, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    border = np.concatenate([mask[0], mask[-1], mask[:, 0], mask[:, -1]])
     if border.mean() > 0.5:                        # bright background: the object is the dark class
-        mask = 255 - mask
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    if n <= 1:
-        return None, sm, 0.0
-    k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    if stats[k, cv2.CC_STAT_AREA] < min_area_px:
-        return None, sm, 0.0
-    obj = (lab == k).astype(np.uint8)
-    # contrast between the classes (for profile validation)
-    inside = sm[obj > 0]
-    outside = sm[(mask == 0)]
-    contrast = abs(float(np.median(inside)) - float(np.median(outside))) if outside.size else 0.0
-    return obj, sm, contrast
+        mask = 1 - mask
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        return None, sm, 0.0, None
+    cont = max(contours, key=cv2.contourArea)
+    if cv2.contourArea(cont) < min_area_px:
+        return None, sm, 0.0, None
+    fg = cv2.mean(sm, mask=mask)[0]
+    bg = cv2.mean(sm, mask=1 - mask)[0]
+    return mask, sm, abs(fg - bg), cont
 
 
 def _turns(poly):
@@ -333,11 +331,9 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
     if not camera.has_plane:
         raise ValueError("the camera model has no plane pose: calibrate with --plane-image")
     H, W = gray.shape
-    obj, sm, contrast = _segment(gray, smooth_sigma, min_area_px)
+    obj, sm, contrast, cont = _segment(gray, smooth_sigma, min_area_px)
     if obj is None:
         return _empty(m, "no_manipulator", "no manipulator silhouette found (image flat or object too small)")
-    contours, _ = cv2.findContours(obj, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    cont = max(contours, key=cv2.contourArea)
     approx = cv2.approxPolyDP(cont, approx_eps_px, True).reshape(-1, 2).astype(float)
     cont = cont.reshape(-1, 2).astype(float)
     if len(approx) < 8 or len(cont) < 16 * corner_k:
@@ -413,21 +409,22 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
     status = ["occluded"] * m
     ref = cv2.GaussianBlur(gray, (0, 0), profile_sigma) if profile_sigma > 0 else gray
     levels = _level_maps(ref, obj, level_erode_px, level_sigma_px, level_factor)
-    for k, ci in found.items():
-        c0 = cpos[ci]
-        a = cpos[(ci - 1) % nC]
-        b = cpos[(ci + 1) % nC]
-        res = _refine_corner(ref, levels, camera, flip, c0, a, b, px_m,
-                             contrast=contrast, profile_half_px=profile_half_px, profile_step_px=profile_step_px,
-                             edge_skip_px=edge_skip_px, edge_len=edge_len_mm * 1e-3, sample_step_px=sample_step_px,
-                             iterations=iterations, sigma_corr_px=sigma_corr_px)
+    keys = sorted(found)
+    C0 = np.array([cpos[found[k]] for k in keys]).reshape(-1, 2)
+    A = np.array([cpos[(found[k] - 1) % nC] for k in keys]).reshape(-1, 2)
+    B = np.array([cpos[(found[k] + 1) % nC] for k in keys]).reshape(-1, 2)
+    results = _refine_corners(ref, levels, camera, flip, C0, A, B, px_m, contrast=contrast,
+                              profile_half_px=profile_half_px, profile_step_px=profile_step_px,
+                              edge_skip_px=edge_skip_px, edge_len=edge_len_mm * 1e-3,
+                              sample_step_px=sample_step_px, iterations=iterations, sigma_corr_px=sigma_corr_px)
+    for k, res in zip(keys, results):
         if res is None:
             status[k] = "occluded"
             continue
-        p_m, s_m, n1, n2, r1, r2, narrow = res
+        p_m, s_m, n1, n2, r1, r2 = res
         pts[k] = p_m * flip
         sig[k] = s_m
-        weak = min(n1, n2) < min_samples or max(r1, r2) > max_resid_px * px_m or narrow
+        weak = min(n1, n2) < min_samples or max(r1, r2) > max_resid_px * px_m
         status[k] = "ambiguous" if weak else "ok"
     pts_px = np.full((m, 2), np.nan)
     good = np.isfinite(pts[:, 0])
@@ -453,49 +450,73 @@ def _point_index_kind(layout, kind, side):
 def _sample(img, uv):
     """Bilinear samples of ``img`` at ``uv`` (..., 2) [px]; NaN outside."""
     shp = uv.shape[:-1]
-    u = uv[..., 0].astype(np.float32).reshape(-1, 1)
-    v = uv[..., 1].astype(np.float32).reshape(-1, 1)
-    out = cv2.remap(img, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+    u = uv[..., 0].astype(np.float32).ravel()
+    v = uv[..., 1].astype(np.float32).ravel()
+    n = u.size
+    cols = 1024
+    rows = max(1, -(-n // cols))
+    pad = rows * cols - n
+    U = np.concatenate([u, np.full(pad, -1, np.float32)]).reshape(rows, cols)
+    V = np.concatenate([v, np.full(pad, -1, np.float32)]).reshape(rows, cols)
+    out = cv2.remap(img, U, V, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+    out = out.astype(float).ravel()[:n]
     H, W = img.shape
-    bad = (u < 0) | (v < 0) | (u > W - 1) | (v > H - 1)
-    out = out.astype(float)
-    out[bad] = np.nan
+    out[(u < 0) | (v < 0) | (u > W - 1) | (v > H - 1) | ~np.isfinite(u) | ~np.isfinite(v)] = np.nan
     return out.reshape(shp)
 
 
-def _edge_crossings(img, levels, camera, flip, c0, e, nrm, s_from, s_to, px_m, half_px, step_px, sample_px, contrast):
-    """50 % crossings of profiles across the edge through c0 along e (plane coords, flipped frame) [m]."""
-    if s_to <= s_from:
-        return np.zeros((0, 2))
-    s = np.arange(s_from, s_to + 1e-12, sample_px * px_m)
+def _edge_crossings(img, levels, camera, flip, C, E, N, s_from, s_to, px_m, half_px, step_px, sample_px,
+                    contrast):
+    """50 % crossings of intensity profiles across many edges at once.
+
+    Edge ``i`` starts at ``C[i]`` with direction ``E[i]`` and normal ``N[i]``
+    (flipped plane frame [m]); profiles at distances ``s_from .. s_to[i]``
+    along it, each ``2 half_px`` long. Returns a list of (K_i, 2) crossing
+    arrays [m].
+    """
+    ne = len(C)
+    ds = sample_px * px_m
+    ns = np.maximum(np.floor((s_to - s_from) / ds).astype(int) + 1, 0)
+    ns[s_to <= s_from] = 0
+    nmax = int(ns.max()) if ne else 0
+    out = [np.zeros((0, 2)) for _ in range(ne)]
+    if nmax == 0:
+        return out
+    s = s_from + ds * np.arange(nmax)
     t = np.arange(-half_px, half_px + 1e-9, step_px) * px_m
-    P = c0[None, None, :] + s[:, None, None] * e[None, None, :] + t[None, :, None] * nrm[None, None, :]
-    uv = camera.plane_to_pixel(P.reshape(-1, 2) * flip).reshape(P.shape)
-    f = _sample(img, uv)                                        # (Ns, Nt)
+    nt = len(t)
+    # profile end points projected exactly; in between the image map is affine to ~1e-4 px over a profile
+    ends = (C[:, None, None, :] + s[None, :, None, None] * E[:, None, None, :]
+            + t[[0, -1]][None, None, :, None] * N[:, None, None, :])            # (ne, nmax, 2, 2)
+    uve = camera.plane_to_pixel(ends.reshape(-1, 2) * flip).reshape(ne, nmax, 2, 2)
+    w = ((t - t[0]) / (t[-1] - t[0]))[None, None, :, None]
+    uv = uve[:, :, :1] + w * (uve[:, :, 1:] - uve[:, :, :1])                    # (ne, nmax, nt, 2)
+    f = _sample(img, uv)                                                        # (ne, nmax, nt)
     nend = max(2, int(round(1.0 / step_px)))
-    lo = np.nanmean(f[:, :nend], axis=1)
-    hi = np.nanmean(f[:, -nend:], axis=1)
-    # the 50 % level between the local object and background levels (smooth maps, see _level_maps)
+    lo = f[..., :nend].mean(-1)
+    hi = f[..., -nend:].mean(-1)
     fgL, bgL, fac = levels
-    cuv = uv[:, len(t) // 2]
-    small = (cuv + 0.5) / fac - 0.5
+    small = (uv[:, :, nt // 2] + 0.5) / fac - 0.5
     mid = 0.5 * (_sample(fgL, small) + _sample(bgL, small))
-    okp = np.isfinite(f).all(axis=1) & np.isfinite(mid) & (np.abs(hi - lo) > 0.4 * contrast)
-    g = (f - mid[:, None]) * np.sign(hi - lo)[:, None]
-    out = []
-    c = len(t) // 2
-    for r in np.nonzero(okp)[0]:
-        sgn = g[r] > 0
-        ch = np.nonzero(sgn[1:] != sgn[:-1])[0]
-        if len(ch) == 0:
-            continue
-        k = ch[np.argmin(np.abs(ch + 0.5 - c))]
-        if len(ch) > 1 and np.sort(np.abs(ch + 0.5 - c))[1] < 2.0 / step_px:
-            continue                                            # noisy profile: two crossings close by
-        g0, g1 = g[r, k], g[r, k + 1]
-        tt = t[k] + (t[k + 1] - t[k]) * g0 / (g0 - g1)
-        out.append(c0 + s[r] * e + tt * nrm)
-    return np.asarray(out).reshape(-1, 2)
+    use = (np.arange(nmax)[None, :] < ns[:, None]) & np.isfinite(f).all(-1) & np.isfinite(mid) \
+        & (np.abs(hi - lo) > 0.4 * contrast)
+    g = (f - mid[..., None]) * np.sign(hi - lo)[..., None]
+    pos = g > 0
+    ch = pos[..., 1:] != pos[..., :-1]                                          # (ne, nmax, nt-1)
+    dist = np.where(ch, np.abs(np.arange(nt - 1) + 0.5 - nt // 2), np.inf)
+    k = np.argmin(dist, axis=-1)
+    dsort = np.sort(dist, axis=-1)
+    first = dsort[..., 0]
+    second = dsort[..., 1] if nt > 2 else np.full(first.shape, np.inf)
+    use &= np.isfinite(first) & ~(second < 2.0 / step_px)                     # noisy: two crossings close by
+    g0 = np.take_along_axis(g, k[..., None], -1)[..., 0]
+    g1 = np.take_along_axis(g, (k + 1)[..., None], -1)[..., 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tt = t[k] + (t[1] - t[0]) * g0 / (g0 - g1)
+    X = C[:, None, :] + s[None, :, None] * E[:, None, :] + tt[..., None] * N[:, None, :]
+    for i in range(ne):
+        out[i] = X[i][use[i]]
+    return out
 
 
 def _level_maps(img, obj, erode_px, sigma_px, factor):
@@ -529,7 +550,8 @@ def _fit_line(P):
 
 def _robust_line(P, k=3.0):
     cen, d, res = _fit_line(P)
-    mad = 1.4826 * np.median(np.abs(res - np.median(res)))
+    ar = np.abs(res)                                # TLS residuals have zero mean
+    mad = 1.4826 * np.partition(ar, len(ar) // 2)[len(ar) // 2]
     keep = np.abs(res) <= max(k * mad, 1e-12)
     if keep.sum() >= 3 and keep.sum() < len(P):
         P = P[keep]
@@ -545,57 +567,69 @@ def _intersect(c1, d1, c2, d2):
     return c1 + s[0] * d1
 
 
-def _refine_corner(img, levels, camera, flip, c0, a, b, px_m, *, contrast, profile_half_px, profile_step_px, edge_skip_px,
-                   edge_len, sample_step_px, iterations, sigma_corr_px):
-    """Intersection of the two edge lines at corner c0 (neighbour corners a, b), all in the flipped plane [m]."""
-    c = c0.copy()
-    e1 = (a - c) / np.linalg.norm(a - c)
-    e2 = (b - c) / np.linalg.norm(b - c)
-    L1, L2 = np.linalg.norm(a - c), np.linalg.norm(b - c)
-    half = profile_half_px
-    narrow = False
-    # neighbouring parallel edges (a slot's opposite face) must stay outside the profile:
-    # the slot gap at an outer corner is the distance between the corner and the other outer corner
-    out = None
+def _refine_corners(img, levels, camera, flip, C0, A, B, px_m, *, contrast, profile_half_px, profile_step_px,
+                    edge_skip_px, edge_len, sample_step_px, iterations, sigma_corr_px):
+    """Corners as intersections of the two edge lines (neighbour corners A, B), flipped plane frame [m].
+
+    Returns one entry per corner: None (not enough edge) or
+    (point [m], sigma [m], n1, n2, rms1 [m], rms2 [m]).
+    """
+    nc = len(C0)
+    if nc == 0:
+        return []
+    C = C0.copy()
+    E1 = (A - C) / np.linalg.norm(A - C, axis=1, keepdims=True)
+    E2 = (B - C) / np.linalg.norm(B - C, axis=1, keepdims=True)
+    L1, L2 = np.linalg.norm(A - C, axis=1), np.linalg.norm(B - C, axis=1)
+    skip = edge_skip_px * px_m
+    alive = np.ones(nc, bool)
+    fits = [None] * nc
     for _ in range(max(1, iterations)):
-        n1 = np.array([-e1[1], e1[0]])
-        n2 = np.array([-e2[1], e2[0]])
-        skip = edge_skip_px * px_m
-        P1 = _edge_crossings(img, levels, camera, flip, c, e1, n1, skip, min(L1 - skip, edge_len), px_m, half,
-                             profile_step_px, sample_step_px, contrast)
-        P2 = _edge_crossings(img, levels, camera, flip, c, e2, n2, skip, min(L2 - skip, edge_len), px_m, half,
-                             profile_step_px, sample_step_px, contrast)
-        if len(P1) < 3 or len(P2) < 3:
-            return None
-        c1, d1, r1, P1 = _robust_line(P1)
-        c2, d2, r2, P2 = _robust_line(P2)
-        if np.dot(d1, e1) < 0:
-            d1 = -d1
-        if np.dot(d2, e2) < 0:
-            d2 = -d2
-        x = _intersect(c1, d1, c2, d2)
-        if x is None or np.linalg.norm(x - c0) > 10 * px_m:
-            return None
-        c, e1, e2 = x, d1, d2
-        out = (c1, d1, r1, P1, c2, d2, r2, P2)
-    c1, d1, r1, P1, c2, d2, r2, P2 = out
-    # σ of the intersection: each line's offset error at the corner, divided by the sine of the angle
-    def off_sigma(cen, d, res, P):
+        E = np.concatenate([E1, E2])
+        N = np.stack([-E[:, 1], E[:, 0]], axis=1)
+        s_to = np.minimum(np.concatenate([L1, L2]) - skip, edge_len)
+        P = _edge_crossings(img, levels, camera, flip, np.concatenate([C, C]), E, N, skip, s_to, px_m,
+                            profile_half_px, profile_step_px, sample_step_px, contrast)
+        for i in range(nc):
+            if not alive[i]:
+                continue
+            P1, P2 = P[i], P[nc + i]
+            if len(P1) < 3 or len(P2) < 3:
+                alive[i] = False
+                continue
+            c1, d1, r1, P1 = _robust_line(P1)
+            c2, d2, r2, P2 = _robust_line(P2)
+            if np.dot(d1, E1[i]) < 0:
+                d1 = -d1
+            if np.dot(d2, E2[i]) < 0:
+                d2 = -d2
+            x = _intersect(c1, d1, c2, d2)
+            if x is None or np.linalg.norm(x - C0[i]) > 10 * px_m:
+                alive[i] = False
+                continue
+            C[i], E1[i], E2[i] = x, d1, d2
+            fits[i] = (c1, d1, r1, P1, c2, d2, r2, P2)
+    corr = math.sqrt(max(sigma_corr_px / sample_step_px, 1.0))
+
+    def off_sigma(c, cen, d, res, P):
         n = len(P)
         s = (P - cen) @ d
         s_c = (c - cen) @ d
         rv = np.sum(res ** 2) / max(n - 2, 1)
         return math.sqrt(rv * (1.0 / n + s_c ** 2 / max(np.sum(s ** 2), 1e-30)))
-    sin = abs(d1[0] * d2[1] - d1[1] * d2[0])
-    s1, s2 = off_sigma(c1, d1, r1, P1), off_sigma(c2, d2, r2, P2)
-    # crossings spaced sample_step_px apart are correlated over about sigma_corr_px (blur + smoothing)
-    corr = math.sqrt(max(sigma_corr_px / sample_step_px, 1.0))
-    sigma = corr * math.sqrt(s1 ** 2 + s2 ** 2) / max(sin, 0.2)
-    # a slot face closer than the profile half-length to its opposite face -> ambiguous
-    narrow = False
-    rms1 = float(np.sqrt(np.mean(r1 ** 2)))
-    rms2 = float(np.sqrt(np.mean(r2 ** 2)))
-    return c, sigma, len(P1), len(P2), rms1, rms2, narrow
+
+    out = []
+    for i in range(nc):
+        if not alive[i]:
+            out.append(None)
+            continue
+        c1, d1, r1, P1, c2, d2, r2, P2 = fits[i]
+        sin = abs(d1[0] * d2[1] - d1[1] * d2[0])
+        # crossings spaced sample_step_px apart are correlated over about sigma_corr_px (blur + smoothing)
+        sigma = corr * math.hypot(off_sigma(C[i], c1, d1, r1, P1), off_sigma(C[i], c2, d2, r2, P2)) / max(sin, 0.2)
+        out.append((C[i].copy(), sigma, len(P1), len(P2), float(np.sqrt(np.mean(r1 ** 2))),
+                    float(np.sqrt(np.mean(r2 ** 2)))))
+    return out
 
 
 def detections_table(sample, det: Detection):
