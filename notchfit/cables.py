@@ -49,6 +49,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import Geometry
+from .kinematics import as_joint_angles
 
 __all__ = [
     "LEFT",
@@ -83,16 +84,6 @@ def _angles(*arrays):
             raise ValueError("joint angles contain NaN or inf")
         out.append(a)
     return out
-
-
-def _theta(theta, geom: Geometry) -> np.ndarray:
-    th = np.asarray(theta, dtype=float)
-    if th.ndim == 0 or th.shape[-1] != geom.n_joints:
-        raise ValueError(
-            f"joint angles must have shape (..., {geom.n_joints}), got {np.shape(theta)}")
-    if not np.isfinite(th).all():
-        raise ValueError("joint angles contain NaN or inf")
-    return th
 
 
 # --------------------------------------------------------------------------
@@ -303,7 +294,7 @@ def cable_lengths(theta, geom: Geometry, model: str = "exact", offset: float | N
     -------
     ndarray, shape (..., 2) [m], columns (R, L)
     """
-    th = _theta(theta, geom)
+    th = as_joint_angles(theta, geom.n_joints)
     if model not in _MODELS:
         raise ValueError(f"model must be one of {_MODELS}, got {model!r}")
     L0 = rest_lengths(geom, offset)
@@ -356,7 +347,7 @@ def coupling_matrix(theta, geom: Geometry, model: str = "exact") -> np.ndarray:
     -------
     ndarray, shape (..., n, 2) [m/rad], ``P[..., k, c] = ∂L_c/∂θ_k``, c = (R, L)
     """
-    th = _theta(theta, geom)
+    th = as_joint_angles(theta, geom.n_joints)
     if model == "simple":
         return np.broadcast_to(coupling_matrix_simple(geom), th.shape + (2,)).copy()
     if model != "exact":
@@ -380,7 +371,7 @@ def cable_length_hessian(theta, geom: Geometry) -> np.ndarray:
     -------
     ndarray, shape (..., 2, n, n) [m/rad²], first axis c = (R, L)
     """
-    th = _theta(theta, geom)
+    th = as_joint_angles(theta, geom.n_joints)
     n = geom.n_joints
     pad = np.zeros(th.shape[:-1] + (n + 2,))
     pad[..., 1:-1] = th

@@ -22,6 +22,7 @@ from .geometry import Geometry
 
 __all__ = [
     "adjoint",
+    "as_joint_angles",
     "body_jacobian",
     "cumulative_angles",
     "exp_twist",
@@ -41,8 +42,12 @@ __all__ = [
 ]
 
 
-def _as_theta(theta, n: int | None = None) -> np.ndarray:
-    """Validate joint angles: a float array (..., n) with no NaN."""
+def as_joint_angles(theta, n: int | None = None) -> np.ndarray:
+    """Validate joint angles: a float array (..., n) with no NaN or inf.
+
+    Raises ``ValueError`` (mentioning "joint angles") for a scalar, a wrong
+    last axis or non-finite values; every module validates angles here.
+    """
     th = np.asarray(theta, dtype=float)
     if th.ndim == 0:
         raise ValueError("joint angles must be an array of shape (..., n), got a scalar")
@@ -193,7 +198,7 @@ def link_frames(theta, geom: Geometry) -> np.ndarray:
     -------
     ndarray, shape (n + 1, 4, 4)
     """
-    th = _as_theta(theta, geom.n_joints)
+    th = as_joint_angles(theta, geom.n_joints)
     if th.ndim != 1:
         raise ValueError("link_frames takes one configuration (n,)")
     xis = joint_twists(geom)
@@ -230,7 +235,7 @@ def spatial_jacobian(theta, geom: Geometry) -> np.ndarray:
     -------
     ndarray, shape (6, n)
     """
-    th = _as_theta(theta, geom.n_joints)
+    th = as_joint_angles(theta, geom.n_joints)
     xis = joint_twists(geom)
     J = np.empty((6, geom.n_joints))
     h = np.eye(4)
@@ -280,7 +285,7 @@ def spatial_wrench_from_world(f, tau, g_st) -> np.ndarray:
 # --------------------------------------------------------------------------
 def cumulative_angles(theta) -> np.ndarray:
     """Link orientation ``φ_i = Σ_{k≤i} θ_k`` (..., n) [rad]."""
-    return np.cumsum(_as_theta(theta), axis=-1)
+    return np.cumsum(as_joint_angles(theta), axis=-1)
 
 
 def joint_positions(theta, p: float) -> np.ndarray:
@@ -314,7 +319,7 @@ def tip_pose(theta, geom: Geometry) -> np.ndarray:
     -------
     ndarray, shape (..., 3)
     """
-    th = _as_theta(theta, geom.n_joints)
+    th = as_joint_angles(theta, geom.n_joints)
     q = joint_positions(th, geom.p)
     return np.concatenate([q[..., -1, :], th.sum(axis=-1, keepdims=True)], axis=-1)
 
@@ -328,7 +333,7 @@ def planar_jacobian(theta, geom: Geometry) -> np.ndarray:
     -------
     ndarray, shape (..., 3, n)
     """
-    th = _as_theta(theta, geom.n_joints)
+    th = as_joint_angles(theta, geom.n_joints)
     phi = np.cumsum(th, axis=-1)
     rev = lambda a: np.flip(np.cumsum(np.flip(a, -1), axis=-1), -1)  # noqa: E731
     Jx = geom.p * rev(np.cos(phi))

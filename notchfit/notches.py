@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 from .geometry import Geometry, notch_layout
+from .kinematics import as_joint_angles
 
 __all__ = [
     "from_plane",
@@ -38,12 +39,7 @@ def _tables(geom: Geometry):
 
 
 def _frames(theta, geom: Geometry):
-    th = np.asarray(theta, dtype=float)
-    if th.ndim == 0 or th.shape[-1] != geom.n_joints:
-        raise ValueError(
-            f"joint angles must have shape (..., {geom.n_joints}), got {np.shape(theta)}")
-    if not np.isfinite(th).all():
-        raise ValueError("joint angles contain NaN or inf")
+    th = as_joint_angles(theta, geom.n_joints)
     lead = th.shape[:-1]
     n = geom.n_joints
     phi = np.zeros(lead + (n + 1,))

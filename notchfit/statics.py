@@ -294,7 +294,7 @@ class QuasiStaticModel:
         Give either ``tensions`` (T_R, T_L) [N] or cable ``positions``
         (u_R, u_L) [m] (Eqs. 13-14), and optionally ``tip_load``.
         """
-        th = kinematics._as_theta(theta, self.geom.n_joints)
+        th = kinematics.as_joint_angles(theta, self.geom.n_joints)
         G = self.spring.torque(th)
         T = self._T(th, tensions, positions)
         if T is not None:
@@ -314,7 +314,7 @@ class QuasiStaticModel:
 
     def residual_jacobian(self, theta, tensions=None, tip_load=None, positions=None) -> np.ndarray:
         """``∂G/∂θ`` (n, n) [N m/rad]: tangent spring stiffness, cable and load terms."""
-        th = kinematics._as_theta(theta, self.geom.n_joints)
+        th = kinematics.as_joint_angles(theta, self.geom.n_joints)
         Jg = np.diag(self.spring.stiffness(th) * np.ones(self.geom.n_joints))
         T = self._T(th, tensions, positions)
         if T is not None:
@@ -380,7 +380,7 @@ def simulate(model: QuasiStaticModel, t_span, theta0=None, *, tensions=None, tip
     t0, t1 = (float(v) for v in t_span)
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise ValueError(f"t_span must be (t0, t1) with t1 > t0, got {t_span!r}")
-    th0 = np.zeros(n) if theta0 is None else kinematics._as_theta(theta0, n).copy()
+    th0 = np.zeros(n) if theta0 is None else kinematics.as_joint_angles(theta0, n).copy()
     if tensions is not None and positions is not None:
         raise ValueError("give cable tensions or cable positions, not both")
     sT = _schedule(tensions, 2, "cable tensions")
@@ -462,7 +462,7 @@ def equilibrium(model: QuasiStaticModel, *, tensions=None, tip_load=None, positi
     Equilibrium
     """
     n = model.geom.n_joints
-    x0 = np.zeros(n) if theta0 is None else kinematics._as_theta(theta0, n)
+    x0 = np.zeros(n) if theta0 is None else kinematics.as_joint_angles(theta0, n)
     model.residual(x0, tensions, tip_load, positions)  # validates the inputs
 
     def fun(th):
@@ -558,7 +558,7 @@ def joint_stiffness(model: QuasiStaticModel, theta0, cable_stiffness) -> np.ndar
     -------
     ndarray, shape (n, n) [N m/rad]
     """
-    th = kinematics._as_theta(theta0, model.geom.n_joints)
+    th = kinematics.as_joint_angles(theta0, model.geom.n_joints)
     kc = _finite(cable_stiffness, "cable stiffness")
     if kc.shape != (2,) or (kc < 0).any():
         raise ValueError(f"cable_stiffness must be (k_R, k_L) >= 0 [N/m], got {kc}")
