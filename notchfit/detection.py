@@ -407,8 +407,14 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
     pts = np.full((m, 2), np.nan)
     sig = np.full(m, np.nan)
     status = ["occluded"] * m
-    ref = cv2.GaussianBlur(gray, (0, 0), profile_sigma) if profile_sigma > 0 else gray
-    levels = _level_maps(ref, obj, level_erode_px, level_sigma_px, level_factor)
+    # work in the region of interest around the silhouette (profiles never leave it)
+    x0, y0, bw, bh = cv2.boundingRect(cont.astype(np.int32).reshape(-1, 1, 2))
+    pad = int(4 * level_sigma_px)
+    u0, v0 = max(x0 - pad, 0), max(y0 - pad, 0)
+    u1, v1 = min(x0 + bw + pad, W), min(y0 + bh + pad, H)
+    roi = gray[v0:v1, u0:u1]
+    ref = cv2.GaussianBlur(roi, (0, 0), profile_sigma) if profile_sigma > 0 else roi
+    levels = _level_maps(ref, obj[v0:v1, u0:u1], level_erode_px, level_sigma_px, level_factor) + ((u0, v0),)
     keys = sorted(found)
     C0 = np.array([cpos[found[k]] for k in keys]).reshape(-1, 2)
     A = np.array([cpos[(found[k] - 1) % nC] for k in keys]).reshape(-1, 2)
@@ -489,13 +495,14 @@ def _edge_crossings(img, levels, camera, flip, C, E, N, s_from, s_to, px_m, half
     ends = (C[:, None, None, :] + s[None, :, None, None] * E[:, None, None, :]
             + t[[0, -1]][None, None, :, None] * N[:, None, None, :])            # (ne, nmax, 2, 2)
     uve = camera.plane_to_pixel(ends.reshape(-1, 2) * flip).reshape(ne, nmax, 2, 2)
+    uve = uve - np.asarray(levels[3], float)                  # ROI pixel coordinates
     w = ((t - t[0]) / (t[-1] - t[0]))[None, None, :, None]
     uv = uve[:, :, :1] + w * (uve[:, :, 1:] - uve[:, :, :1])                    # (ne, nmax, nt, 2)
     f = _sample(img, uv)                                                        # (ne, nmax, nt)
     nend = max(2, int(round(1.0 / step_px)))
     lo = f[..., :nend].mean(-1)
     hi = f[..., -nend:].mean(-1)
-    fgL, bgL, fac = levels
+    fgL, bgL, fac = levels[:3]
     small = (uv[:, :, nt // 2] + 0.5) / fac - 0.5
     mid = 0.5 * (_sample(fgL, small) + _sample(bgL, small))
     use = (np.arange(nmax)[None, :] < ns[:, None]) & np.isfinite(f).all(-1) & np.isfinite(mid) \
