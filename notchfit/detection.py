@@ -547,11 +547,20 @@ def _level_maps(img, obj, erode_px, sigma_px, factor):
 
 
 def _fit_line(P):
-    """Total least squares line: (centroid, direction, rms residual)."""
+    """Total least squares line: (centroid, unit direction, signed residuals).
+
+    The direction is the principal axis of the 2×2 scatter matrix, in closed
+    form (``2α = atan2(2 s_xy, s_xx − s_yy)``): the same line as an SVD of the
+    centred points, several times cheaper for the ~1000 small fits per image.
+    """
     cen = P.mean(0)
-    _, sv, vt = np.linalg.svd(P - cen, full_matrices=False)
-    d = vt[0]
-    res = (P - cen) @ vt[1]
+    Q = P - cen
+    sxx = float(Q[:, 0] @ Q[:, 0])
+    syy = float(Q[:, 1] @ Q[:, 1])
+    sxy = float(Q[:, 0] @ Q[:, 1])
+    a = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
+    d = np.array([math.cos(a), math.sin(a)])
+    res = Q @ np.array([-d[1], d[0]])
     return cen, d, res
 
 
@@ -567,11 +576,12 @@ def _robust_line(P, k=3.0):
 
 
 def _intersect(c1, d1, c2, d2):
-    A = np.column_stack([d1, -d2])
-    if abs(np.linalg.det(A)) < 1e-6:
+    det = d2[0] * d1[1] - d1[0] * d2[1]             # det [d1, -d2]
+    if abs(det) < 1e-6:
         return None
-    s = np.linalg.solve(A, c2 - c1)
-    return c1 + s[0] * d1
+    r = c2 - c1
+    s = (d2[0] * r[1] - r[0] * d2[1]) / det          # Cramer's rule for s d1 - t d2 = r
+    return c1 + s * d1
 
 
 def _refine_corners(img, levels, camera, flip, C0, A, B, px_m, *, contrast, profile_half_px, profile_step_px,
