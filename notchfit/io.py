@@ -1035,11 +1035,17 @@ class OutputRun:
     then every staged file replaces its counterpart (``os.replace``, atomic
     per file). On an exception the staging folder is removed and the old
     results stay as they were.
+    
+    With ``whole_dirs=True`` each top-level folder of the run replaces its old
+    counterpart as a whole (two renames), so no stale file of an earlier run
+    survives inside it (``synth --force`` replacing an experiment folder).
     """
 
-    def __init__(self, out_dir, *, outputs=None, force: bool = False, name: str = "run"):
+    def __init__(self, out_dir, *, outputs=None, force: bool = False, name: str = "run",
+                 whole_dirs: bool = False):
         self.out_dir = prepare_output_dir(out_dir, force=force, outputs=outputs)
         self.force = force
+        self.whole_dirs = whole_dirs
         self.stage = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{name}-{os.getpid()}-",
                                            dir=self.out_dir))
         self.committed: list[Path] = []
@@ -1058,6 +1064,20 @@ class OutputRun:
             if clash:
                 raise FileExistsError(f"{self.out_dir}: already holds {', '.join(clash[:5])}; "
                                       "use --force to replace")
+        if self.whole_dirs:
+            # each top-level folder replaces its old counterpart as a whole (no stale files left):
+            # rename the old one aside, rename the new one in, then delete the old one
+            for d in sorted(p for p in self.stage.iterdir() if p.is_dir()):
+                dest = self.out_dir / d.name
+                old = None
+                if dest.exists():
+                    old = self.out_dir / f"{STAGE_PREFIX}old-{os.getpid()}-{d.name}"
+                    os.replace(dest, old)
+                os.replace(d, dest)
+                self.committed.append(dest)
+                if old is not None:
+                    shutil.rmtree(old, ignore_errors=True)
+            files = [p for p in files if p.exists()]
         for p in files:
             dest = self.out_dir / p.relative_to(self.stage)
             dest.parent.mkdir(parents=True, exist_ok=True)

@@ -110,6 +110,17 @@ def _pngs(root: Path, patterns) -> list[Path]:
     return found
 
 
+def _stat(fn, values) -> float:
+    """``fn`` over the finite values (NaN when there are none, without a warning)."""
+    v = np.asarray(values, dtype=float).ravel()
+    v = v[np.isfinite(v)]
+    return float(fn(v)) if v.size else float("nan")
+
+
+def _rms(values) -> float:
+    return _stat(lambda v: np.sqrt(np.mean(v * v)), values)
+
+
 def _label(name: str) -> str:
     return name or "(single experiment)"
 
@@ -263,7 +274,7 @@ def _detection_section(out_dir: Path, exps) -> str:
         row = {"experiment": _label(name), "samples": det["sample"].nunique(),
                "points": len(det), "ok": int((status == "ok").sum()),
                "ok [%]": 100.0 * float((status == "ok").mean()) if len(det) else np.nan,
-               "median σ [mm]": float(np.nanmedian(det["sigma_mm"])) if len(det) else np.nan}
+               "median σ [mm]": _stat(np.median, det["sigma_mm"])}
         for s, n in status[status != "ok"].value_counts().items():
             row[f"{s}"] = int(n)
         rows.append(row)
@@ -289,9 +300,9 @@ def _fit_stats(fits: pd.DataFrame) -> pd.DataFrame:
             pd.Series(True, index=g.index)
         r = g.loc[ok, "rms_mm"].to_numpy(float)
         rows.append({"model": model, "samples": len(g), "failed": int((~ok).sum()),
-                     "mean rms [mm]": float(np.nanmean(r)) if r.size else np.nan,
-                     "rms of all points [mm]": float(np.sqrt(np.nanmean(r ** 2))) if r.size else np.nan,
-                     "max error [mm]": float(np.nanmax(g.loc[ok, "max_mm"])) if r.size else np.nan})
+                     "mean rms [mm]": _stat(np.mean, r),
+                     "rms of all points [mm]": _rms(r),
+                     "max error [mm]": _stat(np.max, g.loc[ok, "max_mm"])})
     return pd.DataFrame(rows)
 
 
@@ -335,9 +346,9 @@ def _simulation_section(out_dir: Path) -> str:
         cmp_path = path.parent / "simulation_vs_measured.csv"
         if cmp_path.is_file():
             c = pd.read_csv(cmp_path)
-            row["point rms [mm]"] = float(np.sqrt(np.nanmean(c["point_rms_mm"] ** 2)))
-            row["a rms diff [rad]"] = float(np.sqrt(np.nanmean((c["a_sim"] - c["a_meas"]) ** 2)))
-            row["b rms diff [rad]"] = float(np.sqrt(np.nanmean((c["b_sim"] - c["b_meas"]) ** 2)))
+            row["point rms [mm]"] = _rms(c["point_rms_mm"])
+            row["a rms diff [rad]"] = _rms(c["a_sim"] - c["a_meas"])
+            row["b rms diff [rad]"] = _rms(c["b_sim"] - c["b_meas"])
         rows.append(row)
     if rows:
         parts.insert(0, _table(pd.DataFrame(rows)))

@@ -323,7 +323,7 @@ def load_recipe(source) -> Recipe:
 # ----------------------------------------------------------------------------- protocol
 def bend_unbend_protocol(pull: str, counter_N: float, peak_N: float, n_up: int, n_down: int,
                          dt_s: float = 5.0):
-    """Tension history of one bend/unbend test (Fig. 11).
+    """Tension history of one bend/unbend test (Fig. 11), via :func:`notchfit.protocols.bend_unbend`.
 
     The pulled cable starts at the counter-tension, is ramped in ``n_up``
     equal steps to ``peak_N`` and back down in ``n_down`` equal steps; the
@@ -336,32 +336,14 @@ def bend_unbend_protocol(pull: str, counter_N: float, peak_N: float, n_up: int, 
     tension_left, tension_right : ndarray (S,) [N]
         With ``S = n_up + n_down + 1``.
     """
-    up = np.linspace(counter_N, peak_N, n_up + 1)
-    down = np.linspace(peak_N, counter_N, n_down + 1)[1:]
-    pulled = np.concatenate([up, down])
-    other = np.full_like(pulled, counter_N)
-    time = dt_s * np.arange(1, len(pulled) + 1, dtype=float)
-    if pull == "left":
-        return time, pulled, other
-    if pull == "right":
-        return time, other, pulled
-    raise ValueError(f"pull must be 'left' or 'right', got {pull!r}")
+    from .protocols import bend_unbend
+
+    # protocols counts the loading samples including start and peak: n_up steps = n_up + 1 samples
+    p = bend_unbend(peak_N, counter_N, pull=pull, n_up=n_up + 1, n_down=n_down, interval=dt_s, t0=dt_s)
+    return p.time, p.tension_left, p.tension_right
 
 
 def _protocol(spec: ProtocolSpec, peak: float):
-    """The tension history, through :mod:`notchfit.protocols` when it offers the same protocol."""
-    try:
-        from . import protocols
-        fn = getattr(protocols, "bend_unbend", None)
-    except ImportError:
-        fn = None
-    if fn is not None:
-        try:
-            out = fn(pull=spec.pull, counter=spec.counter_N, peak=peak, n_up=spec.n_up,
-                     n_down=spec.n_down, dt=spec.dt_s)
-            return out.time, out.tension_left, out.tension_right
-        except TypeError:
-            pass
     return bend_unbend_protocol(spec.pull, spec.counter_N, peak, spec.n_up, spec.n_down, spec.dt_s)
 
 
@@ -626,15 +608,22 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
     Parameters
     ----------
     images : bool, optional
-        Render one image per sample (needs :mod:`notchfit.render`); default:
-        the recipe's ``[images] render``.
+        Render one image per sample of the true shape (:func:`notchfit.render.render_study_images`,
+        one camera for the study, ``OUT/calibration/camera.yml``); default: the recipe's
+        ``[images] render``. The experiments then hold images and no ``notch_points.csv``:
+        their points are what ``notchfit detect`` finds. Not available with a
+        ``calibration_error`` study (its warp acts on points, not on the camera).
     """
     out = Path(out_dir)
     images = study.recipe.images if images is None else images
+    if images and study.warp is not None:
+        raise ValueError("calibration_error with rendered images is not supported: the warp is applied to "
+                         "the notch points, and a rendered study's points come from its images through a "
+                         "correct camera file; generate this study without --images")
     names = [e.name for e in study.experiments] + ["truth.json"]
     if images:
         names.append("calibration")
-    with io.OutputRun(out, outputs=names, force=force, name="synth") as run:
+    with io.OutputRun(out, outputs=names, force=force, name="synth", whole_dirs=True) as run:
         calib_rel = None
         if images:
             calib_rel = _render_images(study, run, jobs=jobs)
@@ -643,12 +632,15 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
             samples = e.samples
             if images:
                 samples = samples.assign(image=[f"images/{s:04d}.png" for s in samples["sample"]])
-            io.write_experiment(run.path(e.name), name=e.name, samples=samples, points=e.points,
+            # with images the points are what `detect` finds: no notch_points.csv, and no stated
+            # point uncertainty (the fits estimate it; detections.csv carries sigma_mm per point)
+            io.write_experiment(run.path(e.name), name=e.name, samples=samples,
+                                points=None if images else e.points,
                                 mirror=e.plane["mirror"], description=e.description,
                                 geometry=("default" if r.geometry == "default"
                                           else str(Path(r.geometry).resolve())),
                                 calibration=calib_rel, point_sigma=r.point_sigma_mm * _MM if
-                                r.point_sigma_mm > 0 else None,
+                                (r.point_sigma_mm > 0 and not images) else None,
                                 tension_sigma=r.tension_sigma_N if r.tension_sigma_N > 0 else None,
                                 force=True)
         io.write_json_atomic(study.truth(), run.path("truth.json"))
@@ -672,6 +664,11 @@ def _render_images(study: SynthStudy, run, *, jobs: int = 1) -> str:
 def generate_study(recipe, out_dir, *, seed: int | None = None, force: bool = False, jobs: int = 1,
                    images: bool | None = None, method: str = "reference") -> SynthStudy:
     """:func:`synthesize` then :func:`write_study`; returns the study with its ground truth."""
+    if not isinstance(recipe, Recipe):
+        recipe = load_recipe(recipe)
+    if (recipe.images if images is None else images) and recipe.cause == "calibration_error":
+        raise ValueError("calibration_error with rendered images is not supported: the warp acts on the "
+                         "notch points; generate this study without --images")
     study = synthesize(recipe, seed, jobs=jobs, method=method)
     write_study(study, out_dir, force=force, images=images, jobs=jobs)
     return study

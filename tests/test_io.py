@@ -284,3 +284,16 @@ def test_json_and_toml_helpers(tmp_path):
     import tomllib
     d = {"s": 'q"\\\x7f', "f": 1e-7, "l": [1.0, 2.0], "t": {"x": True}, "a": [{"k": 1}, {"k": 2}]}
     assert tomllib.loads(io.toml_dumps(d)) == d
+
+
+def test_output_run_whole_dirs_leaves_no_stale_files(tmp_path):
+    out = tmp_path / "study"
+    with io.OutputRun(out, outputs=["e1"], name="synth", whole_dirs=True) as run:
+        (run.path("e1/notch_points.csv")).write_text("old")
+        (run.path("e1/samples.csv")).write_text("old")
+    with io.OutputRun(out, outputs=["e1"], force=True, name="synth", whole_dirs=True) as run:
+        (run.path("e1/samples.csv")).write_text("new")
+        (run.path("truth.json")).write_text("{}")
+    assert sorted(p.name for p in (out / "e1").iterdir()) == ["samples.csv"]
+    assert (out / "e1/samples.csv").read_text() == "new" and (out / "truth.json").is_file()
+    assert sorted(p.name for p in out.iterdir()) == ["e1", "truth.json"]
