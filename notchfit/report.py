@@ -186,12 +186,12 @@ def _calibration_section(out_dir: Path, exps) -> str:
     files = []
     if exps:
         for e in exps:
-            if e.calibration_path is not None and e.calibration_path not in files:
-                files.append(e.calibration_path)
+            if e.calibration_path is not None and e.calibration_path.resolve() not in files:
+                files.append(e.calibration_path.resolve())
     for pat in ("camera*.yml", "camera*.yaml", "calibration*.yml", "calibration*.yaml"):
         for p in sorted(out_dir.rglob(pat)):
-            if p not in files and not any(s.startswith(".") for s in p.relative_to(out_dir).parts):
-                files.append(p)
+            if p.resolve() not in files and not any(s.startswith(".") for s in p.relative_to(out_dir).parts):
+                files.append(p.resolve())
     figs = _pngs(out_dir, ["calibration*.png", "calib_*.png"])
     if not files and not figs:
         if exps is not None and not any(e.has_images for e in exps):
@@ -212,7 +212,9 @@ def _calibration_section(out_dir: Path, exps) -> str:
         rows.append({
             "file": str(f),
             "image [px]": f"{int(c.get('image_width', 0))}×{int(c.get('image_height', 0))}",
-            "reprojection error [px]": c.get("avg_reprojection_error", np.nan),
+            # a negative value marks a camera that was not calibrated from views (a synthetic one)
+            "reprojection error [px]": (c["avg_reprojection_error"]
+                                        if c.get("avg_reprojection_error", -1) >= 0 else np.nan),
             "f_x [px]": K[0, 0] if K is not None else np.nan,
             "f_y [px]": K[1, 1] if K is not None else np.nan,
             "c_x, c_y [px]": f"{K[0, 2]:.1f}, {K[1, 2]:.1f}" if K is not None else "–",

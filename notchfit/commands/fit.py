@@ -68,7 +68,28 @@ def fit_figures(result, out_dir: Path, name: str, exp=None) -> list[Path]:
     kw = {}
     if exp is not None:
         kw = {"x": exp.tension_left - exp.tension_right, "xlabel": "T_left − T_right [N]"}
+        kw.update(_overlay_image(result, exp))
     return list(experiment_figures(result, out_dir, title=name, **kw))
+
+
+def _overlay_image(result, exp) -> dict:
+    """Fig. 12 on the sample's own image (as in the paper) when the experiment has images and a camera."""
+    if not exp.has_images or exp.calibration_path is None:
+        return {}
+    from ..batch import load_image
+    from ..figures.fitting import loading_unloading_groups
+    from ..io import read_camera
+
+    try:
+        load = loading_unloading_groups(result)["loading"]
+        s = int(load[-1]) if len(load) else len(result.samples) - 1
+        path = exp.image_paths[s]
+        if path is None:
+            return {}
+        camera = read_camera(exp.calibration_path)
+        return {"sample": result.samples[s], "image": load_image(path), "to_pixel": camera.plane_to_pixel}
+    except (FileNotFoundError, ValueError, KeyError, IndexError):
+        return {}        # the plane-frame overlay is drawn instead
 
 
 def run(args) -> int:
