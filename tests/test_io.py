@@ -297,3 +297,11 @@ def test_output_run_whole_dirs_leaves_no_stale_files(tmp_path):
     assert sorted(p.name for p in (out / "e1").iterdir()) == ["samples.csv"]
     assert (out / "e1/samples.csv").read_text() == "new" and (out / "truth.json").is_file()
     assert sorted(p.name for p in out.iterdir()) == ["e1", "truth.json"]
+
+
+def test_camera_io_is_re_exported():
+    from notchfit import camera
+
+    assert io.read_camera is camera.read_camera and io.write_camera is camera.write_camera
+    with pytest.raises(AttributeError):
+        io.no_such_reader
