@@ -463,7 +463,7 @@ def outline_in_plane(theta, geom, tx, ty, phi, mirror=False, include_mount=True)
 
 
 def render_manipulator(theta, geom: Geometry, camera: CameraModel, *, plane=(0.0, 0.0, 0.0, False),
-                       rng, supersample: int = 8, background: float = 200.0, foreground: float = 40.0,
+                       rng, supersample: int = 32, background: float = 200.0, foreground: float = 40.0,
                        blur_sigma: float = 1.0, noise: float = 0.02, illumination: float = 0.15,
                        texture: float = 0.05, max_segment_px: float = 0.5, margin: float = 2.0,
                        dtype=np.uint8) -> RenderedManipulator:
@@ -479,7 +479,11 @@ def render_manipulator(theta, geom: Geometry, camera: CameraModel, *, plane=(0.0
         Manipulator -> plane transform (:func:`notchfit.notches.to_plane`), tx, ty [m].
     rng : numpy.random.Generator or int seed
     supersample : int
-        Sub-rows per pixel of the scanline rasteriser.
+        Sub-rows per pixel of the scanline rasteriser. Along a sub-row the
+        coverage is exact; across rows it is sampled, so an edge parallel to
+        the pixel rows can be off by up to ``1 / (2 S)`` px, the same at
+        every point of the edge (0.06 px at S = 8 showed as a 0.002 mm
+        detection "error" on a horizontal tube); 32 keeps it below 0.016 px.
     background, foreground : float
         Background and tube levels [DN] (a dark silhouette on a bright
         background by default; the reverse works too).
@@ -534,7 +538,8 @@ def render_manipulator(theta, geom: Geometry, camera: CameraModel, *, plane=(0.0
 
 
 # ----------------------------------------------------------------------------- placement
-def place_in_view(theta_list, geom: Geometry, camera: CameraModel, *, phi: float = 0.0, mirror: bool = False):
+def place_in_view(theta_list, geom: Geometry, camera: CameraModel, *, phi: float = 0.0, mirror: bool = False,
+                  margin_px: float = 10.0):
     """A plane translation that centres the shapes (outline with mount) in the image.
 
     Parameters
@@ -547,7 +552,7 @@ def place_in_view(theta_list, geom: Geometry, camera: CameraModel, *, phi: float
     -------
     plane : tuple (tx, ty, phi, mirror)
     fits : bool
-        Every outline point of every shape is inside the image.
+        Every outline point of every shape is at least ``margin_px`` inside the image.
     """
     ths = np.atleast_2d(np.asarray(theta_list, float))
     outl = np.concatenate([outline_in_plane(t, geom, 0.0, 0.0, phi, mirror) for t in ths])
@@ -560,8 +565,9 @@ def place_in_view(theta_list, geom: Geometry, camera: CameraModel, *, phi: float
         t = t + (camera.pixel_to_plane(c_img) - camera.pixel_to_plane(mid))
     uv = camera.plane_to_pixel(outl + t)
     W, H = camera.image_size
-    fits = bool(np.isfinite(uv).all() and uv[:, 0].min() >= 0 and uv[:, 1].min() >= 0
-                and uv[:, 0].max() <= W - 1 and uv[:, 1].max() <= H - 1)
+    e = float(margin_px)
+    fits = bool(np.isfinite(uv).all() and uv[:, 0].min() >= e and uv[:, 1].min() >= e
+                and uv[:, 0].max() <= W - 1 - e and uv[:, 1].max() <= H - 1 - e)
     return (float(t[0]), float(t[1]), float(phi), bool(mirror)), fits
 
 
