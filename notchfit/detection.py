@@ -57,12 +57,10 @@ from scipy.spatial import cKDTree
 from .camera import CameraModel
 from .geometry import Geometry, notch_layout
 
-__all__ = ["Detection", "STATUSES", "detect_notches", "detections_table", "draw_overlay"]
+__all__ = ["STATUSES", "Detection", "detect_notches", "detections_table", "draw_overlay"]
 
 STATUSES = ("ok", "ambiguous", "occluded")
 _MM = 1e-3
-_TRACE = None
-_INTERP = cv2.INTER_LINEAR
 
 
 @dataclass(frozen=True)
@@ -237,7 +235,7 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
                    max_shift_px: float = 10.0, max_sigma_px: float = 0.3, min_edge_points: int = 5,
                    profile_step_px: float = 0.5, stage1_half_px: float = 7.0,
                    stage1_face_px: float = 12.0, iterations: int = 1,
-                   sigma_inflation: float = 1.45, _debug: dict | None = None) -> Detection:
+                   sigma_inflation: float = 1.45) -> Detection:
     """Find the numbered notch corners (geometry.md) in one image.
 
     Parameters
@@ -408,9 +406,6 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
         return out
 
     concave, convex = peaks(-1.0), peaks(+1.0)
-    if _debug is not None:
-        _debug.update(cnt=cnt, turn=turn, concave=concave, convex=convex, contour_px=contour_px, f=f,
-                      r_close=r_close, slot_ids=slot_ids, gst=gst, closed=closed, roi=roi, k=k)
     best = None
     for i in range(len(concave)):
         for j in range(i + 1, len(concave)):
@@ -662,7 +657,6 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
         v1 = min(int(contour_px[:, 1].max()) + 21, H)
         img = np.ascontiguousarray(gray[v0:v1, u0:u1])
         off = np.array([u0, v0], float)
-        inside_img = np.array([0.0, 0.0]) - off, np.array([W - 1.0, H - 1.0]) - off
         w_px = w * px_per_m
         bl = 1.0
         ok = np.zeros(len(specs), bool)
@@ -684,8 +678,6 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
         blur = bl
         shift = np.linalg.norm(C - C0, axis=1)
         sig_px = np.sqrt(np.maximum(np.trace(Ci, axis1=1, axis2=2) / 2, 0)) * sigma_inflation
-        if _debug is not None:
-            _debug.update(pidx=pidx, C0=C0, C=C, ok=ok, shift=shift, sig_px=sig_px)
         lo_b, hi_b = np.array([0.0, 0.0]), np.array([W - 1.0, H - 1.0])
         inimg = np.all((C >= lo_b) & (C <= hi_b), axis=1)
         for q, i in enumerate(pidx):
@@ -716,9 +708,9 @@ def _finish(camera, geom, m, pts_px, ideal, cov, status, msg, blur, scale_tol, c
     widths = [np.linalg.norm(plane[pair[(kd, -1)]] - plane[pair[(kd, 1)]])
               for kd in ("base", "tip") if ok[pair[(kd, -1)]] and ok[pair[(kd, 1)]]]
     if widths and np.max(np.abs(np.array(widths) / (2 * geom.outer_radius) - 1)) > scale_tol:
-        msg = msg + [f"scale check failed: the tube measures {np.mean(widths) * 1e3:.3f} mm across, the "
-                     f"geometry says {2 * geom.outer_radius * 1e3:.3f} mm (wrong calibration file, plane pose "
-                     "or geometry?)"]
+        msg = [*msg, (f"scale check failed: the tube measures {np.mean(widths) * 1e3:.3f} mm across, the "
+                      f"geometry says {2 * geom.outer_radius * 1e3:.3f} mm (wrong calibration file, plane "
+                      "pose or geometry?)")]
         status = ["ambiguous" if s == "ok" else s for s in status]
         plane[:] = np.nan
         sigma[:] = np.nan
@@ -767,7 +759,7 @@ def _refine(img, off, camera, C, Din, Dout, Lin, Lout, face, w_px, sgn, *, s0, s
     nrm = E_nrm[e_idx]
     mapx = (base[:, 0, None] + t[None, :] * nrm[:, 0, None]).astype(np.float32)
     mapy = (base[:, 1, None] + t[None, :] * nrm[:, 1, None]).astype(np.float32)
-    prof = cv2.remap(img, mapx, mapy, _INTERP, borderMode=cv2.BORDER_CONSTANT,
+    prof = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                      borderValue=float("nan")).astype(float)
     rows = np.arange(Np)
     kp = kt[e_idx]
@@ -808,25 +800,27 @@ def _refine(img, off, camera, C, Din, Dout, Lin, Lout, face, w_px, sgn, *, s0, s
     with np.errstate(invalid="ignore", divide="ignore"):
         tc = t[j] + (0.5 - q0) / (q1 - q0) * step
     valid &= np.isfinite(tc)
-    # blur from the 25 % -> 75 % rise of valid profiles
-    qv = qa[valid]
+    # blur from the 25 % -> 75 % rise of valid non-face profiles (interpolated crossings; for a
+    # Gaussian edge the rise is 1.349 sigma)
+    qv = np.nan_to_num(qa[valid & ~fp], nan=-1.0)
     blur = math.nan
-    if len(qv):
-        with np.errstate(invalid="ignore"):
-            i25 = np.argmax(np.nan_to_num(qv, nan=-1) >= 0.25, axis=1)
-            i75 = np.argmax(np.nan_to_num(qv, nan=-1) >= 0.75, axis=1)
-        wd = (i75 - i25) * step
-        wd = wd[wd > 0]
+    if len(qv) >= 5:
+        rr = np.arange(len(qv))
+        pos = []
+        for lvl in (0.25, 0.75):
+            i1 = np.argmax(qv >= lvl, axis=1)
+            i0 = np.maximum(i1 - 1, 0)
+            a0, a1 = qv[rr, i0], qv[rr, i1]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                pos.append(t[i0] + np.where(a1 > a0, (lvl - a0) / (a1 - a0), 0.0) * step)
+        wd = pos[1] - pos[0]
+        wd = wd[np.isfinite(wd) & (wd > 0)]
         if len(wd):
             blur = float(np.median(wd)) / 1.349
     raw = base[valid] + tc[valid, None] * nrm[valid] + off
     grp = e_idx[valid]
     und = camera.undistort_pixels(raw)
-    c, dd, n, s2, stt, _keep = _robust_group_lines(und, grp, 2 * K)
-    if _TRACE is not None:
-        _TRACE.append(dict(und=und, grp=grp, keep=_keep, c=c, d=dd, n=n, s_val=s_val[valid], K=K, e_idx=e_idx,
-                           q_lo=q_lo, q_peak=q_peak, q_hi=q_hi, valid=valid, lo=lo, hi=hi, C=C.copy(),
-                           base=base + off, nrm=nrm))
+    c, dd, n, s2, stt, _ = _robust_group_lines(und, grp, 2 * K)
     # floor on the crossing variance: image noise over the edge slope (a few crossings can scatter
     # less than the noise by chance, and their fit would then claim too much)
     plateau = valid & ~fp

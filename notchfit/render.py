@@ -686,7 +686,6 @@ def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_p
     res = run_batch(_render_one, items, keys=[f"{n}/{s}" for n, s in keys], jobs=jobs, desc="render")
     if res.failures:
         raise ValueError("rendering failed: " + "; ".join(f"{r.key}: {r.error}" for r in res.failures[:5]))
-    exp_parent = Path(experiment_dir(keys[0][0])).parent if keys else calib_dir.parent
     return Path(os.path.relpath(calib_dir / "camera.yml", Path(experiment_dir(keys[0][0])))).as_posix() \
         if keys else str(calib_dir / "camera.yml")
 

@@ -11,7 +11,7 @@ import pytest
 from notchfit.camera import CameraModel
 from notchfit.detection import detect_notches, detections_table, draw_overlay
 from notchfit.fitting import fit_experiment
-from notchfit.geometry import Geometry, notch_layout
+from notchfit.geometry import notch_layout
 from notchfit.render import _form_image, camera_for_shapes, render_manipulator
 
 CLOSE = 0.1395          # the default slots close at 0.13970 rad: the outer corners almost touch
@@ -222,8 +222,8 @@ def test_render_detect_fit_recovers_linear_model(geom):
 # `python benchmarks/bench_detection.py --robustness`.
 ROBUST = [
     ("blur_1.5px", {"blur_sigma": 1.5}, 0.03, 0.10),
-    ("noise_5pct", {"noise": 0.05}, 0.03, 0.10),
-    ("contrast_60DN", {"background": 150.0, "foreground": 90.0, "noise": 3.2 / 60}, 0.03, 0.10),
+    ("noise_10pct", {"noise": 0.10}, 0.03, 0.10),
+    ("contrast_30DN", {"background": 135.0, "foreground": 105.0, "noise": 3.2 / 30}, 0.03, 0.10),
     ("resolution_0.06mm", {}, 0.06, 0.10),
     ("rotation_135deg", {}, 0.03, 0.10),
     ("bend_0.1395rad", {}, 0.03, CLOSE),
