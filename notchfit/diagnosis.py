@@ -115,7 +115,7 @@ CANDIDATES: dict[str, tuple[ParamSpec, ...]] = {
     "proximal_friction": (ParamSpec("proximal_beta", 0.0, 1.5, 0.05, unit="-",
                                     probes=(0.02, 0.05, 0.1, 0.2, 0.4)),),
     "static_friction": (ParamSpec("mu_s_excess", 0.0, 0.8, 0.05, unit="-",
-                                  probes=(0.03, 0.1, 0.2, 0.3, 0.5)),),
+                                  probes=tuple(round(0.05 * i, 2) for i in range(17))),),
     "joint_hysteresis": (ParamSpec("hysteresis_torque", 0.0, 0.05, 0.002, unit="N m",
                                    probes=(0.0005, 0.001, 0.002, 0.004, 0.008, 0.016)),),
     "external_load": (ParamSpec("tip_force_x", -3.0, 3.0, 0.0, unit="N", probes=(-0.3, 0.0, 0.3)),
