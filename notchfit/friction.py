@@ -56,8 +56,11 @@ Two solvers of the same model (``method=``):
   has kinks where the band starts to slip (non-smooth in β there).
 * ``mu_s > mu_d + 0.01`` (``static_friction``): a larger static coefficient
   (no presliding/Dahl state: a clean one needs a cable-compliance state
-  per link that the paper's lumped model does not have). The rest state
-  jumps when a link's slip decision flips (non-smooth in μ_s).
+  per link that the paper's lumped model does not have). ``μ_s`` acts only
+  at break-away: a sliding link rests at ``|ΔT| = μ_d N``, so rest states
+  reached by steps larger than ``(μ_s - μ_d) N`` do not depend on it; a
+  smaller step stalls the cable. The rest state jumps when such a decision
+  flips (non-smooth in μ_s and in the input tensions; docs/diagnosis.md).
 * ``hysteresis_torque`` ``h`` (``joint_hysteresis``): a play operator in each
   joint, ``b θ̇ = F - τ(θ) ∓ h`` outside the band ``|F - τ(θ)| <= h`` and
   ``θ̇ = 0`` inside (``F`` = applied torque): rate independent, leaves a

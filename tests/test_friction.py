@@ -220,6 +220,33 @@ def test_static_friction_widens_the_loop_and_delays_unloading():
     assert loop_area(tl - tr, -r.tip_angle) > loop_area(tl - tr, -base.tip_angle)
 
 
+@pytest.mark.parametrize("method", ["fast", "reference"])
+def test_step4_static_coefficient_acts_only_at_break_away(method):
+    """Sec. IV-B Step 4: μ_s enters only the stick -> slide test, and a link that slides
+    comes to rest at |ΔT| = μ_d N. So (1) when every tension step exceeds (μ_s - μ_d) N,
+    the loading rest states do not depend on μ_s at all; (2) a step smaller than
+    (μ_s - μ_d) N_1 at the base link stalls the whole cable: no joint beyond the first
+    moves (joint 1 sees the base tension directly). This is why a larger static
+    coefficient is nearly invisible in sampled bend/unbend tests (docs/diagnosis.md)."""
+    t, tl, tr, _ = bend_unbend(25.0, 0.45, n_up=6, n_down=5)
+    k = int(np.argmax(tl))
+    t, tl, tr = t[:k + 1], tl[:k + 1], tr[:k + 1]
+    paper = simulate(t, tl, tr, FrictionParams(mu_s=0.30), method=method)
+    sticky = simulate(t, tl, tr, FrictionParams(mu_s=0.49), method=method)
+    T, th = paper.tension_left, paper.theta
+    N = T[:, 1:] * np.abs(np.sin(th[:, 1:])) + T[:, :-1] * np.abs(np.sin(th[:, :-1]))
+    assert np.diff(tl).min() > (0.49 - 0.29) * N.max()          # every step breaks every link
+    np.testing.assert_array_equal(sticky.theta, paper.theta)     # (1)
+
+    t2, tl2, tr2 = np.r_[t, t[-1] + 5.0], np.r_[tl, tl[-1] + 0.4], np.r_[tr, tr[-1]]
+    assert 0.4 < (0.6 - 0.29) * N[-1, 0]                         # below the break-away excess
+    moved = {mu_s: np.abs(np.diff(simulate(t2, tl2, tr2, FrictionParams(mu_s=mu_s), method=method)
+                                  .theta[-2:], axis=0))[0] for mu_s in (0.30, 0.6)}
+    assert moved[0.30][1:].max() > 1e-3                         # the paper's μ_s: the shape follows
+    assert moved[0.6][1:].max() == 0.0                          # (2) stalled
+    assert 0 < moved[0.6][0] < 2e-4
+
+
 def test_joint_hysteresis_is_a_play_operator_with_a_residual_bend():
     """μ = 0: each joint follows θ_k = clamp(θ_{k-1}, τ⁻¹(F - h), τ⁻¹(F + h)) exactly."""
     h = 3e-3
