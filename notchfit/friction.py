@@ -84,7 +84,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,6 +92,7 @@ import numpy as np
 
 from . import _friction_kernels as _k
 from .geometry import Geometry, default_geometry
+from .io import toml_dumps, write_text_atomic
 from .springs import PiecewiseLinearSpring, friction_spring
 
 __all__ = [
@@ -641,58 +641,21 @@ def load_params(path) -> FrictionParams:
         raise ValueError(f"{path}: {exc}") from None
 
 
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        v = float(v)
-        if not math.isfinite(v):
-            raise ValueError(f"metadata value {v} is not finite (TOML cannot hold it portably)")
-        return repr(v)
-    if isinstance(v, (str, os.PathLike)):
-        s = str(v).replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
-        return f'"{s}"'
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise ValueError(f"metadata value {v!r} of type {type(v).__name__} cannot be written to TOML")
-
-
 def save_params(params: FrictionParams, path, **metadata) -> Path:
     """Write ``params`` as TOML (SI keys with units) plus a ``[metadata]`` table.
 
     Floats are written with ``repr`` (exact round trip through :func:`load_params`).
-    Metadata values: numbers, strings, booleans, lists of those, or one level of dicts.
+    Metadata values: numbers (NaN allowed), strings, booleans, lists of those, or
+    nested dicts (written as ``[metadata.name]`` tables). The file is written
+    atomically (:func:`notchfit.io.write_text_atomic`): an old file is either
+    kept whole or replaced whole.
 
     Returns
     -------
     Path
     """
-    path = Path(path)
-    lines = ["# notchfit friction-model parameters (Sec. IV-B), SI units; read by notchfit.friction.load_params"]
-    for f, key in PARAM_KEYS.items():
-        lines.append(f"{key} = {_toml_value(getattr(params, f))}")
+    data = {key: getattr(params, f) for f, key in PARAM_KEYS.items()}
     if metadata:
-        simple = {k: v for k, v in metadata.items() if not isinstance(v, dict)}
-        tables = {k: v for k, v in metadata.items() if isinstance(v, dict)}
-        lines.append("")
-        lines.append("[metadata]")
-        for k, v in simple.items():
-            lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
-        for k, sub in tables.items():
-            lines.append("")
-            lines.append(f"[metadata.{_toml_key(k)}]")
-            for k2, v2 in sub.items():
-                if isinstance(v2, dict):
-                    raise ValueError(f"metadata {k}.{k2}: only one level of tables is supported")
-                lines.append(f"{_toml_key(k2)} = {_toml_value(v2)}")
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
-
-
-def _toml_key(k) -> str:
-    k = str(k)
-    if k and all(c.isalnum() or c in "_-" for c in k):
-        return k
-    return _toml_value(k)
+        data["metadata"] = metadata
+    header = "# notchfit friction-model parameters (Sec. IV-B), SI units; read by notchfit.friction.load_params\n"
+    return write_text_atomic(header + toml_dumps(data), Path(path))

@@ -308,11 +308,13 @@ def _toml_value(v) -> str:
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
 
-def toml_dumps(data: dict) -> str:
-    """Serialise a mapping of scalars, lists and (one level of) tables to TOML.
+def toml_dumps(data: dict, *, _table: str = "") -> str:
+    """Serialise a mapping of scalars, lists and nested tables to TOML.
 
-    Keys whose value is None are skipped. Sub-tables and arrays of tables
-    (a list of dicts) are written after the plain keys.
+    Keys whose value is None are skipped. Sub-tables (dicts, any depth: written
+    as ``[outer.inner]``) and arrays of tables (a list of dicts) are written
+    after the plain keys. Floats use ``repr`` (exact round trip); NaN and
+    infinities are written as TOML's ``nan`` and ``inf``.
     """
     plain, tables, arrays = [], [], []
     for k, v in data.items():
@@ -326,14 +328,17 @@ def toml_dumps(data: dict) -> str:
             plain.append(f"{_key(k)} = {_toml_value(v)}")
     out = "\n".join(plain) + ("\n" if plain else "")
     for k, v in tables:
-        out += f"\n[{_key(k)}]\n" + toml_dumps(v)
+        name = f"{_table}.{_key(k)}" if _table else _key(k)
+        out += f"\n[{name}]\n" + toml_dumps(v, _table=name)
     for k, items in arrays:
+        name = f"{_table}.{_key(k)}" if _table else _key(k)
         for item in items:
-            out += f"\n[[{_key(k)}]]\n" + toml_dumps(item)
+            out += f"\n[[{name}]]\n" + toml_dumps(item, _table=name)
     return out
 
 
-def _key(k: str) -> str:
+def _key(k) -> str:
+    k = str(k)
     return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else json.dumps(k)
 
 

@@ -284,6 +284,10 @@ def test_json_and_toml_helpers(tmp_path):
     import tomllib
     d = {"s": 'q"\\\x7f', "f": 1e-7, "l": [1.0, 2.0], "t": {"x": True}, "a": [{"k": 1}, {"k": 2}]}
     assert tomllib.loads(io.toml_dumps(d)) == d
+    nested = {"m": {"n": 1, "inner": {"x": 2.5, "deeper": {"y": "z"}}, "rows": [{"k": 1}]}, "top": 3}
+    assert tomllib.loads(io.toml_dumps(nested)) == nested
+    back = tomllib.loads(io.toml_dumps({"v": float("nan"), "w": -float("inf")}))
+    assert np.isnan(back["v"]) and back["w"] == -np.inf
 
 
 def test_output_run_whole_dirs_leaves_no_stale_files(tmp_path):
