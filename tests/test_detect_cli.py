@@ -3,7 +3,6 @@
 import cv2
 import numpy as np
 import pandas as pd
-import pytest
 
 from notchfit import io
 from notchfit.camera import CameraModel, load_board, read_camera, write_camera

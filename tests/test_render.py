@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from notchfit.camera import CameraModel
 from notchfit.notches import notch_points, to_plane
 from notchfit.render import (camera_for_shapes, manipulator_outline, polygon_coverage, render_manipulator)
 

@@ -82,10 +82,8 @@ def linear_ab(theta) -> tuple[np.ndarray, np.ndarray]:
 
 def simulate_one(item: dict) -> dict:
     """Simulate one experiment and compare with its points (a batch item)."""
-    import pandas as pd
 
     from ..friction import simulate, simulation_table
-    from ..notches import notch_points
 
     res = simulate(item["time"], item["tension_left"], item["tension_right"], item["params"],
                    item["geometry"], method=item["method"])
