@@ -35,7 +35,24 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-__all__ = ["BatchResult", "ItemResult", "image_info", "load_image", "run_batch"]
+__all__ = ["BatchResult", "ItemResult", "image_info", "load_image", "run_batch", "single_threaded_worker"]
+
+
+def single_threaded_worker(threads: int = 1) -> None:
+    """Initializer of worker processes: native libraries use ``threads`` threads each.
+
+    The work items here are small (a few hundred points, 27 joints): OpenBLAS
+    and OpenCV thread pools only add contention, and with several worker
+    processes they oversubscribe the cores (a six-experiment diagnosis took
+    53 s with 2 workers and default BLAS threads, 25 s with one thread each:
+    ``benchmarks/bench_diagnose.py``). Uses threadpoolctl; the limit holds
+    for the life of the process.
+    """
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=threads)
+    if "cv2" in sys.modules:
+        sys.modules["cv2"].setNumThreads(threads)
 
 
 @dataclass(frozen=True)
@@ -186,7 +203,7 @@ def _run_pool(func, items, jobs, desc, progress):
     ctx = _mp_context()
     with _progress(len(items), desc, progress) as bar:
         while todo:
-            pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+            pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=single_threaded_worker)
             inflight: dict = {}
             broken = False
             try:
@@ -224,7 +241,7 @@ def _run_pool(func, items, jobs, desc, progress):
 def _run_isolated(func, item, ctx):
     from concurrent.futures.process import BrokenProcessPool
 
-    with cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+    with cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=single_threaded_worker) as pool:
         try:
             return pool.submit(_call, func, item).result()
         except BrokenProcessPool:

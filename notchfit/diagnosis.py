@@ -51,7 +51,9 @@ from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
+from .batch import single_threaded_worker
 from .fitting import fit_experiment
 from .friction import FrictionParams, save_params, simulate
 from .notches import notch_points, to_plane
@@ -582,9 +584,12 @@ def _fold_task(args):
 
 
 def _run_tasks(tasks, jobs: int):
+    """Run fold tasks here or in ``jobs`` worker processes, native libraries single-threaded
+    (the matrices are small: BLAS threads only contend; see :func:`notchfit.batch.single_threaded_worker`)."""
     if jobs <= 1 or len(tasks) <= 1:
-        return [_fold_task(t) for t in tasks]
-    with ProcessPoolExecutor(max_workers=jobs) as ex:
+        with threadpool_limits(limits=1):
+            return [_fold_task(t) for t in tasks]
+    with ProcessPoolExecutor(max_workers=jobs, initializer=single_threaded_worker) as ex:
         return list(ex.map(_fold_task, tasks))
 
 
