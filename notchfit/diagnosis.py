@@ -11,7 +11,8 @@ answers four questions about the paper's friction model (Sec. IV-B):
    unloading, hysteresis-loop areas, ``b`` on each branch, the bend left at
    the end of unloading, residuals along the backbone, the spatial pattern
    that no joint configuration explains (free-θ fit residuals against the
-   noise), and the asymmetry between pull directions.
+   noise), the asymmetry between pull directions, and stalls on the upper
+   loading ramp (:func:`loading_stalls`).
 2. **What is the cause?** Every candidate of data-format.md is a physical
    extension of the simulator (:data:`CANDIDATES`); each is fitted together
    with the baseline parameters on the training folds and scored on the
@@ -66,6 +67,7 @@ __all__ = [
     "Prepared",
     "diagnose",
     "diagnose_study",
+    "loading_stalls",
     "measured_regimes",
     "prepare_experiment",
 ]
@@ -694,6 +696,37 @@ def _release_tension(T, phi, regime, level: float = 0.5) -> float:
     return float("nan")
 
 
+def loading_stalls(T, tip_measured, tip_predicted, *, min_step: float = 0.01, ratio: float = 0.3,
+                   upper: float = 0.5) -> tuple[int, int]:
+    """Loading steps on which the measured shape stalled where the model moved.
+
+    A static friction coefficient well above the sliding one (Sec. IV-B
+    Step 4) makes a cable break away only when a tension step exceeds
+    ``(μ_s − μ_d) N``: with the large normal forces of the upper loading
+    ramp some steps move nothing, the next ones catch up. Counted are the
+    steps ``k-1 -> k`` with rising pulled tension above ``upper`` times its
+    peak on which the predicted tip angle grows by more than ``min_step``
+    [rad] (far above the measurement noise) and the measured one by less
+    than ``ratio`` of that.
+
+    Parameters
+    ----------
+    T : ndarray, shape (S,)
+        Pulled tension [N].
+    tip_measured, tip_predicted : ndarray, shape (S,)
+        Tip angle toward the pulled side [rad].
+
+    Returns
+    -------
+    n_stalled, n_steps : int
+    """
+    T, tm, tp = (np.asarray(a, dtype=float) for a in (T, tip_measured, tip_predicted))
+    up = (np.diff(T) > 0) & (T[1:] > upper * np.nanmax(T))
+    dm, dp = np.diff(tm)[up], np.diff(tp)[up]
+    big = np.isfinite(dm) & (dp > min_step)
+    return int(np.sum(dm[big] < ratio * dp[big])), int(np.sum(big))
+
+
 def signatures(preps, base: HeldOut, noise: float) -> list[dict]:
     """Discrepancy signatures of the held-out baseline, with numbers and words.
 
@@ -710,6 +743,7 @@ def signatures(preps, base: HeldOut, noise: float) -> list[dict]:
                         "text": f"held-out baseline notch-point rms in regime {reg} is {r * _MM:.3f} mm "
                                 f"(noise floor {math.sqrt(noise) * _MM:.3f} mm)"})
     holds, area_m, area_p, bl, bu, zero, back, front, asym = [], [], [], [], [], [], [], [], []
+    n_stall = n_steps = 0
     for i, p in enumerate(preps):
         th_p = base.theta[i]
         tip_m = p.tip_angle
@@ -720,6 +754,8 @@ def signatures(preps, base: HeldOut, noise: float) -> list[dict]:
             holds.append(rp - rm)
         area_m.append(_loop_area(T, tip_m))
         area_p.append(_loop_area(T, tip_p))
+        ns, nt = loading_stalls(T, tip_m, tip_p)
+        n_stall, n_steps = n_stall + ns, n_steps + nt
         j = np.arange(1, p.geom.n_joints + 1)
         bp = p.pulled * np.polyfit(j, th_p.T, 1)[0]
         bm = p.pulled * p.b
@@ -741,6 +777,11 @@ def signatures(preps, base: HeldOut, noise: float) -> list[dict]:
         out.append({"signature": "unloading_hold", "value": v, "unit": "N",
                     "text": f"the measured shape holds {abs(v):.2f} N {word} while unloading than the "
                             "baseline predicts (tension at half release, measured vs predicted)"})
+    if n_steps:
+        out.append({"signature": "loading_stalls", "value": n_stall / n_steps, "unit": "-",
+                    "text": f"on {n_stall} of {n_steps} steps of the upper loading ramp the measured shape "
+                            "moved less than 30% of the baseline's prediction (a cable that stuck where "
+                            "the model slides)"})
     am, ap = float(np.mean(area_m)), float(np.mean(area_p))
     ratio = am / ap if ap > 0 else float("inf")
     out.append({"signature": "loop_area_ratio", "value": ratio, "unit": "-",
@@ -798,6 +839,7 @@ def rank_candidates(sigs: list[dict], noise_rms: float) -> list[tuple[str, float
     asym = abs(s.get("direction_asymmetry", 0.0))
     bend = s.get("residual_bend", 0.0)
     bl = s.get("b_loading_error", 0.0)
+    stalls = s.get("loading_stalls", 0.0)
     out = [
         ("calibration_error", 3.0 * max(spat - 1.2, 0.0),
          "free-θ fits leave a spatial residual pattern"),
@@ -806,8 +848,8 @@ def rank_candidates(sigs: list[dict], noise_rms: float) -> list[tuple[str, float
          "a bend remains after unloading"),
         ("proximal_friction", 0.5 * max(hold, 0.0) + 0.5 * max(loop - 1.0, 0.0),
          "the shape holds longer while unloading and the loop is wider"),
-        ("static_friction", 0.4 * max(hold, 0.0) + 0.5 * max(loop - 1.0, 0.0),
-         "the cables stick longer than μ_s ≈ μ_d allows"),
+        ("static_friction", 0.4 * max(hold, 0.0) + 0.5 * max(loop - 1.0, 0.0) + 20.0 * stalls,
+         "the shape stalls on some loading steps: the cables stick longer than μ_s ≈ μ_d allows"),
         ("stiffness_gradient", 200.0 * abs(bl), "the shape differs along the backbone while loading"),
     ]
     return sorted(out, key=lambda t: -t[1])
@@ -1008,9 +1050,15 @@ def _explain(cause, sigs, cands, order, base_rms, noise_rms, none_tol, z_crit, m
                 "the data within the measurement uncertainty, so no extension is justified." + hint
                 + (f" Held-out rms of the candidates: {table}." if table else ""))
     if cause == "unexplained":
+        stalls = next((d["value"] for d in sigs if d["signature"] == "loading_stalls"), 0.0)
+        sticky = (f" The measured shape stalls on {100 * stalls:.0f}% of the upper loading steps, the "
+                  "mark of static friction well above the sliding friction: whether a tension step "
+                  "breaks a cable away is then decided within the load-cell noise, so no deterministic "
+                  "model predicts these shapes much better from the measured tensions (docs/diagnosis.md, "
+                  "'What it cannot find')." if stalls >= 0.05 else "")
         return (lead + " The excess over noise is significant, but no candidate extension removes "
                 f"at least {100 * min_removed:.0f}% of it with z ≥ {z_crit:g} on held-out experiments."
-                + hint + f" Held-out rms of the candidates: {table}.")
+                + hint + sticky + f" Held-out rms of the candidates: {table}.")
     c = by[cause]
     second = next((r for r in ranked if r["cause"] != cause), None)
     sec = (f" The next best, {second['cause']}, reached {second['heldout_rms_mm']:.3f} mm."

@@ -101,6 +101,25 @@ def test_static_friction_is_not_misattributed(tmp_path):
     assert d["cause"] in ("none", "unexplained", "static_friction"), d["explanation"]
 
 
+def test_large_static_friction_shows_as_loading_stalls(tmp_path):
+    """μ_s − μ_d = 0.45–0.6: some steps of the upper loading ramp do not break the cables
+    away and the shape stalls (test_friction.py::test_step4_...). The diagnosis measures
+    the stalls, names static_friction or says `unexplained` and points to static friction
+    (docs/diagnosis.md) — never another cause."""
+    recipe = load_recipe("static_friction").replace(effect={"static_excess": (0.45, 0.6)})
+    study = tmp_path / "study"
+    generate_study(recipe.scaled(**SMALL), study, seed=1)
+    (study / "truth.json").unlink()
+    out = tmp_path / "out"
+    assert main(["diagnose", str(study), "--out", str(out), "--jobs", "2", "--no-figures",
+                 "--max-folds", "2"]) == 0
+    d = json.loads((out / "diagnosis.json").read_text())
+    sig = {x["signature"]: x["value"] for x in d["discrepancies"]}
+    assert sig["loading_stalls"] >= 0.05
+    assert d["cause"] in ("static_friction", "unexplained"), d["explanation"]
+    assert "static friction" in d["explanation"] or d["cause"] == "static_friction"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [11, 12, 13])
 @pytest.mark.parametrize("cause", CAUSES + ("null",))

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from notchfit.diagnosis import (CANDIDATES, CAUSES, _effective_n, _loop_area, _release_tension,
-                                folds_by_experiment, measured_regimes, paired_z, rank_candidates)
+                                folds_by_experiment, loading_stalls, measured_regimes, paired_z,
+                                rank_candidates)
 
 
 def test_causes_match_data_format_table():
@@ -76,3 +77,23 @@ def test_ranking_follows_signatures():
     sigs = [{"signature": "direction_asymmetry", "value": 0.05}]
     assert rank_candidates(sigs, 2e-5)[0][0] == "external_load"
     assert math.isfinite(rank_candidates([], 2e-5)[0][1])
+
+
+def test_loading_stalls_counts_upper_ramp_steps_that_do_not_move():
+    """Sec. IV-B Step 4 with μ_s >> μ_d: a step below the break-away excess moves nothing."""
+    T = np.array([0.5, 5.0, 10.0, 15.0, 20.0, 25.0, 20.0, 10.0])
+    pred = np.array([0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.0, 0.6])
+    meas = np.array([0.0, 0.2, 0.4, 0.6, 0.6, 1.0, 1.0, 0.6])     # stalled on 15 -> 20 N
+    assert loading_stalls(T, meas, pred) == (1, 3)                 # steps above 12.5 N: 3
+    assert loading_stalls(T, pred, pred) == (0, 3)
+    # only the steps above `upper` x the peak count; nor does one that the model barely moves
+    assert loading_stalls(T, meas, pred, upper=0.9) == (0, 1)
+    flat = pred.copy()
+    flat[4] = flat[3] + 0.005
+    assert loading_stalls(T, meas, flat)[1] == 2
+
+
+def test_ranking_points_to_static_friction_on_stalls():
+    sigs = [{"signature": "loading_stalls", "value": 0.2}, {"signature": "loop_area_ratio", "value": 1.0}]
+    top, _, why = rank_candidates(sigs, 2e-5)[0]
+    assert top == "static_friction" and "stalls" in why
