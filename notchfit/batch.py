@@ -35,24 +35,26 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-__all__ = ["BatchResult", "ItemResult", "image_info", "load_image", "run_batch", "single_threaded_worker"]
+__all__ = ["BatchResult", "ItemResult", "image_info", "load_image", "mp_context", "run_batch",
+           "single_threaded_worker"]
 
 
 def single_threaded_worker(threads: int = 1) -> None:
     """Initializer of worker processes: native libraries use ``threads`` threads each.
 
-    The work items here are small (a few hundred points, 27 joints): OpenBLAS
-    and OpenCV thread pools only add contention, and with several worker
-    processes they oversubscribe the cores (a six-experiment diagnosis took
+    The work items here are small (a few hundred points, 27 joints): BLAS
+    thread pools only add contention, and with several worker processes
+    they oversubscribe the cores (a six-experiment diagnosis took
     53 s with 2 workers and default BLAS threads, 25 s with one thread each:
     ``benchmarks/bench_diagnose.py``). Uses threadpoolctl; the limit holds
     for the life of the process.
+
+    OpenCV's own pool is left alone: ``cv2.setNumThreads`` in a forked
+    child whose parent already used that pool never returns.
     """
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=threads)
-    if "cv2" in sys.modules:
-        sys.modules["cv2"].setNumThreads(threads)
 
 
 @dataclass(frozen=True)
@@ -139,8 +141,12 @@ def _progress(total, desc, progress):
     return tqdm(total=total, desc=desc, disable=disable, leave=False, file=sys.stderr)
 
 
-def _mp_context():
-    # fork is fastest; never fork a process that runs other threads (e.g. a Dask client)
+def mp_context():
+    """Start method for worker processes: fork when this process runs no other thread, else spawn.
+
+    fork is fastest; forking a process that runs other threads (a Dask
+    client, tqdm's monitor, a native pool) can leave a lock held forever in
+    the child."""
     if sys.platform.startswith("linux") and threading.active_count() == 1:
         return multiprocessing.get_context("fork")
     return multiprocessing.get_context("spawn")
@@ -200,7 +206,7 @@ def _run_pool(func, items, jobs, desc, progress):
 
     out: list = [None] * len(items)
     todo = list(range(len(items)))[::-1]
-    ctx = _mp_context()
+    ctx = mp_context()
     with _progress(len(items), desc, progress) as bar:
         while todo:
             pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=single_threaded_worker)

@@ -54,7 +54,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
-from .batch import single_threaded_worker
+from .batch import mp_context, single_threaded_worker
 from .fitting import fit_experiment
 from .friction import FrictionParams, save_params, simulate
 from .notches import notch_points, to_plane
@@ -591,7 +591,8 @@ def _run_tasks(tasks, jobs: int):
     if jobs <= 1 or len(tasks) <= 1:
         with threadpool_limits(limits=1):
             return [_fold_task(t) for t in tasks]
-    with ProcessPoolExecutor(max_workers=jobs, initializer=single_threaded_worker) as ex:
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp_context(),
+                             initializer=single_threaded_worker) as ex:
         return list(ex.map(_fold_task, tasks))
 
 

@@ -68,3 +68,27 @@ def test_dask_local_cluster(images):
         res = run_batch(image_info, images, keys=[p.name for p in images],
                         scheduler=cluster.scheduler_address)
     _check_image_batch(res, images)
+
+
+def test_workers_start_after_the_parent_used_native_thread_pools():
+    """Regression: worker initialisation after this process ran OpenCV's and BLAS's thread
+    pools (as `notchfit demo` does before diagnose) must not hang in a forked child. Run in a
+    subprocess with a time limit so that a hang fails instead of blocking the suite."""
+    import subprocess
+    import sys
+
+    script = (
+        "import cv2, numpy as np\n"
+        "from notchfit.batch import run_batch\n"
+        "img = np.random.default_rng(0).random((1200, 1920)).astype(np.float32)\n"
+        "cv2.GaussianBlur(img, (0, 0), 3.0); np.linalg.svd(np.ones((400, 400)))\n"
+        "res = run_batch(np.sum, [np.ones(3)] * 4, jobs=2)\n"
+        "assert all(r.ok for r in res.items), res.summary('t')\n"
+        "from concurrent.futures import ProcessPoolExecutor\n"
+        "from notchfit.batch import mp_context, single_threaded_worker\n"
+        "with ProcessPoolExecutor(2, mp_context=mp_context(), initializer=single_threaded_worker) as ex:\n"
+        "    assert list(ex.map(abs, [-1, -2])) == [1, 2]\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
