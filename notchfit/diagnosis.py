@@ -728,11 +728,11 @@ def loading_stalls(T, tip_measured, tip_predicted, *, min_step: float = 0.01, ra
     return int(np.sum(dm[big] < ratio * dp[big])), int(np.sum(big))
 
 
-def signatures(preps, base: HeldOut, noise: float) -> list[dict]:
+def signatures(preps, base: HeldOut, noise: float, *, stall_ratio: float = 0.3) -> list[dict]:
     """Discrepancy signatures of the held-out baseline, with numbers and words.
 
     ``noise`` is the mean squared point error a perfect model would leave [m²]
-    (:func:`noise_floor`).
+    (:func:`noise_floor`); ``stall_ratio`` is passed to :func:`loading_stalls`.
     """
     out = []
     mse = base.sample_mse(preps)
@@ -755,7 +755,7 @@ def signatures(preps, base: HeldOut, noise: float) -> list[dict]:
             holds.append(rp - rm)
         area_m.append(_loop_area(T, tip_m))
         area_p.append(_loop_area(T, tip_p))
-        ns, nt = loading_stalls(T, tip_m, tip_p)
+        ns, nt = loading_stalls(T, tip_m, tip_p, ratio=stall_ratio)
         n_stall, n_steps = n_stall + ns, n_steps + nt
         j = np.arange(1, p.geom.n_joints + 1)
         bp = p.pulled * np.polyfit(j, th_p.T, 1)[0]
@@ -781,8 +781,8 @@ def signatures(preps, base: HeldOut, noise: float) -> list[dict]:
     if n_steps:
         out.append({"signature": "loading_stalls", "value": n_stall / n_steps, "unit": "-",
                     "text": f"on {n_stall} of {n_steps} steps of the upper loading ramp the measured shape "
-                            "moved less than 30% of the baseline's prediction (a cable that stuck where "
-                            "the model slides)"})
+                            f"moved less than {100 * stall_ratio:.0f}% of the baseline's prediction (a cable "
+                            "that stuck where the model slides)"})
     am, ap = float(np.mean(area_m)), float(np.mean(area_p))
     ratio = am / ap if ap > 0 else float("inf")
     out.append({"signature": "loop_area_ratio", "value": ratio, "unit": "-",
@@ -1037,7 +1037,7 @@ def diagnose(experiments, *, jobs: int = 1, max_folds: int = 6, causes=CAUSES,
 
 
 def _explain(cause, sigs, cands, order, base_rms, noise_rms, none_tol, z_crit, min_removed,
-             ranking) -> str:
+             ranking, *, stall_hint: float = 0.05) -> str:
     by = {c["cause"]: c for c in cands}
     lead = (f"The calibrated baseline (the paper's friction model with k_lin, k_mid and μ_d fitted) "
             f"predicts held-out notch points with {base_rms * _MM:.3f} mm rms against a noise floor "
@@ -1053,10 +1053,10 @@ def _explain(cause, sigs, cands, order, base_rms, noise_rms, none_tol, z_crit, m
     if cause == "unexplained":
         stalls = next((d["value"] for d in sigs if d["signature"] == "loading_stalls"), 0.0)
         sticky = (f" The measured shape stalls on {100 * stalls:.0f}% of the upper loading steps, the "
-                  "mark of static friction well above the sliding friction: whether a tension step "
-                  "breaks a cable away is then decided within the load-cell noise, so no deterministic "
-                  "model predicts these shapes much better from the measured tensions (docs/diagnosis.md, "
-                  "'What it cannot find')." if stalls >= 0.05 else "")
+                  "mark of static friction well above the sliding friction: when the load-cell noise is "
+                  "comparable to the break-away excess, that noise decides which steps break a cable "
+                  "away, and no deterministic model predicts these shapes much better from the measured "
+                  "tensions (docs/diagnosis.md, 'What it cannot find')." if stalls >= stall_hint else "")
         return (lead + " The excess over noise is significant, but no candidate extension removes "
                 f"at least {100 * min_removed:.0f}% of it with z ≥ {z_crit:g} on held-out experiments."
                 + hint + sticky + f" Held-out rms of the candidates: {table}.")
