@@ -152,29 +152,43 @@ def _subdivide(poly, max_len):
 
 # ----------------------------------------------------------------------------- image formation
 def _smooth_field(shape, rng, n_waves=4, min_wavelength=150.0, max_wavelength=600.0):
-    """A smooth random field of unit peak-to-peak amplitude (sum of plane waves)."""
+    """A smooth random field of unit peak-to-peak amplitude (sum of plane waves).
+
+    Each wave ``cos(a u + b v + φ)`` is evaluated as the separable
+    ``cos(a u) cos(b v + φ) - sin(a u) sin(b v + φ)``, and all waves at once as
+    one (H, 2k) @ (2k, W) product of 1-D cosines and sines instead of a cosine
+    per pixel.
+    """
     H, W = shape
-    v, u = np.mgrid[0:H, 0:W].astype(np.float32)
-    f = np.zeros((H, W), np.float32)
-    for _ in range(n_waves):
+    u, v = np.arange(W, dtype=float), np.arange(H, dtype=float)
+    A = np.empty((H, 2 * n_waves))
+    B = np.empty((2 * n_waves, W))
+    for k in range(n_waves):
         lam = rng.uniform(min_wavelength, max_wavelength)
         ang = rng.uniform(0, 2 * np.pi)
         ph = rng.uniform(0, 2 * np.pi)
-        f += np.cos((np.cos(ang) * u + np.sin(ang) * v) * (2 * np.pi / lam) + ph).astype(np.float32)
+        au, bv = (2 * np.pi / lam) * np.cos(ang) * u, (2 * np.pi / lam) * np.sin(ang) * v + ph
+        A[:, 2 * k], A[:, 2 * k + 1] = np.cos(bv), -np.sin(bv)
+        B[2 * k], B[2 * k + 1] = np.cos(au), np.sin(au)
+    f = A.astype(np.float32) @ B.astype(np.float32)
     ptp = float(f.max() - f.min())
     return (f - f.mean()) / ptp if ptp > 0 else f
 
 
 def _illumination(shape, rng, amplitude):
-    """A smooth multiplicative field: linear gradient + broad hot spot, peak-to-peak ``amplitude``."""
+    """A smooth multiplicative field: linear gradient + broad hot spot, peak-to-peak ``amplitude``.
+
+    Both terms are separable in (u, v) and are built by broadcasting 1-D arrays.
+    """
     H, W = shape
     if amplitude <= 0:
         return None
-    v, u = np.mgrid[0:H, 0:W].astype(np.float32)
-    un, vn = u / max(W - 1, 1) - 0.5, v / max(H - 1, 1) - 0.5
+    un = (np.arange(W, dtype=float) / max(W - 1, 1) - 0.5)[None, :]
+    vn = (np.arange(H, dtype=float) / max(H - 1, 1) - 0.5)[:, None]
     g = rng.normal(size=2)
     cu, cv = rng.uniform(-0.3, 0.3, size=2)
-    f = (g[0] * un + g[1] * vn).astype(np.float32) + np.exp(-((un - cu) ** 2 + (vn - cv) ** 2) / 0.18).astype(np.float32)
+    f = (g[0] * un + g[1] * vn).astype(np.float32)
+    f += (np.exp(-((vn - cv) ** 2) / 0.18) * np.exp(-((un - cu) ** 2) / 0.18)).astype(np.float32)
     f = (f - f.min()) / max(float(f.max() - f.min()), 1e-12)
     return (1.0 - amplitude / 2.0 + amplitude * f).astype(np.float32)
 
@@ -184,10 +198,13 @@ def _form_image(coverage, *, rng, background, foreground, blur_sigma, noise, ill
     """coverage (object fraction) -> camera image."""
     H, W = coverage.shape
     contrast = abs(background - foreground)
+    cov = coverage.astype(np.float32, copy=False)
     bg = np.full((H, W), background, np.float32)
     if texture > 0:
         bg += np.float32(texture * contrast) * _smooth_field((H, W), rng)
-    img = bg * (1.0 - coverage.astype(np.float32)) + np.float32(foreground) * coverage.astype(np.float32)
+    img = np.float32(foreground) - bg          # bg (1 - c) + fg c = bg + (fg - bg) c
+    img *= cov
+    img += bg
     illum = _illumination((H, W), rng, illumination)
     if illum is not None:
         img *= illum
@@ -195,7 +212,7 @@ def _form_image(coverage, *, rng, background, foreground, blur_sigma, noise, ill
         img = cv2.GaussianBlur(img, (0, 0), sigmaX=float(blur_sigma), sigmaY=float(blur_sigma),
                                borderType=cv2.BORDER_REFLECT)
     if noise > 0:
-        img = img + rng.normal(0.0, noise * contrast, size=(H, W)).astype(np.float32)
+        img += rng.normal(0.0, noise * contrast, size=(H, W)).astype(np.float32)
     dtype = np.dtype(dtype)
     if dtype.kind in "ui":
         info = np.iinfo(dtype)

@@ -95,3 +95,26 @@ def test_noise_level_and_seed(geom):
     assert corner.std() == pytest.approx(0.02 * 160.0, rel=0.2)
     with pytest.raises(ValueError, match="seeded"):
         render_manipulator(th, geom, cam, rng=None, **kw)
+
+
+def test_background_fields_match_their_direct_per_pixel_formulas():
+    """The separable texture and illumination fields equal the per-pixel formulas."""
+    from notchfit.render import _illumination, _smooth_field
+
+    H, W = 37, 53
+    v, u = np.mgrid[0:H, 0:W].astype(float)
+    r = np.random.default_rng(3)
+    f = np.zeros((H, W))
+    for _ in range(4):
+        lam, ang, ph = r.uniform(150.0, 600.0), r.uniform(0, 2 * np.pi), r.uniform(0, 2 * np.pi)
+        f += np.cos((np.cos(ang) * u + np.sin(ang) * v) * (2 * np.pi / lam) + ph)
+    want = (f - f.mean()) / (f.max() - f.min())
+    np.testing.assert_allclose(_smooth_field((H, W), np.random.default_rng(3)), want, atol=2e-6)
+
+    r = np.random.default_rng(4)
+    un, vn = u / (W - 1) - 0.5, v / (H - 1) - 0.5
+    g = r.normal(size=2)
+    cu, cv = r.uniform(-0.3, 0.3, size=2)
+    f = g[0] * un + g[1] * vn + np.exp(-((un - cu) ** 2 + (vn - cv) ** 2) / 0.18)
+    f = (f - f.min()) / (f.max() - f.min())
+    np.testing.assert_allclose(_illumination((H, W), np.random.default_rng(4), 0.3), 0.85 + 0.3 * f, atol=2e-6)
