@@ -54,7 +54,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
-from .batch import mp_context, single_threaded_worker
+from .batch import single_threaded_worker
 from .fitting import fit_experiment
 from .friction import FrictionParams, save_params, simulate
 from .notches import notch_points, to_plane
@@ -591,8 +591,9 @@ def _run_tasks(tasks, jobs: int):
     if jobs <= 1 or len(tasks) <= 1:
         with threadpool_limits(limits=1):
             return [_fold_task(t) for t in tasks]
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp_context(),
-                             initializer=single_threaded_worker) as ex:
+    # the default start method (fork on Linux): spawn would re-import notchfit in every
+    # worker (seconds per pool) and re-run a caller's unguarded script
+    with ProcessPoolExecutor(max_workers=jobs, initializer=single_threaded_worker) as ex:
         return list(ex.map(_fold_task, tasks))
 
 
