@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from notchfit.diagnosis import prepare_experiment, predict_points
+from notchfit.diagnosis import BASELINE_MU_EXCESS, prepare_experiment, predict_points
 from notchfit.friction import simulate
 from notchfit.io import read_study
 from notchfit.notches import notch_points, to_plane
@@ -61,15 +61,15 @@ def bound(excess: float, sigma_T: float, seed: int, draws: int, tmp: Path) -> di
     write_study(study, folder)
     preps = [prepare_experiment(e) for e in read_study(folder)]
     true = study.params
-    base = dataclasses.replace(true, mu_s=true.mu_d + 0.01)
+    base = dataclasses.replace(true, mu_s=true.mu_d + BASELINE_MU_EXCESS)
     vals = {"k_lin": true.k_lin, "k_mid": true.k_mid, "mu_d": true.mu_d}
     out = {
         "true": rms_mm([predict_points(p, {**vals, "mu_s_excess": true.mu_s - true.mu_d})[0] for p in preps],
                        preps),
-        "base": rms_mm([predict_points(p, {**vals, "mu_s_excess": 0.01})[0] for p in preps], preps),
+        "base": rms_mm([predict_points(p, {**vals, "mu_s_excess": BASELINE_MU_EXCESS})[0] for p in preps],
+                       preps),
         "true_mc": rms_mm([mc_mean_points(p, true, draws, seed) for p in preps], preps),
         "base_mc": rms_mm([mc_mean_points(p, base, draws, seed) for p in preps], preps),
-        "point_floor": float(np.sqrt(2) * preps[0].sigma * 1e3),
     }
     return out
 

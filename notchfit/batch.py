@@ -35,8 +35,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-__all__ = ["BatchResult", "ItemResult", "image_info", "load_image", "mp_context", "run_batch",
-           "single_threaded_worker"]
+__all__ = ["BatchResult", "ItemResult", "image_info", "load_image", "run_batch", "single_threaded_worker"]
 
 
 def single_threaded_worker(threads: int = 1) -> None:
@@ -141,7 +140,7 @@ def _progress(total, desc, progress):
     return tqdm(total=total, desc=desc, disable=disable, leave=False, file=sys.stderr)
 
 
-def mp_context():
+def _mp_context():
     """Start method for worker processes: fork when this process runs no other thread, else spawn.
 
     fork is fastest; forking a process that runs other threads (a Dask
@@ -206,7 +205,7 @@ def _run_pool(func, items, jobs, desc, progress):
 
     out: list = [None] * len(items)
     todo = list(range(len(items)))[::-1]
-    ctx = mp_context()
+    ctx = _mp_context()
     with _progress(len(items), desc, progress) as bar:
         while todo:
             pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=single_threaded_worker)
