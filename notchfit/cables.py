@@ -58,6 +58,7 @@ __all__ = [
     "cable_lengths",
     "coupling_matrix",
     "coupling_matrix_simple",
+    "pulled_side",
     "rest_lengths",
     "segment_joints",
     "segment_length",
@@ -68,6 +69,27 @@ __all__ = [
 
 RIGHT, LEFT = +1, -1
 _SIDES = (RIGHT, LEFT)  # column order of lengths / P / T
+
+
+def pulled_side(tension_left, tension_right) -> int:
+    """Which cable a test pulls: the one whose tension varies more.
+
+    The one rule used everywhere (friction regimes, figures, diagnosis). A tie
+    (both ranges equal, e.g. constant tensions) counts as the left cable, the
+    cable the paper's test pulls (Sec. IV, Fig. 11).
+
+    Parameters
+    ----------
+    tension_left, tension_right : array_like, shape (S,) [N]
+
+    Returns
+    -------
+    int
+        :data:`RIGHT` (+1) or :data:`LEFT` (-1), the sign of the bend it makes.
+    """
+    tl = np.asarray(tension_left, dtype=float)
+    tr = np.asarray(tension_right, dtype=float)
+    return LEFT if np.ptp(tl) >= np.ptp(tr) else RIGHT
 
 
 def _side(side) -> int:

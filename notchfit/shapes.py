@@ -43,6 +43,7 @@ __all__ = [
     "constant_curvature",
     "free",
     "get_model",
+    "line_fit",
     "linear",
     "piecewise",
     "quadratic",
@@ -287,3 +288,31 @@ def get_model(name, n_joints: int) -> ShapeModel:
         return free(n, lam)
     raise ValueError(
         f"unknown shape model {name!r}; expected one of {', '.join(MODEL_NAMES)}")
+
+
+def line_fit(theta) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares line ``θ_j = a + b j`` (j = 1..n) through joint angles (Sec. IV-A).
+
+    The one implementation of the paper's linear shape summary: every module
+    that reports ``a`` and ``b`` of a set of joint angles (fits of other
+    models, simulated shapes, diagnosis signatures, figures) calls it.
+
+    Parameters
+    ----------
+    theta : array_like, shape (..., n) [rad]
+
+    Returns
+    -------
+    a, b : ndarray, shape (...) [rad]
+        Closed form: ``b = Σ (j - j̄) θ_j / Σ (j - j̄)²``, ``a = θ̄ - b j̄``;
+        for n = 1, ``a = θ_1`` and ``b = 0``. NaN in a row gives NaN.
+    """
+    th = np.asarray(theta, dtype=float)
+    n = th.shape[-1]
+    if n < 2:
+        return th[..., 0].copy(), np.zeros(th.shape[:-1])
+    j = np.arange(1, n + 1, dtype=float)
+    jc = j - j.mean()
+    b = (th * jc).sum(axis=-1) / (jc @ jc)
+    a = th.mean(axis=-1) - b * j.mean()
+    return a, b
