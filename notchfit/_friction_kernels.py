@@ -47,17 +47,6 @@ def spring_torque(th, k1, k2, k3, tm, ts, s):
 
 
 @njit(cache=True, inline="always")
-def spring_rate(th, k1, k2, k3, tm, ts, s):
-    """Tangent stiffness ``dτ/dθ`` (right-continuous in ``|θ|``)."""
-    x = abs(th)
-    if x < tm:
-        return s * k1
-    if x < ts:
-        return s * k2
-    return s * k3
-
-
-@njit(cache=True, inline="always")
 def spring_angle(tq, k1, k2, k3, tm, ts, s):
     """Inverse spring ``θ(τ)`` [rad]; odd."""
     y = abs(tq) / s

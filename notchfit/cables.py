@@ -49,7 +49,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import Geometry
-from .kinematics import as_joint_angles
+from .validation import as_joint_angles
 
 __all__ = [
     "LEFT",

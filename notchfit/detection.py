@@ -51,16 +51,19 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+import pandas as pd
 from scipy.ndimage import maximum_filter1d
 from scipy.spatial import cKDTree
 
 from .camera import CameraModel
 from .geometry import Geometry, notch_layout
+from .imaging import to_gray
+from .polygon import polygon_area
+from .units import MM
 
 __all__ = ["STATUSES", "Detection", "detect_notches", "detections_table", "draw_overlay"]
 
 STATUSES = ("ok", "ambiguous", "occluded")
-_MM = 1e-3
 
 
 @dataclass(frozen=True)
@@ -102,29 +105,11 @@ class Detection:
     def n_ok(self) -> int:
         return sum(s == "ok" for s in self.status)
 
-    @property
-    def points_mm(self) -> np.ndarray:
-        return self.points / _MM
-
 
 def _empty(m, image_status, message, contour=None, status="occluded"):
     nan = np.full((m, 2), np.nan)
     return Detection(nan, nan.copy(), np.full(m, np.nan), (status,) * m, image_status, message,
                      np.zeros((0, 2)) if contour is None else contour)
-
-
-def _to_float_gray(image):
-    img = np.asarray(image)
-    if img.ndim == 3:
-        if img.shape[2] == 4:
-            img = cv2.cvtColor(img, cv2.COLOR_BGRA2GRAY)
-        elif img.shape[2] == 3:
-            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-        else:
-            img = img[..., 0]
-    if img.ndim != 2 or img.size == 0:
-        raise ValueError(f"expected a 2-D gray or colour image, got shape {np.shape(image)}")
-    return img.astype(np.float32, copy=False)
 
 
 # ----------------------------------------------------------------------------- small helpers
@@ -291,7 +276,7 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
     """
     lay = notch_layout(geom)
     m = lay.n_points
-    gray = _to_float_gray(image)
+    gray = to_gray(image)
     camera.check_image(gray)
     if not camera.has_plane:
         raise ValueError("the camera model has no plane pose: calibrate with --plane-image")
@@ -303,7 +288,7 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
     R, w, d = geom.outer_radius, geom.slot_width, geom.slot_depth
 
     # ---- 1. segmentation at low resolution --------------------------------------------------
-    f = max(1, int(round(lowres_mm * _MM * px_per_m)))
+    f = max(1, int(round(lowres_mm * MM * px_per_m)))
     hs, ws = H // f, W // f
     if hs < 16 or ws < 16:
         raise ValueError(f"image too small: {W}x{H} px")
@@ -376,7 +361,7 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
     if not cnts:
         return _empty(m, "no_manipulator", "no manipulator outline")
     cnt = max(cnts, key=len).reshape(-1, 2).astype(float)
-    area_img = 0.5 * np.sum(cnt[:, 0] * np.roll(cnt[:, 1], -1) - np.roll(cnt[:, 0], -1) * cnt[:, 1])
+    area_img = polygon_area(cnt[:, 0], cnt[:, 1], signed=True)
     if area_img * sgn < 0:
         cnt = cnt[::-1].copy()
     N = len(cnt)
@@ -565,7 +550,7 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
 
     specs = []        # (point, corner low-res xy, d_in, d_out, L_in m, L_out m, face_in, face_out)
     # base corners: the closing rounds concave corners, so take them from the unbridged outline
-    ma = 0.5 * np.sum(mcnt[:, 0] * np.roll(mcnt[:, 1], -1) - np.roll(mcnt[:, 0], -1) * mcnt[:, 1])
+    ma = polygon_area(mcnt[:, 0], mcnt[:, 1], signed=True)
     if ma * sgn < 0:
         mcnt = mcnt[::-1].copy()
     M_ = len(mcnt)
@@ -892,19 +877,17 @@ def detections_table(sample, det: Detection):
     -------
     pandas.DataFrame with columns sample, point, x_mm, y_mm, u_px, v_px, sigma_mm, status
     """
-    import pandas as pd
-
     m = len(det.status)
     return pd.DataFrame({
         "sample": np.full(m, sample), "point": np.arange(1, m + 1),
-        "x_mm": det.points[:, 0] * 1e3, "y_mm": det.points[:, 1] * 1e3,
+        "x_mm": det.points[:, 0] / MM, "y_mm": det.points[:, 1] / MM,
         "u_px": det.points_px[:, 0], "v_px": det.points_px[:, 1],
-        "sigma_mm": det.sigma * 1e3, "status": list(det.status)})
+        "sigma_mm": det.sigma / MM, "status": list(det.status)})
 
 
 def draw_overlay(image, det: Detection, *, scale: float = 1.0) -> np.ndarray:
     """An overlay (Fig. 12 style): the bridged outline and numbered corners coloured by status (BGR uint8)."""
-    g = _to_float_gray(image)
+    g = to_gray(image)
     lo, hi = float(g.min()), float(g.max())
     g8 = np.round((g - lo) * (255.0 / max(hi - lo, 1e-9))).astype(np.uint8)
     img = cv2.cvtColor(g8, cv2.COLOR_GRAY2BGR)

@@ -89,23 +89,29 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from . import _friction_kernels as _k
+from . import paper
+from .cables import pulled_side
 from .geometry import Geometry, default_geometry
 from .io import toml_dumps, write_text_atomic
+from .notches import notch_points
+from .shapes import line_fit
 from .springs import PiecewiseLinearSpring, friction_spring
+from .units import MM
+from .validation import readonly
 
 __all__ = [
     "DEFAULT_DT",
     "FrictionParams",
     "SimulationResult",
     "cable_displacement",
-    "classify_regimes",
     "load_params",
     "save_params",
-    "shape_ab",
     "simulate",
     "simulation_table",
+    "stepwise_regimes",
 ]
 
 #: Default time step of the reference solver [s] (converged: see the module docstring).
@@ -158,15 +164,15 @@ class FrictionParams:
         ``g`` in (-1, 1): joint ``j``'s rates scaled by ``1 + g (2 (j-1)/(n-1) - 1)``.
     """
 
-    k_lin: float = 0.4829
-    k_mid: float = 0.25
-    k_stop: float = 10.0
-    theta_mid: float = 0.07
-    theta_stop: float = 0.14
-    mu_d: float = 0.29
-    mu_s: float = 0.30
-    b: float = 0.03
-    v_thr: float = 5e-5
+    k_lin: float = paper.FRICTION_K_LIN
+    k_mid: float = paper.FRICTION_K_MID
+    k_stop: float = paper.FRICTION_K_STOP
+    theta_mid: float = paper.FRICTION_THETA_MID
+    theta_stop: float = paper.FRICTION_THETA_STOP
+    mu_d: float = paper.MU_D
+    mu_s: float = paper.MU_S
+    b: float = paper.DAMPING
+    v_thr: float = paper.V_THR
     proximal_beta: float = 0.0
     hysteresis_torque: float = 0.0
     tip_force_x: float = 0.0
@@ -229,12 +235,6 @@ class FrictionParams:
         return par
 
 
-def _ro(a, dtype=float) -> np.ndarray:
-    a = np.array(a, dtype=dtype)
-    a.flags.writeable = False
-    return a
-
-
 @dataclass(frozen=True, eq=False)
 class SimulationResult:
     """Output of :func:`simulate`: the rest state at every sample (S samples, n joints).
@@ -259,7 +259,7 @@ class SimulationResult:
     a, b : ndarray (S,) [rad]
         Least-squares ``θ_j = a + b j`` (j = 1..n) of the prediction (Sec. IV-A).
     regime : ndarray (S,) str
-        ``"I"`` loading, ``"II"`` holding, ``"III"`` releasing (:func:`classify_regimes`).
+        ``"I"`` loading, ``"II"`` holding, ``"III"`` releasing (:func:`stepwise_regimes`).
     params : FrictionParams
     geom : Geometry
     method : str
@@ -299,36 +299,12 @@ class SimulationResult:
 
     def points(self) -> np.ndarray:
         """Manipulator-frame notch points of the prediction (S, m, 2) [m]."""
-        from .notches import notch_points
-
         return notch_points(self.theta, self.geom)
 
 
 # =============================================================================
 # small pure functions
 # =============================================================================
-def shape_ab(theta) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares ``θ_j = a + b j`` (j = 1..n) (Sec. IV-A, the linear shape model).
-
-    Parameters
-    ----------
-    theta : array_like, shape (..., n) [rad]
-
-    Returns
-    -------
-    a, b : ndarray, shape (...) [rad]
-    """
-    th = np.asarray(theta, dtype=float)
-    n = th.shape[-1]
-    if n < 2:
-        return th[..., 0].copy(), np.zeros(th.shape[:-1])
-    j = np.arange(1, n + 1, dtype=float)
-    jc = j - j.mean()
-    b = (th * jc).sum(axis=-1) / (jc @ jc)
-    a = th.mean(axis=-1) - b * j.mean()
-    return a, b
-
-
 def cable_displacement(theta, tension_left, tension_right, geom: Geometry):
     """Cable drawn in by each actuator ``(Δ_L, Δ_R)`` [m] (module docstring).
 
@@ -345,11 +321,19 @@ def cable_displacement(theta, tension_left, tension_right, geom: Geometry):
             geom.r_x * s + np.asarray(tension_right, float) / kc)
 
 
-def classify_regimes(tension_left, tension_right, shape, *, tension_tol: float = 0.05,
+def stepwise_regimes(tension_left, tension_right, shape, *, tension_tol: float = 0.05,
                      hold_fraction: float = 0.25) -> np.ndarray:
-    """Regime of each sample from the data: I loading, II holding, III releasing (Sec. IV, Fig. 11).
+    """Regime of each sample, step by step: I loading, II holding, III releasing (Sec. IV, Fig. 11).
 
-    The pulled cable is the one whose tension varies more; ``load`` is its
+    Each step into a sample is labelled by how the load changed and whether the
+    shape followed it, so a history with several loading/unloading cycles gets
+    several runs of I–III. It labels simulated histories
+    (:attr:`SimulationResult.regime`). The diagnosis labels measured tests with
+    :func:`notchfit.diagnosis.measured_regimes` instead: one loading up to the
+    pulled tension's peak, then II until the tip angle has lost a fraction of its
+    drop, then III — robust to measurement noise on the shape, but one cycle only.
+
+    The pulled cable is :func:`notchfit.cables.pulled_side`; ``load`` is its
     tension minus the other's and ``shape`` (e.g. the tip angle, or the
     pulled cable's displacement) is taken with the sign that grows with the
     load. For the step into sample ``k``:
@@ -387,8 +371,7 @@ def classify_regimes(tension_left, tension_right, shape, *, tension_tol: float =
     out = np.empty(S, dtype="<U3")
     if S == 0:
         return out
-    left_pulled = np.ptp(tl) >= np.ptp(tr)
-    load = tl - tr if left_pulled else tr - tl
+    load = pulled_side(tl, tr) * (tr - tl)
     dload = np.diff(load)
     dshape = np.diff(sh)
     up = dload > tension_tol
@@ -448,6 +431,37 @@ def _check_inputs(time, tension_left, tension_right):
     return (np.ascontiguousarray(t), np.ascontiguousarray(tl), np.ascontiguousarray(tr))
 
 
+def _check_protocol(t, ramp_time, settle_time) -> float:
+    """Check the input protocol's times; the settle time, defaulting to the median interval [s]."""
+    if not (math.isfinite(ramp_time) and ramp_time >= 0):
+        raise ValueError(f"ramp_time must be >= 0 s, got {ramp_time}")
+    if settle_time is None:
+        settle_time = float(np.median(np.diff(t))) if t.size > 1 else 5.0
+    if not (math.isfinite(settle_time) and settle_time > 0):
+        raise ValueError(f"settle_time must be > 0 s, got {settle_time}")
+    return settle_time
+
+
+def _fast(t, tl, tr, par, scale, ramp_time, settle_time, *, n, h_min, h_max, growth, dtheta_max, order,
+          land_sticks, max_events, max_micro, settle_tol, settle_maxiter):
+    """Check the fast solver's options and run it (:func:`simulate` documents them)."""
+    for name, v in (("h_min", h_min), ("h_max", h_max)):
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be > 0 s, got {v}")
+    if not (math.isfinite(growth) and growth >= 1):
+        raise ValueError(f"growth must be >= 1, got {growth}")
+    if order not in (1, 2):
+        raise ValueError(f"order must be 1 or 2, got {order}")
+    me = max(64, 4 * n) if max_events is None else int(max_events)
+    mm = max(1000, 40 * n) if max_micro is None else int(max_micro)
+    if me < 0 or mm < 0:
+        raise ValueError("max_events and max_micro must be >= 0")
+    return _k.fast_kernel(t, tl, tr, par, scale, ramp_time, settle_time,
+                          float(h_min), float(h_max), float(growth), me, mm,
+                          float(settle_tol), int(settle_maxiter), bool(land_sticks), float(dtheta_max),
+                          int(order))
+
+
 def simulate(time, tension_left, tension_right, params: FrictionParams | None = None,
              geom: Geometry | None = None, *, method: str = "fast", dt: float | None = None,
              ramp_time: float = 0.0, settle_time: float | None = None,
@@ -495,11 +509,11 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         less accurate).
     max_events, max_micro : int, optional
         Fast solver: located events and frozen slip passes per interval
-        (default ``8 n`` each).
+        (default ``max(64, 4 n)`` and ``max(1000, 40 n)``).
     settle_tol, settle_maxiter :
         Fast solver: fixed point of the closed-form rest state (tip load) [rad].
     tension_tol, hold_fraction :
-        Passed to :func:`classify_regimes`.
+        Passed to :func:`stepwise_regimes`.
 
     Returns
     -------
@@ -515,13 +529,8 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
     if not isinstance(params, FrictionParams):
         raise ValueError(f"params must be a FrictionParams, got {type(params).__name__}")
     t, tl, tr = _check_inputs(time, tension_left, tension_right)
+    settle_time = _check_protocol(t, ramp_time, settle_time)
     n = geom.n_joints
-    if not (math.isfinite(ramp_time) and ramp_time >= 0):
-        raise ValueError(f"ramp_time must be >= 0 s, got {ramp_time}")
-    if settle_time is None:
-        settle_time = float(np.median(np.diff(t))) if t.size > 1 else 5.0
-    if not (math.isfinite(settle_time) and settle_time > 0):
-        raise ValueError(f"settle_time must be > 0 s, got {settle_time}")
     par = params.packed(geom)
     scale = np.ascontiguousarray(params.joint_scale(n), dtype=float)
     if method == "reference":
@@ -530,37 +539,25 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
             raise ValueError(f"dt must be > 0 s, got {dt}")
         out = _k.reference_kernel(t, tl, tr, par, scale, dt, float(ramp_time), float(settle_time))
     elif method == "fast":
-        for name, v in (("h_min", h_min), ("h_max", h_max)):
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be > 0 s, got {v}")
-        if not (math.isfinite(growth) and growth >= 1):
-            raise ValueError(f"growth must be >= 1, got {growth}")
         if order is None:
             order = 2 if (params.tip_force_x != 0.0 or params.tip_force_z != 0.0) else 1
-        if order not in (1, 2):
-            raise ValueError(f"order must be 1 or 2, got {order}")
-        me = max(64, 4 * n) if max_events is None else int(max_events)
-        mm = max(1000, 40 * n) if max_micro is None else int(max_micro)
-        if me < 0 or mm < 0:
-            raise ValueError("max_events and max_micro must be >= 0")
-        out = _k.fast_kernel(t, tl, tr, par, scale, float(ramp_time), float(settle_time),
-                             float(h_min), float(h_max), float(growth), me, mm,
-                             float(settle_tol), int(settle_maxiter), bool(land_sticks), float(dtheta_max),
-                             int(order))
+        out = _fast(t, tl, tr, par, scale, float(ramp_time), float(settle_time), n=n, h_min=h_min,
+                    h_max=h_max, growth=growth, dtheta_max=dtheta_max, order=order, land_sticks=land_sticks,
+                    max_events=max_events, max_micro=max_micro, settle_tol=settle_tol,
+                    settle_maxiter=settle_maxiter)
     else:
         raise ValueError(f"method must be 'fast' or 'reference', got {method!r}")
     theta, TL, TR, bL, bR, sL, sR, nsteps = out
     dl, dr = cable_displacement(theta, tl, tr, geom)
-    a, b = shape_ab(theta)
-    left_pulled = np.ptp(tl) >= np.ptp(tr)
-    regime = classify_regimes(tl, tr, theta.sum(axis=1) * (-1.0 if left_pulled else 1.0),
+    a, b = line_fit(theta)
+    regime = stepwise_regimes(tl, tr, theta.sum(axis=1) * pulled_side(tl, tr),
                               tension_tol=tension_tol, hold_fraction=hold_fraction)
     return SimulationResult(
-        time=_ro(t), input_left=_ro(tl), input_right=_ro(tr), theta=_ro(theta),
-        tension_left=_ro(TL), tension_right=_ro(TR), base_tension_left=_ro(bL),
-        base_tension_right=_ro(bR), state_left=_ro(sL, np.int8), state_right=_ro(sR, np.int8),
-        displacement_left=_ro(dl), displacement_right=_ro(dr), a=_ro(a), b=_ro(b),
-        regime=_ro(regime, regime.dtype), params=params, geom=geom, method=method,
+        time=readonly(t), input_left=readonly(tl), input_right=readonly(tr), theta=readonly(theta),
+        tension_left=readonly(TL), tension_right=readonly(TR), base_tension_left=readonly(bL),
+        base_tension_right=readonly(bR), state_left=readonly(sL, np.int8), state_right=readonly(sR, np.int8),
+        displacement_left=readonly(dl), displacement_right=readonly(dr), a=readonly(a), b=readonly(b),
+        regime=readonly(regime, regime.dtype), params=params, geom=geom, method=method,
         n_steps=int(nsteps))
 
 
@@ -579,8 +576,6 @@ def simulation_table(result: SimulationResult, sample_ids=None):
     sample_ids : array_like of int, shape (S,), optional
         The experiment's sample numbers (default 1..S).
     """
-    import pandas as pd
-
     S, n = result.theta.shape
     ids = np.arange(1, S + 1) if sample_ids is None else np.asarray(sample_ids)
     if ids.shape != (S,):
@@ -593,8 +588,8 @@ def simulation_table(result: SimulationResult, sample_ids=None):
         "tension_left_N": result.input_left, "tension_right_N": result.input_right,
         "tension_base_left_N": result.base_tension_left, "tension_base_right_N": result.base_tension_right,
         "tension_tip_left_N": result.tension_left[:, -1], "tension_tip_right_N": result.tension_right[:, -1],
-        "displacement_left_mm": result.displacement_left * 1e3,
-        "displacement_right_mm": result.displacement_right * 1e3,
+        "displacement_left_mm": result.displacement_left / MM,
+        "displacement_right_mm": result.displacement_right / MM,
     })
     return pd.DataFrame(cols)
 

@@ -19,10 +19,10 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import Geometry
+from .validation import as_joint_angles
 
 __all__ = [
     "adjoint",
-    "as_joint_angles",
     "body_jacobian",
     "cumulative_angles",
     "exp_twist",
@@ -40,22 +40,6 @@ __all__ = [
     "vee",
     "vee6",
 ]
-
-
-def as_joint_angles(theta, n: int | None = None) -> np.ndarray:
-    """Validate joint angles: a float array (..., n) with no NaN or inf.
-
-    Raises ``ValueError`` (mentioning "joint angles") for a scalar, a wrong
-    last axis or non-finite values; every module validates angles here.
-    """
-    th = np.asarray(theta, dtype=float)
-    if th.ndim == 0:
-        raise ValueError("joint angles must be an array of shape (..., n), got a scalar")
-    if n is not None and th.shape[-1] != n:
-        raise ValueError(f"joint angles must have last axis n={n}, got shape {th.shape}")
-    if not np.all(np.isfinite(th)):
-        raise ValueError("joint angles contain NaN or inf")
-    return th
 
 
 # --------------------------------------------------------------------------

@@ -20,7 +20,7 @@ import numba
 import numpy as np
 
 from .geometry import Geometry, notch_layout
-from .kinematics import as_joint_angles
+from .validation import as_joint_angles
 
 __all__ = [
     "from_plane",

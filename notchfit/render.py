@@ -41,6 +41,7 @@ import numpy as np
 from .camera import Board, CameraModel
 from .geometry import Geometry
 from .notches import notch_points, to_plane
+from .units import MM
 
 __all__ = [
     "RenderedBoard",
@@ -194,7 +195,7 @@ def _illumination(shape, rng, amplitude):
 
 
 def _form_image(coverage, *, rng, background, foreground, blur_sigma, noise, illumination, texture,
-                dtype, texture_under_object=False):
+                dtype):
     """coverage (object fraction) -> camera image."""
     H, W = coverage.shape
     contrast = abs(background - foreground)
@@ -271,7 +272,7 @@ def _board_pattern(board: Board, X, Y, margin_squares=1.0):
         val[(i + j) % 2 == 0] = 0.0
     else:
         cvb = board.cv_board()
-        obj = np.asarray(cvb.getObjPoints(), float) * 1e-3          # (M, 4, 3) [m]
+        obj = np.asarray(cvb.getObjPoints(), float) * MM          # (M, 4, 3) [m]
         ids = np.asarray(cvb.getIds()).ravel()
         d = cvb.getDictionary()
         nb = int(d.markerSize)
@@ -467,11 +468,6 @@ class RenderedManipulator:
     plane: tuple
     visible: np.ndarray
 
-    @property
-    def points_mm(self) -> np.ndarray:
-        """Notch points in the plane frame [mm]."""
-        return self.points_plane * 1e3
-
 
 def outline_in_plane(theta, geom, tx, ty, phi, mirror=False, include_mount=True):
     """The outline (:func:`manipulator_outline`) mapped into the plane frame [m], (K, 2)."""
@@ -618,7 +614,7 @@ def camera_for_shapes(theta_list, geom: Geometry, *, mm_per_px: float = 0.03, ma
         planes0 = [tuple(pl) for pl in planes]
         if len(planes0) != len(ths):
             raise ValueError(f"{len(planes0)} planes for {len(ths)} shapes")
-    outl = np.concatenate([outline_in_plane(t, geom, *pl) for t, pl in zip(ths, planes0)]) * 1e3
+    outl = np.concatenate([outline_in_plane(t, geom, *pl) for t, pl in zip(ths, planes0)]) / MM
     lo, hi = outl.min(0), outl.max(0)
     angle = synthetic_kw.get("plane_angle_deg", -90.0)
     ca, sa = math.cos(math.radians(angle)), math.sin(math.radians(angle))
@@ -633,7 +629,7 @@ def camera_for_shapes(theta_list, geom: Geometry, *, mm_per_px: float = 0.03, ma
     center = 0.5 * (lo + hi)
     for _ in range(12):
         cam = CameraModel.synthetic(W, H, mm_per_px=mm_per_px, plane_center_mm=tuple(center), **synthetic_kw)
-        uv = cam.plane_to_pixel(outl * 1e-3)
+        uv = cam.plane_to_pixel(outl * MM)
         lo_px, hi_px = uv.min(0), uv.max(0)
         if (lo_px.min() >= 0.9 * margin_px and hi_px[0] <= W - 1 - 0.9 * margin_px
                 and hi_px[1] <= H - 1 - 0.9 * margin_px):
@@ -641,7 +637,7 @@ def camera_for_shapes(theta_list, geom: Geometry, *, mm_per_px: float = 0.03, ma
         need = np.maximum(hi_px - lo_px + 2 * margin_px, 1)
         mid = 0.5 * (lo_px + hi_px)
         c_img = np.array([(W - 1) / 2, (H - 1) / 2])
-        center = center + (cam.pixel_to_plane(c_img) - cam.pixel_to_plane(mid)) * 1e3
+        center = center + (cam.pixel_to_plane(c_img) - cam.pixel_to_plane(mid)) / MM
         if need[0] > W or need[1] > H:
             W, H = int(math.ceil(max(W, need[0]))), int(math.ceil(max(H, need[1])))
     else:

@@ -22,13 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import paper
+from .validation import readonly
+
 __all__ = ["PiecewiseLinearSpring", "dual_rate_spring", "friction_spring"]
-
-
-def _ro(a) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.flags.writeable = False
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,7 +44,7 @@ class PiecewiseLinearSpring:
 
     breaks: np.ndarray
     rates: np.ndarray
-    scale: np.ndarray = field(default_factory=lambda: _ro(1.0))
+    scale: np.ndarray = field(default_factory=lambda: readonly(1.0))
 
     def __post_init__(self) -> None:
         b, r, s = (np.array(v, dtype=float) for v in (self.breaks, self.rates, self.scale))
@@ -61,9 +58,9 @@ class PiecewiseLinearSpring:
             raise ValueError(f"spring breaks must be positive and increasing, got {b}")
         if (r <= 0).any() or (s <= 0).any():
             raise ValueError("spring rates and scale must be positive")
-        object.__setattr__(self, "breaks", _ro(b))
-        object.__setattr__(self, "rates", _ro(r))
-        object.__setattr__(self, "scale", _ro(s))
+        object.__setattr__(self, "breaks", readonly(b))
+        object.__setattr__(self, "rates", readonly(r))
+        object.__setattr__(self, "scale", readonly(s))
 
     # ----------------------------------------------------------------- tables
     def _knots(self):
@@ -115,14 +112,16 @@ class PiecewiseLinearSpring:
         return np.sign(tq) * np.sum(width / self.rates, axis=-1)
 
 
-def dual_rate_spring(k1: float = 0.36, k2: float = 10.0, theta_thresh: float = 0.135,
+def dual_rate_spring(k1: float = paper.DUAL_RATE_K1, k2: float = paper.DUAL_RATE_K2,
+                     theta_thresh: float = paper.DUAL_RATE_THRESH,
                      scale=1.0) -> PiecewiseLinearSpring:
     """Dual-rate spring of Sec. III, Fig. 7 (``k_1``, ``k_2`` [N m/rad], ``θ_thresh`` [rad])."""
     return PiecewiseLinearSpring([theta_thresh], [k1, k2], scale)
 
 
-def friction_spring(k_lin: float = 0.4829, k_mid: float = 0.25, k_stop: float = 10.0,
-                    theta_mid: float = 0.07, theta_stop: float = 0.14,
+def friction_spring(k_lin: float = paper.FRICTION_K_LIN, k_mid: float = paper.FRICTION_K_MID,
+                    k_stop: float = paper.FRICTION_K_STOP, theta_mid: float = paper.FRICTION_THETA_MID,
+                    theta_stop: float = paper.FRICTION_THETA_STOP,
                     scale=1.0) -> PiecewiseLinearSpring:
     """Piecewise-linear spring of the friction model (Sec. IV-B, Fig. 17).
 

@@ -45,9 +45,11 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import root
 
-from . import cables, kinematics
+from . import cables, kinematics, paper
 from .geometry import Geometry, datasets_dir
+from .shapes import line_fit
 from .springs import PiecewiseLinearSpring, dual_rate_spring
+from .validation import as_finite, as_joint_angles
 
 __all__ = [
     "CableLaw",
@@ -75,15 +77,8 @@ __all__ = [
 # --------------------------------------------------------------------------
 # Inputs
 # --------------------------------------------------------------------------
-def _finite(a, what: str) -> np.ndarray:
-    a = np.asarray(a, dtype=float)
-    if not np.isfinite(a).all():
-        raise ValueError(f"{what} contains NaN or inf")
-    return a
-
-
 def _tensions(T) -> np.ndarray:
-    T = _finite(T, "cable tensions")
+    T = as_finite(T, "cable tensions")
     if T.shape[-1:] != (2,):
         raise ValueError(f"cable tensions must have shape (..., 2) as (T_R, T_L) [N], got {T.shape}")
     if (T < 0).any():
@@ -93,7 +88,7 @@ def _tensions(T) -> np.ndarray:
 
 def _tip_load(F) -> np.ndarray:
     """(f_x, f_z, m_y) from a 3-vector or a 6-vector world load (f, τ)."""
-    F = _finite(F, "tip load")
+    F = as_finite(F, "tip load")
     if F.shape == (6,):
         return F[[0, 2, 4]]
     if F.shape != (3,):
@@ -118,8 +113,8 @@ class Schedule:
     values: np.ndarray
 
     def __post_init__(self) -> None:
-        t = _finite(self.times, "schedule times")
-        v = _finite(self.values, "schedule values")
+        t = as_finite(self.times, "schedule times")
+        v = as_finite(self.values, "schedule values")
         if t.ndim != 1 or t.size < 1:
             raise ValueError("schedule times must be a non-empty 1-D array [s]")
         if v.ndim == 1:
@@ -182,12 +177,12 @@ class CableLaw:
 
     def tension(self, d) -> np.ndarray:
         """``T(d)`` [N] for elongation ``d`` [m]."""
-        d = np.maximum(_finite(d, "cable elongation"), 0.0)
+        d = np.maximum(as_finite(d, "cable elongation"), 0.0)
         return self.coefficient * (d if self.kind == "linear" else d * d)
 
     def stiffness(self, d) -> np.ndarray:
         """``dT/dd`` [N/m]: ``k`` (linear) or ``2 K d`` (quadratic); 0 when slack."""
-        d = _finite(d, "cable elongation")
+        d = as_finite(d, "cable elongation")
         if self.kind == "linear":
             return np.where(d > 0, self.coefficient, 0.0)
         return 2.0 * self.coefficient * np.maximum(d, 0.0)
@@ -220,7 +215,7 @@ class QuasiStaticModel:
 
     geom: Geometry
     spring: PiecewiseLinearSpring = field(default_factory=dual_rate_spring)
-    damping: float = 0.03
+    damping: float = paper.DAMPING
     coupling: str = "simple"
     cable_law: CableLaw | None = None
     cable_offset: float | None = None
@@ -253,7 +248,7 @@ class QuasiStaticModel:
 
     def elongation(self, theta, positions) -> np.ndarray:
         """``d = L(θ) - L_0 + u`` (Eq. 13) [m]."""
-        u = _finite(positions, "cable positions")
+        u = as_finite(positions, "cable positions")
         if u.shape[-1:] != (2,):
             raise ValueError(f"cable positions must be (u_R, u_L) [m], got shape {u.shape}")
         return self.lengths(theta) - self.rest_lengths + u
@@ -294,7 +289,7 @@ class QuasiStaticModel:
         Give either ``tensions`` (T_R, T_L) [N] or cable ``positions``
         (u_R, u_L) [m] (Eqs. 13-14), and optionally ``tip_load``.
         """
-        th = kinematics.as_joint_angles(theta, self.geom.n_joints)
+        th = as_joint_angles(theta, self.geom.n_joints)
         G = self.spring.torque(th)
         T = self._T(th, tensions, positions)
         if T is not None:
@@ -314,7 +309,7 @@ class QuasiStaticModel:
 
     def residual_jacobian(self, theta, tensions=None, tip_load=None, positions=None) -> np.ndarray:
         """``∂G/∂θ`` (n, n) [N m/rad]: tangent spring stiffness, cable and load terms."""
-        th = kinematics.as_joint_angles(theta, self.geom.n_joints)
+        th = as_joint_angles(theta, self.geom.n_joints)
         Jg = np.diag(self.spring.stiffness(th) * np.ones(self.geom.n_joints))
         T = self._T(th, tensions, positions)
         if T is not None:
@@ -380,7 +375,7 @@ def simulate(model: QuasiStaticModel, t_span, theta0=None, *, tensions=None, tip
     t0, t1 = (float(v) for v in t_span)
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise ValueError(f"t_span must be (t0, t1) with t1 > t0, got {t_span!r}")
-    th0 = np.zeros(n) if theta0 is None else kinematics.as_joint_angles(theta0, n).copy()
+    th0 = np.zeros(n) if theta0 is None else as_joint_angles(theta0, n).copy()
     if tensions is not None and positions is not None:
         raise ValueError("give cable tensions or cable positions, not both")
     sT = _schedule(tensions, 2, "cable tensions")
@@ -402,7 +397,7 @@ def simulate(model: QuasiStaticModel, t_span, theta0=None, *, tensions=None, tip
                               if t0 < k < t1]})
     if t_eval is None:
         t_eval = np.array(knots)
-    t_eval = _finite(t_eval, "t_eval")
+    t_eval = as_finite(t_eval, "t_eval")
     if ((t_eval < t0) | (t_eval > t1)).any():
         raise ValueError("t_eval must lie within t_span")
     ts, ths, ok, msg = [], [], True, "ok"
@@ -462,7 +457,7 @@ def equilibrium(model: QuasiStaticModel, *, tensions=None, tip_load=None, positi
     Equilibrium
     """
     n = model.geom.n_joints
-    x0 = np.zeros(n) if theta0 is None else kinematics.as_joint_angles(theta0, n)
+    x0 = np.zeros(n) if theta0 is None else as_joint_angles(theta0, n)
     model.residual(x0, tensions, tip_load, positions)  # validates the inputs
 
     def fun(th):
@@ -528,7 +523,7 @@ def constant_curvature(geom: Geometry, tensions, spring: PiecewiseLinearSpring |
             raise ValueError("constant_curvature needs a spring without per-joint scale")
         th = float(th)
     else:
-        k1 = 0.36 if k1 is None else k1
+        k1 = paper.DUAL_RATE_K1 if k1 is None else k1
         if not (math.isfinite(k1) and k1 > 0):
             raise ValueError(f"k1 must be positive [N m/rad], got {k1!r}")
         th = tau / k1
@@ -558,8 +553,8 @@ def joint_stiffness(model: QuasiStaticModel, theta0, cable_stiffness) -> np.ndar
     -------
     ndarray, shape (n, n) [N m/rad]
     """
-    th = kinematics.as_joint_angles(theta0, model.geom.n_joints)
-    kc = _finite(cable_stiffness, "cable stiffness")
+    th = as_joint_angles(theta0, model.geom.n_joints)
+    kc = as_finite(cable_stiffness, "cable stiffness")
     if kc.shape != (2,) or (kc < 0).any():
         raise ValueError(f"cable_stiffness must be (k_R, k_L) >= 0 [N/m], got {kc}")
     P = model.coupling_matrix(th)
@@ -567,7 +562,7 @@ def joint_stiffness(model: QuasiStaticModel, theta0, cable_stiffness) -> np.ndar
 
 
 def _check_spd(K_m: np.ndarray) -> np.ndarray:
-    K_m = _finite(K_m, "K_m")
+    K_m = as_finite(K_m, "K_m")
     if K_m.ndim != 2 or K_m.shape[0] != K_m.shape[1]:
         raise ValueError(f"K_m must be square (n, n), got {K_m.shape}")
     try:
@@ -578,7 +573,7 @@ def _check_spd(K_m: np.ndarray) -> np.ndarray:
 
 
 def _check_JX(J_X: np.ndarray, n: int, rcond: float) -> np.ndarray:
-    J_X = _finite(J_X, "J_X")
+    J_X = as_finite(J_X, "J_X")
     if J_X.shape != (3, n):
         raise ValueError(f"J_X must have shape (3, {n}), got {J_X.shape}")
     s = np.linalg.svd(J_X, compute_uv=False)
@@ -650,7 +645,7 @@ def joint_displacement(K_m, J_X, dX, rcond: float = 1e-10) -> np.ndarray:
     ndarray, shape (n,) or (k, n) [rad]
     """
     Kw = workspace_stiffness(K_m, J_X, rcond)
-    dX = _finite(dX, "δX")
+    dX = as_finite(dX, "δX")
     return (np.linalg.solve(K_m, J_X.T) @ Kw @ dX.T).T
 
 
@@ -698,7 +693,7 @@ def load_fea_reference(path: str | Path | None = None) -> FEAReference:
 
 def equivalent_stiffness_moment(moment: float, theta) -> float:
     """Joint stiffness from a pure tip moment: every joint carries ``M``, ``k = M / mean θ`` [N m/rad]."""
-    th = _finite(theta, "theta")
+    th = as_finite(theta, "theta")
     if th.ndim != 1 or th.size < 1 or np.any(th == 0):
         raise ValueError("theta must be a non-empty 1-D array of non-zero angles [rad]")
     return float(moment / th.mean())
@@ -718,11 +713,11 @@ def equivalent_stiffness_transverse(force: float, theta, p: float) -> tuple[floa
     k : float [N m/rad]
     z_F : float [m] load point above joint 1 (``n p`` = the tip face)
     """
-    th = _finite(theta, "theta")
+    th = as_finite(theta, "theta")
     if th.ndim != 1 or th.size < 2:
         raise ValueError("theta must be a 1-D array of at least two joint angles [rad]")
-    j = np.arange(th.size)
-    slope, icpt = np.polyfit(j, th, 1)
+    a, slope = line_fit(th)          # θ_j = a + b j, j = 1..n
+    icpt = a + slope                 # the line at joint 1
     if slope >= 0:
         raise ValueError("a transverse tip load must give angles decreasing toward the tip")
     k = force * p / (-slope)

@@ -9,6 +9,7 @@ import numpy as np
 from .. import kinematics, statics
 from ..geometry import Geometry, default_geometry
 from ..springs import PiecewiseLinearSpring, dual_rate_spring
+from ..units import MM
 from . import new_figure, save_png, write_csv
 
 
@@ -43,7 +44,7 @@ def fig8(out_dir: Path, geom: Geometry | None = None, f_x: float = 4.0, m_y: flo
     rows = {"solution": [], "joint": [], "theta_rad": [], "x_mm": [], "z_mm": []}
     shapes = {}
     for name, tr in (("A", r.a), ("B", r.b)):
-        q = kinematics.joint_positions(tr.final, geom.p) * 1e3
+        q = kinematics.joint_positions(tr.final, geom.p) / MM
         shapes[name] = q
         for j in range(geom.n_joints + 1):
             rows["solution"].append(name)
@@ -55,8 +56,8 @@ def fig8(out_dir: Path, geom: Geometry | None = None, f_x: float = 4.0, m_y: flo
     hist = {"time_s": r.a.t}
     for name, tr in (("A", r.a), ("B", r.b)):
         tip = kinematics.tip_pose(tr.theta, geom)
-        hist[f"tip_x_mm_{name}"] = tip[:, 0] * 1e3
-        hist[f"tip_z_mm_{name}"] = tip[:, 1] * 1e3
+        hist[f"tip_x_mm_{name}"] = tip[:, 0] / MM
+        hist[f"tip_z_mm_{name}"] = tip[:, 1] / MM
         hist[f"tip_phi_rad_{name}"] = tip[:, 2]
     out.append(write_csv(out_dir / "fig8_history.csv", hist))
     fig = new_figure(9.0, 4.2)
@@ -72,7 +73,7 @@ def fig8(out_dir: Path, geom: Geometry | None = None, f_x: float = 4.0, m_y: flo
     ax.set_ylabel("z [mm]")
     ax.legend(fontsize=7, loc="lower left")
     ax.set_title(f"Fig. 8: f_x = {f_x:g} N, m_y = {m_y:g} N m; "
-                 f"max |Δθ| = {r.max_dtheta:.3f} rad, tips {r.tip_distance * 1e3:.1f} mm apart", fontsize=8)
+                 f"max |Δθ| = {r.max_dtheta:.3f} rad, tips {r.tip_distance / MM:.1f} mm apart", fontsize=8)
     ax2.plot(hist["time_s"], hist["tip_phi_rad_A"], "C0-", label="A")
     ax2.plot(hist["time_s"], hist["tip_phi_rad_B"], "C3-", label="B")
     ax2.set_xlabel("time [s]")
@@ -107,8 +108,8 @@ def fig_fea(out_dir: Path, **_) -> list[Path]:
     a1.bar(j + w / 2, th_m, w, label=f"model, k = {k_m:.3f} N m/rad")
     a1.set_title(f"{ref.moment:g} N m pure moment", fontsize=9)
     a2.bar(j - w / 3, ref.theta_transverse, w / 1.5, label="FEA")
-    a2.bar(j, th_lev, w / 1.5, label=f"model, k = {k_t:.3f}, load at z = {z_f * 1e3:.2f} mm")
-    a2.bar(j + w / 3, th_tip, w / 1.5, label=f"model, load at tip face z = {g4.tip_z * 1e3:.2f} mm")
+    a2.bar(j, th_lev, w / 1.5, label=f"model, k = {k_t:.3f}, load at z = {z_f / MM:.2f} mm")
+    a2.bar(j + w / 3, th_tip, w / 1.5, label=f"model, load at tip face z = {g4.tip_z / MM:.2f} mm")
     a2.set_title(f"{ref.transverse_force:g} N transverse tip load", fontsize=9)
     for a in (a1, a2):
         a.set_xlabel("joint")
