@@ -155,10 +155,6 @@ class ShapeModel:
             raise ValueError(f"theta must have shape (..., {self.n_joints}), got {th.shape}")
         return th @ self._pinv.T
 
-    def project(self, theta) -> np.ndarray:
-        """Best parameters (least squares in θ) for given joint angles; same as :meth:`initial`."""
-        return self.initial(theta)
-
     def prior_residuals(self, params) -> np.ndarray:
         """Smoothness-prior residuals ``λ Δ²θ``, shape (..., n_prior) (dimensionless)."""
         return self._check(params) @ self._prior.T
