@@ -127,7 +127,7 @@ def friction_spring(k_lin: float = 0.4829, k_mid: float = 0.25, k_stop: float = 
     """Piecewise-linear spring of the friction model (Sec. IV-B, Fig. 17).
 
     ``k_lin`` below ``theta_mid``, ``k_mid`` (no value in the paper; 0.25 by
-    models.md, a fitted parameter) up to slot closure ``theta_stop``, then
+    docs/models.md, a fitted parameter) up to slot closure ``theta_stop``, then
     the hard stop ``k_stop``.
     """
     return PiecewiseLinearSpring([theta_mid, theta_stop], [k_lin, k_mid, k_stop], scale)
