@@ -1,8 +1,8 @@
-"""Notch-corner detector: image -> the numbered notch points in plane mm (geometry.md).
+"""Notch-corner detector: image -> the numbered notch points in plane mm (docs/geometry.md).
 
 The detector does **not** assume the kinematics (a detector that does looks
-perfect on images made by the same model and degrades on real geometry; see
-the project notes). It uses only the silhouette of geometry.md ("What a
+perfect on images made by the same model and degrades on real geometry). It
+uses only the silhouette of docs/geometry.md ("What a
 camera sees") and the geometry's dimensions (outer radius ``R``, slot width
 ``w`` and depth ``d``, slot sides, where along a side the joints are):
 
@@ -221,7 +221,7 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
                    profile_step_px: float = 0.5, stage1_half_px: float = 7.0,
                    stage1_face_px: float = 12.0, iterations: int = 1,
                    sigma_inflation: float = 1.45) -> Detection:
-    """Find the numbered notch corners (geometry.md) in one image.
+    """Find the numbered notch corners (docs/geometry.md) in one image.
 
     Parameters
     ----------
@@ -232,7 +232,7 @@ def detect_notches(image, camera: CameraModel, geom: Geometry, *, mirror: bool =
     geom : Geometry
         Dimensions and slot layout (the kinematics is not used).
     mirror : bool
-        The experiment's ``mirror`` flag (a reflected view, geometry.md).
+        The experiment's ``mirror`` flag (a reflected view, docs/geometry.md).
     lowres_mm : float
         Pixel size of the downsampled copy used to segment and parse [mm].
     min_snr : float
@@ -871,7 +871,7 @@ def _refine(img, off, camera, C, Din, Dout, Lin, Lout, face, w_px, sgn, *, s0, s
 
 
 def detections_table(sample, det: Detection):
-    """Rows of ``detections.csv`` (data-format.md) for one sample.
+    """Rows of ``detections.csv`` (docs/data-formats.md) for one sample.
 
     Returns
     -------

@@ -1,6 +1,6 @@
 """Friction simulator of Sec. IV-B: cable stick/slip in the channels, first-order joints.
 
-The model (``../shared/spec/models.md``, the paper's four-step algorithm):
+The model (``docs/models.md``, the paper's four-step algorithm):
 
 1. **Tension propagation**, base to tip, per cable ``c`` and link ``j``
    (between joints ``j`` and ``j+1``): ``N_j = T_c[j+1] |sin θ_{j+1}| +
@@ -27,12 +27,12 @@ sample ``k-1`` move linearly to those of sample ``k`` during the first
 is taken; before the first sample the model starts at rest with no tension
 ``settle_time`` seconds earlier. The default ``ramp_time = 0`` (the tension
 steps to its new value and the manipulator then comes to rest) is the
-protocol whose rest states are well defined: with ramps of 0.5–5 s the
-cable speed in the distal links stays below ``v_thr`` during the ramp and
-they stick-slip in a sawtooth between ``μ_d N`` and ``μ_s N``; the rest
-state then depends on the sawtooth's phase, i.e. on the time step of the
-reference itself (4e-4 rad between dt = 1e-4 and 2.5e-5 s) and on the
-ramp time (up to 1.9e-3 rad). See ``benchmarks/bench_friction.py``.
+protocol whose rest states are well defined: with slow ramps the cable
+speed in the distal links stays below ``v_thr`` during the ramp and they
+stick-slip in a sawtooth between ``μ_d N`` and ``μ_s N``; the rest state
+then depends on the sawtooth's phase, i.e. on the reference's time step and
+on the ramp time (docs/models.md, "Input protocol"; measured by
+``benchmarks/bench_friction.py --protocols``, numbers in docs/history.md).
 
 Two solvers of the same model (``method=``):
 
@@ -45,7 +45,7 @@ Two solvers of the same model (``method=``):
   rest state is solved in closed form once every link sticks
   (:func:`notchfit._friction_kernels.fast_kernel`).
 
-**Extensions** (all off by default; each is a cause id of data-format.md):
+**Extensions** (all off by default; each is a cause id of docs/data-formats.md):
 
 * ``proximal_beta`` (``proximal_friction``): a capstan band between the
   load cell and the base. The base tension is a play operator on
@@ -114,7 +114,7 @@ __all__ = [
     "stepwise_regimes",
 ]
 
-#: Default time step of the reference solver [s] (converged: see the module docstring).
+#: Default time step of the reference solver [s] (its convergence in dt: docs/history.md).
 DEFAULT_DT = 1e-4
 
 # TOML key (SI, with unit) for each parameter
@@ -138,7 +138,7 @@ PARAM_KEYS = {
 
 @dataclass(frozen=True)
 class FrictionParams:
-    """Parameters of the friction simulator (SI units; defaults = Sec. IV-B, models.md).
+    """Parameters of the friction simulator (SI units; defaults = Sec. IV-B, docs/models.md).
 
     Attributes
     ----------
@@ -562,7 +562,7 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
 
 
 def simulation_table(result: SimulationResult, sample_ids=None):
-    """The ``simulation.csv`` table (data-format.md) of a result.
+    """The ``simulation.csv`` table (docs/data-formats.md) of a result.
 
     Columns: ``sample, time_s, regime, a, b, theta_1..theta_n`` [rad],
     ``tension_left_N, tension_right_N`` (measured input),

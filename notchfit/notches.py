@@ -1,7 +1,7 @@
 """The kinematic notch-point projector (Sec. IV-A) and the plane transform.
 
 ``θ → Q̃`` maps joint angles to the virtual notch points ``Q̃_i`` (numbered
-as ``../shared/spec/geometry.md`` says) in the manipulator frame, with the
+as ``docs/geometry.md`` says) in the manipulator frame, with the
 analytic Jacobian ``∂Q̃/∂θ``. :func:`to_plane` maps manipulator-frame points
 into the measured plane frame by a proper rigid 2-D transform, optionally
 after a mirror (a view from ``-y``).

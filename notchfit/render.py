@@ -9,7 +9,7 @@ its lens distortion:
   and the board pattern is evaluated analytically there; the samples are
   block-averaged.
 * :func:`render_manipulator`: the notched tube for joint angles ``θ`` as the
-  silhouette of geometry.md ("What a camera sees"): a band ``|x| <= R`` from
+  silhouette of docs/geometry.md ("What a camera sees"): a band ``|x| <= R`` from
   the base edge to the tip face, each link rigid, rectangular slots ``w``
   wide and ``d`` deep from the open side, the flexure side continuous (the
   two links' edges meet where their lines intersect, no gap, no overlap), the
@@ -379,7 +379,7 @@ def _link_frames(theta, geom: Geometry):
 
 
 def manipulator_outline(theta, geom: Geometry, *, include_mount: bool = True) -> np.ndarray:
-    """Silhouette outline of the tube (geometry.md, "What a camera sees").
+    """Silhouette outline of the tube (docs/geometry.md, "What a camera sees").
 
     Parameters
     ----------
@@ -495,8 +495,8 @@ def render_manipulator(theta, geom: Geometry, camera: CameraModel, *, plane=(0.0
         Sub-rows per pixel of the scanline rasteriser. Along a sub-row the
         coverage is exact; across rows it is sampled, so an edge parallel to
         the pixel rows can be off by up to ``1 / (2 S)`` px, the same at
-        every point of the edge (0.06 px at S = 8 showed as a 0.002 mm
-        detection "error" on a horizontal tube); 32 keeps it below 0.016 px.
+        every point of the edge (a bias the detector would report as its own
+        error); 32 keeps it below 0.016 px.
     background, foreground : float
         Background and tube levels [DN] (a dark silhouette on a bright
         background by default; the reverse works too).

@@ -126,7 +126,7 @@ def friction_spring(k_lin: float = paper.FRICTION_K_LIN, k_mid: float = paper.FR
     """Piecewise-linear spring of the friction model (Sec. IV-B, Fig. 17).
 
     ``k_lin`` below ``theta_mid``, ``k_mid`` (no value in the paper; 0.25 by
-    models.md, a fitted parameter) up to slot closure ``theta_stop``, then
+    docs/models.md, a fitted parameter) up to slot closure ``theta_stop``, then
     the hard stop ``k_stop``.
     """
     return PiecewiseLinearSpring([theta_mid, theta_stop], [k_lin, k_mid, k_stop], scale)

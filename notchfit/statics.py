@@ -1,4 +1,4 @@
-"""Quasi-static model, constant curvature and stiffness (Sec. III, models.md).
+"""Quasi-static model, constant curvature and stiffness (Sec. III, docs/models.md).
 
 Equation of motion (Eq. 10)::
 
@@ -9,7 +9,7 @@ Equation of motion (Eq. 10)::
   spring of Fig. 7 by default).
 * ``P(θ) T`` is Eq. (9) with ``P = ∂L/∂θ`` (:mod:`notchfit.cables`) and
   ``T = (T_R, T_L) ≥ 0``: a right-cable pull gives ``P T = -r_x T_R`` per
-  joint and bends toward ``+x`` (positive θ), as geometry.md requires.
+  joint and bends toward ``+x`` (positive θ), as docs/geometry.md requires.
 * **Sign of the wrench term.** The paper writes ``+ J_st^s(θ)^T F_s`` inside
   ``-(1/B)(…)``. Every other term in the bracket is a torque the joints must
   *resist* (the cable term is ``+∂(T·L)/∂θ``, the gradient of the cable's
@@ -31,7 +31,7 @@ a slack cable with ``T = 0``.
 
 Stiffness (Sec. III-C): ``K_m = K_θ + P K_c P^T`` (Eq. 17 ff.),
 ``K_w = (J_X K_m^{-1} J_X^T)^{-1}`` (Eq. 23), the Lagrange system (Eq. 22),
-``δθ`` (Eq. 24) and the energy (Eq. 25).
+``δθ`` (Eq. 24), whose energy ``½ δθᵀ K_m δθ = ½ δXᵀ K_w δX`` is Eq. (25).
 """
 
 from __future__ import annotations
@@ -498,7 +498,7 @@ def constant_curvature(geom: Geometry, tensions, spring: PiecewiseLinearSpring |
 
     Every joint carries ``τ = r_x (T_R - T_L)`` (Eq. 9 with Eq. 5), so
     ``θ_i = (r_x / k_1)(T_R - T_L)`` in the linear range — the paper's
-    ``θ_i = -(r_x/k_1)(T_L - T_R)`` (geometry.md sign: a right pull gives
+    ``θ_i = -(r_x/k_1)(T_L - T_R)`` (docs/geometry.md sign: a right pull gives
     positive θ) — and ``κ = r_x |T_L - T_R| / (p k_1)`` (Eq. 12). With a
     ``spring``, the inverse spring law ``θ_i = τ^{-1}(r_x (T_R - T_L))``
     (Eq. 11 beyond the linear range).
