@@ -56,8 +56,9 @@ import numpy as np
 import pandas as pd
 
 from . import io
+from .fitting.results import as_transform
 from .geometry import Geometry, datasets_dir, load_geometry
-from .notches import to_plane
+from .notches import notch_points, to_plane
 
 __all__ = [
     "CAUSES",
@@ -72,6 +73,7 @@ __all__ = [
     "load_recipe",
     "recipe_from_dict",
     "synthesize",
+    "synthetic_points",
     "write_study",
 ]
 
@@ -672,3 +674,44 @@ def generate_study(recipe, out_dir, *, seed: int | None = None, force: bool = Fa
     study = synthesize(recipe, seed, jobs=jobs, method=method)
     write_study(study, out_dir, force=force, images=images, jobs=jobs)
     return study
+
+
+def synthetic_points(theta, geom: Geometry, transform=(0.0, 0.0, 0.0), *, mirror: bool = False,
+                     noise: float = 0.0, rng=None):
+    """Measured-like notch points from known joint angles (ground truth returned).
+
+    Parameters
+    ----------
+    theta : array_like, shape (S, n) or (n,)
+        True joint angles [rad].
+    geom : Geometry
+    transform : (tx, ty, phi) or PlaneTransform
+        True plane transform [m, m, rad].
+    mirror : bool
+    noise : float
+        Standard deviation of the isotropic Gaussian point noise per
+        coordinate [m].
+    rng : numpy.random.Generator
+        Required when ``noise > 0``.
+
+    Returns
+    -------
+    points : ndarray, shape (S, m, 2)
+        Noisy plane-frame points [m].
+    truth : dict
+        ``theta`` (S, n), ``points`` (noise-free, (S, m, 2)), ``transform``
+        (tx, ty, phi), ``mirror``, ``noise``.
+    """
+    th = np.atleast_2d(np.asarray(theta, dtype=float))
+    T = as_transform(transform, mirror)
+    clean = T.to_plane(notch_points(th, geom))
+    if noise < 0 or not math.isfinite(noise):
+        raise ValueError(f"noise must be a finite standard deviation >= 0 [m], got {noise!r}")
+    if noise > 0:
+        if rng is None:
+            raise ValueError("synthetic_points needs rng (numpy.random.Generator) when noise > 0")
+        pts = clean + rng.normal(0.0, noise, clean.shape)
+    else:
+        pts = clean.copy()
+    return pts, {"theta": th, "points": clean, "transform": (T.tx, T.ty, T.phi),
+                 "mirror": T.mirror, "noise": float(noise)}
