@@ -6,8 +6,11 @@ Each sub-command is a module in :mod:`notchfit.commands` that defines
   text with examples), ``ORDER`` (position in the listing);
 * ``add_arguments(parser)`` and ``run(args) -> int``.
 
-Exit codes: 0 ok, 1 some items failed (listed by the command), 2 usage or
-input error (a clear message on stderr).
+This module discovers the command modules and runs the chosen one; what the
+commands share (the input-error type, exit codes, common options) is in
+:mod:`notchfit.commands._common`, which imports neither this module nor the
+commands. Exit codes: 0 ok, 1 some items failed (listed by the command), 2
+usage or input error (a clear message on stderr).
 """
 
 from __future__ import annotations
@@ -18,15 +21,11 @@ import pkgutil
 import sys
 
 from . import __version__, commands
-
-EXIT_OK, EXIT_ITEMS_FAILED, EXIT_INPUT_ERROR = 0, 1, 2
-
-
-class InputError(Exception):
-    """A usage or input problem that the user must fix (exit code 2)."""
+from .commands._common import EXIT_INPUT_ERROR, add_command, execute
 
 
 def _command_modules():
+    """The command modules of :mod:`notchfit.commands`, in listing order (``ORDER``, then ``NAME``)."""
     mods = []
     for info in pkgutil.iter_modules(commands.__path__):
         if info.name.startswith("_"):
@@ -38,6 +37,7 @@ def _command_modules():
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``notchfit`` parser with one sub-parser per command module."""
     parser = argparse.ArgumentParser(
         prog="notchfit",
         description="Kinematics, friction simulation, calibrated image processing and "
@@ -47,24 +47,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"notchfit {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for mod in _command_modules():
-        p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
-        mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        add_command(sub, mod)
     return parser
 
 
 def main(argv=None) -> int:
+    """Run ``notchfit`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
         parser.print_help()
         return EXIT_INPUT_ERROR
-    try:
-        return int(args._run(args) or 0)
-    except (InputError, ValueError, FileNotFoundError, FileExistsError) as exc:
-        print(f"notchfit {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_INPUT_ERROR
+    return execute(args)
 
 
 if __name__ == "__main__":  # pragma: no cover
