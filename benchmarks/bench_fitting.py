@@ -41,15 +41,11 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
-from notchfit.fitting import (  # noqa: E402
-    estimate_angles,
-    fit_experiment,
-    fit_samples,
-    synthetic_points,
-)
+from notchfit.fitting import estimate_angles, fit_experiment, fit_samples  # noqa: E402
 from notchfit.geometry import default_geometry  # noqa: E402
 from notchfit.notches import notch_points, to_plane  # noqa: E402
 from notchfit.shapes import get_model  # noqa: E402
+from notchfit.synth import synthetic_points  # noqa: E402
 
 MODELS = ("cc", "linear", "quadratic", "pw3", "free", "free_smooth")
 

@@ -6,38 +6,87 @@ Each sub-command is a module in :mod:`notchfit.commands` that defines
   text with examples), ``ORDER`` (position in the listing);
 * ``add_arguments(parser)`` and ``run(args) -> int``.
 
-Exit codes: 0 ok, 1 some items failed (listed by the command), 2 usage or
-input error (a clear message on stderr).
+This module discovers the command modules and runs the chosen one; what the
+commands share (the input-error type, exit codes, common options) is in
+:mod:`notchfit.commands._common`, which imports neither this module nor the
+commands. The listing (``notchfit --help``) reads ``NAME``, ``HELP`` and
+``ORDER`` from the modules' source, and :func:`main` imports only the command
+it runs, so that start-up does not pay for every command's libraries. Exit
+codes: 0 ok, 1 some items failed (listed by the command), 2 usage or input
+error (a clear message on stderr).
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
+import importlib.util
 import pkgutil
 import sys
 
 from . import __version__, commands
-
-EXIT_OK, EXIT_ITEMS_FAILED, EXIT_INPUT_ERROR = 0, 1, 2
-
-
-class InputError(Exception):
-    """A usage or input problem that the user must fix (exit code 2)."""
+from .commands._common import EXIT_INPUT_ERROR, add_command, execute
 
 
-def _command_modules():
-    mods = []
+def _source_metadata(modname: str) -> dict | None:
+    """``NAME``, ``HELP``, ``ORDER`` of a command module read from its source (None if not literal)."""
+    spec = importlib.util.find_spec(modname)
+    if spec is None or not spec.origin or not spec.origin.endswith(".py"):
+        return None
+    with open(spec.origin, encoding="utf-8") as fh:
+        tree = ast.parse(fh.read(), spec.origin)
+    meta, funcs = {}, set()
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef):
+            funcs.add(node.name)
+        elif isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
+            key = node.targets[0].id
+            if key in ("NAME", "HELP", "ORDER"):
+                try:
+                    meta[key] = ast.literal_eval(node.value)
+                except ValueError:
+                    return None
+    if not {"run", "add_arguments"} <= funcs:
+        return {}
+    return meta if {"NAME", "HELP"} <= set(meta) else None
+
+
+def _command_specs() -> list[tuple]:
+    """``(ORDER, NAME, HELP, module name)`` of every command module, in listing order.
+
+    A module whose metadata is not literal in its source is imported to read it.
+    """
+    specs = []
     for info in pkgutil.iter_modules(commands.__path__):
         if info.name.startswith("_"):
             continue
-        mod = importlib.import_module(f"{commands.__name__}.{info.name}")
-        if hasattr(mod, "NAME") and hasattr(mod, "run"):
-            mods.append(mod)
-    return sorted(mods, key=lambda m: (getattr(m, "ORDER", 100), m.NAME))
+        modname = f"{commands.__name__}.{info.name}"
+        meta = _source_metadata(modname)
+        if meta is None:
+            mod = importlib.import_module(modname)
+            if not (hasattr(mod, "NAME") and hasattr(mod, "run")):
+                continue
+            meta = {"NAME": mod.NAME, "HELP": mod.HELP, "ORDER": getattr(mod, "ORDER", 100)}
+        if meta:
+            specs.append((meta.get("ORDER", 100), meta["NAME"], meta["HELP"], modname))
+    return sorted(specs)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _requested_command(argv) -> str | None:
+    """The sub-command named in ``argv`` (the first word that is not an option), if any."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def build_parser(load=None) -> argparse.ArgumentParser:
+    """The ``notchfit`` parser with one sub-parser per command module.
+
+    Parameters
+    ----------
+    load : collection of str, optional
+        Commands whose modules are imported and whose options are added; the
+        others get a listing entry only. Default: every command.
+    """
     parser = argparse.ArgumentParser(
         prog="notchfit",
         description="Kinematics, friction simulation, calibrated image processing and "
@@ -46,25 +95,23 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"notchfit {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for mod in _command_modules():
-        p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
-        mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+    for _, name, help_, modname in _command_specs():
+        if load is None or name in load:
+            add_command(sub, importlib.import_module(modname))
+        else:
+            sub.add_parser(name, help=help_)
     return parser
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
+    """Run ``notchfit`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    parser = build_parser(load={_requested_command(argv)})
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
         parser.print_help()
         return EXIT_INPUT_ERROR
-    try:
-        return int(args._run(args) or 0)
-    except (InputError, ValueError, FileNotFoundError, FileExistsError) as exc:
-        print(f"notchfit {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_INPUT_ERROR
+    return execute(args)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -10,14 +10,15 @@ pull directions), and it describes the "truth" that produced the data:
   uniformly in recipe ranges and *away from* the paper's values (by at least
   ``min_rel_offset``), so an analysis must calibrate them;
 * at most one hidden physical effect, one of the cause ids of
-  data-format.md, with its size drawn from a recipe range (optionally with
+  docs/data-formats.md, with its size drawn from a recipe range (optionally with
   a random sign):
 
   ======================  =============================================
   cause                   truth-model field(s)
   ======================  =============================================
   ``proximal_friction``   ``proximal_beta`` (capstan band before the base)
-  ``static_friction``     ``static_excess`` = ``μ_s - μ_d`` (paper: 0.01)
+  ``static_friction``     ``mu_s_excess`` = ``μ_s - μ_d`` (paper: 0.01;
+                          ``static_excess`` is read as an alias)
   ``joint_hysteresis``    ``hysteresis_torque`` [N m]
   ``external_load``       ``tip_force_x``, ``tip_force_z`` [N]
   ``stiffness_gradient``  ``stiffness_gradient`` g
@@ -30,8 +31,8 @@ pull directions), and it describes the "truth" that produced the data:
   load-cell tensions ``σ_T``; the actuator displacement is quantised to its
   step; optionally a fraction of occluded points;
 * a random proper rigid plane transform per experiment (shared by its
-  samples, geometry.md "Measured points live in a plane frame"), optionally
-  mirrored.
+  samples, docs/geometry.md "Measured points live in a plane frame"),
+  optionally mirrored.
 
 The joint angles are produced by :func:`notchfit.friction.simulate` with
 ``method="reference"`` driven by the *true* tensions, while the files hold
@@ -40,8 +41,10 @@ the ``fast`` one that analyses fit with, so a diagnosis cannot win by
 reproducing the generator's discretisation.
 
 :func:`synthesize` returns the study in memory with its ground truth;
-:func:`write_study` writes it per data-format.md, plus ``truth.json`` at the
-study root, a file no analysis command reads.
+:func:`write_study` writes it per docs/data-formats.md, plus ``truth.json`` at
+the study root, a file no analysis command reads. :func:`synthetic_points`
+makes measured-like points from given joint angles (tests, benchmarks,
+figure demonstrations).
 """
 
 from __future__ import annotations
@@ -56,8 +59,15 @@ import numpy as np
 import pandas as pd
 
 from . import io
+from .batch import run_batch
+from .fitting.results import as_transform
+from .friction import FrictionParams, simulate
 from .geometry import Geometry, datasets_dir, load_geometry
-from .notches import to_plane
+from .notches import notch_points, to_plane
+from .paper import FRICTION_K_LIN, FRICTION_K_MID, MU_D, MU_S
+from .protocols import bend_unbend
+from .units import MM
+from .warp import apply_point_warp
 
 __all__ = [
     "CAUSES",
@@ -72,16 +82,15 @@ __all__ = [
     "load_recipe",
     "recipe_from_dict",
     "synthesize",
+    "synthetic_points",
     "write_study",
 ]
 
-_MM = 1e-3
-
-#: Cause ids of data-format.md and the recipe/truth fields that set each effect.
+#: Cause ids of docs/data-formats.md and the recipe/truth fields that set each effect.
 EFFECT_FIELDS = {
     "none": (),
     "proximal_friction": ("proximal_beta",),
-    "static_friction": ("static_excess",),
+    "static_friction": ("mu_s_excess",),
     "joint_hysteresis": ("hysteresis_torque",),
     "external_load": ("tip_force_x", "tip_force_z"),
     "stiffness_gradient": ("stiffness_gradient",),
@@ -89,9 +98,12 @@ EFFECT_FIELDS = {
 }
 CAUSES = tuple(c for c in EFFECT_FIELDS if c != "none")
 _BASE_FIELDS = ("k_lin", "k_mid", "mu_d")
-#: The paper's values of the drawn base parameters (Sec. IV-B, models.md).
-PAPER_VALUES = {"k_lin": 0.4829, "k_mid": 0.25, "mu_d": 0.29}
-_PAPER_STATIC_EXCESS = 0.01
+#: Old names of effect fields, still read (recipe files and :meth:`Recipe.replace`).
+EFFECT_ALIASES = {"static_excess": "mu_s_excess"}
+#: The paper's values of the drawn base parameters (Sec. IV-B, docs/models.md).
+PAPER_VALUES = {"k_lin": FRICTION_K_LIN, "k_mid": FRICTION_K_MID, "mu_d": MU_D}
+#: The paper's μ_s − μ_d (0.30 − 0.29), rounded off the float subtraction's last bits.
+_PAPER_MU_S_EXCESS = round(MU_S - MU_D, 12)
 
 
 # ----------------------------------------------------------------------------- recipe
@@ -182,6 +194,8 @@ class Recipe:
         return self.replace(experiments=tuple(exps))
 
     def __post_init__(self):
+        object.__setattr__(self, "effect", {EFFECT_ALIASES.get(k, k): v for k, v in self.effect.items()})
+        object.__setattr__(self, "random_sign", tuple(EFFECT_ALIASES.get(k, k) for k in self.random_sign))
         if self.cause not in EFFECT_FIELDS:
             raise ValueError(f"recipe {self.name!r}: cause must be one of {', '.join(EFFECT_FIELDS)}, "
                              f"got {self.cause!r}")
@@ -207,7 +221,6 @@ class Recipe:
             object.__setattr__(self, f, _range(getattr(self, f), f))
         object.__setattr__(self, "warp_center_mm",
                            tuple(_range(r, "warp center") for r in self.warp_center_mm))
-        object.__setattr__(self, "random_sign", tuple(self.random_sign))
         if not self.experiments:
             raise ValueError(f"recipe {self.name!r}: no experiments")
         names = [e.name for e in self.experiments]
@@ -336,8 +349,6 @@ def bend_unbend_protocol(pull: str, counter_N: float, peak_N: float, n_up: int, 
     tension_left, tension_right : ndarray (S,) [N]
         With ``S = n_up + n_down + 1``.
     """
-    from .protocols import bend_unbend
-
     # protocols counts the loading samples including start and peak: n_up steps = n_up + 1 samples
     p = bend_unbend(peak_N, counter_N, pull=pull, n_up=n_up + 1, n_down=n_down, interval=dt_s, t0=dt_s)
     return p.time, p.tension_left, p.tension_right
@@ -409,13 +420,13 @@ class SynthStudy:
         warp = None
         if self.warp is not None:
             warp = {"scale_error": self.warp["scale_error"], "k_radial": self.warp["k_radial"],
-                    "center_mm": [c / _MM for c in self.warp["center"]],
-                    "radius_mm": self.warp["radius"] / _MM}
+                    "center_mm": [c / MM for c in self.warp["center"]],
+                    "radius_mm": self.warp["radius"] / MM}
         exps = {}
         for e in self.experiments:
             exps[e.name] = {
                 "pull": e.pull, "counter_N": e.counter_N, "peak_N": e.peak_N,
-                "plane": {"tx_mm": e.plane["tx"] / _MM, "ty_mm": e.plane["ty"] / _MM,
+                "plane": {"tx_mm": e.plane["tx"] / MM, "ty_mm": e.plane["ty"] / MM,
                           "phi_rad": e.plane["phi"], "mirror": e.plane["mirror"]},
                 "sample": e.samples["sample"].tolist(),
                 "true_tension_left_N": e.tension_left.tolist(),
@@ -446,8 +457,7 @@ def _draw_away(rng, lo, hi, ref, min_rel, max_tries=1000):
 
 
 def _draw_truth(recipe: Recipe, rng):
-    from .friction import FrictionParams
-
+    """The truth's FrictionParams and the drawn effect fields (recipe ranges, ``rng``)."""
     values = {}
     for k in _BASE_FIELDS:
         if k in recipe.base:
@@ -462,12 +472,12 @@ def _draw_truth(recipe: Recipe, rng):
             v = -v
         effect[k] = v
     params_kw = dict(values)
-    if "static_excess" in effect:
+    if "mu_s_excess" in effect:
         mu_d = params_kw.get("mu_d", FrictionParams().mu_d)
-        params_kw["mu_s"] = mu_d + effect["static_excess"]
+        params_kw["mu_s"] = mu_d + effect["mu_s_excess"]
     elif "mu_s" not in params_kw:
         mu_d = params_kw.get("mu_d", FrictionParams().mu_d)
-        params_kw["mu_s"] = mu_d + _PAPER_STATIC_EXCESS
+        params_kw["mu_s"] = mu_d + _PAPER_MU_S_EXCESS
     for k in ("proximal_beta", "hysteresis_torque", "tip_force_x", "tip_force_z", "stiffness_gradient"):
         if k in effect:
             params_kw[k] = effect[k]
@@ -480,8 +490,6 @@ def _draw_truth(recipe: Recipe, rng):
 
 def _simulate_one(args):
     """Truth simulation of one experiment (module level: runs in worker processes)."""
-    from .friction import simulate
-
     time, tl, tr, params, geom, method = args
     res = simulate(time, tl, tr, params, geom, method=method)
     return res
@@ -522,8 +530,8 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
     if recipe.cause == "calibration_error":
         (cx0, cx1), (cy0, cy1) = recipe.warp_center_mm
         warp = {"scale_error": effect["scale_error"], "k_radial": effect["k_radial"],
-                "center": (float(rng_warp.uniform(cx0, cx1)) * _MM, float(rng_warp.uniform(cy0, cy1)) * _MM),
-                "radius": recipe.warp_radius_mm * _MM}
+                "center": (float(rng_warp.uniform(cx0, cx1)) * MM, float(rng_warp.uniform(cy0, cy1)) * MM),
+                "radius": recipe.warp_radius_mm * MM}
 
     # draw each experiment's protocol, plane and noise streams, then simulate (maybe in parallel)
     plans = []
@@ -532,15 +540,14 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
         lo, hi = spec.peak_N if isinstance(spec.peak_N, tuple) else (spec.peak_N, spec.peak_N)
         peak = float(rng.uniform(lo, hi)) if hi > lo else float(lo)
         time, tl, tr = _protocol(spec, peak)
-        plane = {"tx": float(rng.uniform(*recipe.plane_tx_mm)) * _MM,
-                 "ty": float(rng.uniform(*recipe.plane_ty_mm)) * _MM,
+        plane = {"tx": float(rng.uniform(*recipe.plane_tx_mm)) * MM,
+                 "ty": float(rng.uniform(*recipe.plane_ty_mm)) * MM,
                  "phi": math.radians(float(rng.uniform(*recipe.plane_phi_deg))),
                  "mirror": bool(recipe.mirror)}
         plans.append((spec, rng, peak, np.asarray(time, float), np.asarray(tl, float),
                       np.asarray(tr, float), plane))
     items = [(p[3], p[4], p[5], params, geom, method) for p in plans]
     if jobs > 1 and len(items) > 1:
-        from .batch import run_batch
         res = run_batch(_simulate_one, items, jobs=jobs, keys=[p[0].name for p in plans],
                         desc="truth simulation")
         res.raise_on_failure()
@@ -557,16 +564,13 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
 
 def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp) -> SynthExperiment:
     """Measurement model: points in the plane frame (+warp, noise, occlusion), noisy tensions."""
-    from .notches import notch_points
-
     theta = np.asarray(sim.theta, dtype=float)
     true_pts = to_plane(notch_points(theta, geom), plane["tx"], plane["ty"], plane["phi"], plane["mirror"])
     pts = true_pts
     if warp is not None:
-        from .warp import apply_point_warp
         pts = apply_point_warp(pts, warp["scale_error"], warp["k_radial"], warp["center"], warp["radius"])
     S = len(time)
-    pts = pts + rng.normal(0.0, recipe.point_sigma_mm * _MM, pts.shape)
+    pts = pts + rng.normal(0.0, recipe.point_sigma_mm * MM, pts.shape)
     if recipe.missing_points > 0:
         gone = rng.random(pts.shape[:2]) < recipe.missing_points
         pts = pts.copy()
@@ -575,7 +579,7 @@ def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp) -> S
     meas_r = np.maximum(tr + rng.normal(0.0, recipe.tension_sigma_N, S), 0.0)
 
     def disp(d):
-        d = np.asarray(d, dtype=float) / _MM
+        d = np.asarray(d, dtype=float) / MM
         step = recipe.displacement_step_mm
         return np.round(d / step) * step if step > 0 else d
 
@@ -599,7 +603,7 @@ def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp) -> S
 
 def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool | None = None,
                 jobs: int = 1) -> Path:
-    """Write a synthetic study: ``OUT/<experiment>/`` per data-format.md and ``OUT/truth.json``.
+    """Write a synthetic study: ``OUT/<experiment>/`` per docs/data-formats.md and ``OUT/truth.json``.
 
     The whole study is written into a staging folder and moved into place at
     the end (:class:`notchfit.io.OutputRun`); an existing study is replaced
@@ -639,7 +643,7 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
                                 mirror=e.plane["mirror"], description=e.description,
                                 geometry=("default" if r.geometry == "default"
                                           else str(Path(r.geometry).resolve())),
-                                calibration=calib_rel, point_sigma=r.point_sigma_mm * _MM if
+                                calibration=calib_rel, point_sigma=r.point_sigma_mm * MM if
                                 (r.point_sigma_mm > 0 and not images) else None,
                                 tension_sigma=r.tension_sigma_N if r.tension_sigma_N > 0 else None,
                                 force=True)
@@ -649,16 +653,10 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
 
 def _render_images(study: SynthStudy, run, *, jobs: int = 1) -> str:
     """Render every sample's image; returns the calibration path relative to an experiment folder."""
-    try:
-        from . import render
-    except ImportError:
-        raise ValueError("rendering images needs notchfit.render (not available in this installation)") \
-            from None
-    fn = getattr(render, "render_study_images", None)
-    if fn is None:
-        raise ValueError("notchfit.render has no render_study_images(); cannot render a synthetic study")
-    return fn(study, run.path("calibration"), experiment_dir=lambda name: run.path(name), jobs=jobs,
-              **study.recipe.image_options)
+    from . import render  # slow optional dependency: the renderer imports cv2
+
+    return render.render_study_images(study, run.path("calibration"), experiment_dir=lambda name: run.path(name),
+                                      jobs=jobs, **study.recipe.image_options)
 
 
 def generate_study(recipe, out_dir, *, seed: int | None = None, force: bool = False, jobs: int = 1,
@@ -672,3 +670,44 @@ def generate_study(recipe, out_dir, *, seed: int | None = None, force: bool = Fa
     study = synthesize(recipe, seed, jobs=jobs, method=method)
     write_study(study, out_dir, force=force, images=images, jobs=jobs)
     return study
+
+
+def synthetic_points(theta, geom: Geometry, transform=(0.0, 0.0, 0.0), *, mirror: bool = False,
+                     noise: float = 0.0, rng=None):
+    """Measured-like notch points from known joint angles (ground truth returned).
+
+    Parameters
+    ----------
+    theta : array_like, shape (S, n) or (n,)
+        True joint angles [rad].
+    geom : Geometry
+    transform : (tx, ty, phi) or PlaneTransform
+        True plane transform [m, m, rad].
+    mirror : bool
+    noise : float
+        Standard deviation of the isotropic Gaussian point noise per
+        coordinate [m].
+    rng : numpy.random.Generator
+        Required when ``noise > 0``.
+
+    Returns
+    -------
+    points : ndarray, shape (S, m, 2)
+        Noisy plane-frame points [m].
+    truth : dict
+        ``theta`` (S, n), ``points`` (noise-free, (S, m, 2)), ``transform``
+        (tx, ty, phi), ``mirror``, ``noise``.
+    """
+    th = np.atleast_2d(np.asarray(theta, dtype=float))
+    T = as_transform(transform, mirror)
+    clean = T.to_plane(notch_points(th, geom))
+    if noise < 0 or not math.isfinite(noise):
+        raise ValueError(f"noise must be a finite standard deviation >= 0 [m], got {noise!r}")
+    if noise > 0:
+        if rng is None:
+            raise ValueError("synthetic_points needs rng (numpy.random.Generator) when noise > 0")
+        pts = clean + rng.normal(0.0, noise, clean.shape)
+    else:
+        pts = clean.copy()
+    return pts, {"theta": th, "points": clean, "transform": (T.tx, T.ty, T.phi),
+                 "mirror": T.mirror, "noise": float(noise)}

@@ -1,6 +1,6 @@
 """Calibration error of the image-to-plane mapping, as a point warp in the plane frame.
 
-The ``calibration_error`` cause (data-format.md) is a wrong image-to-plane
+The ``calibration_error`` cause (docs/data-formats.md) is a wrong image-to-plane
 mapping: an uncorrected radial lens distortion and a wrong scale. Seen in the
 plane frame it is a radial warp about the point ``c`` where the optical axis
 meets the plane:

@@ -147,3 +147,43 @@ def test_synth_scaled_and_listed(tmp_path, capsys):
     assert [e.name for e in exps] == ["L045", "L100"] and exps[0].n_samples == 8 and exps[0].mirror
     assert main(["synth", "calibration_error", "--images", "--out", str(tmp_path / "c")]) == 2
     assert main(["synth", "nope", "--out", str(tmp_path / "n")]) == 2
+
+
+# ----------------------------------------------------------------------------- the CLI's structure
+def test_commands_do_not_import_the_cli_and_help_stays_light():
+    """No cycle: commands never import notchfit.cli; `notchfit --help` loads no cv2/matplotlib/dask."""
+    import ast
+    import subprocess
+    import sys
+
+    for path in (ROOT / "notchfit" / "commands").glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                names = [node.module or ""] + [f"{node.module or ''}.{a.name}" for a in node.names]
+                assert not any(n.split(".")[-1] == "cli" or n == "notchfit.cli" for n in names), path.name
+            elif isinstance(node, ast.Import):
+                assert not any(a.name == "notchfit.cli" for a in node.names), path.name
+    heavy = "('cv2', 'matplotlib', 'dask', 'distributed')"
+    code = ("import contextlib, io, sys; from notchfit.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit): main(['--help'])\n"
+            "print(sorted(m for m in ('notchfit.commands.fit', 'scipy') + " + heavy + " if m in sys.modules))\n"
+            "from notchfit.cli import build_parser; build_parser().format_help()\n"
+            "print(sorted(m for m in " + heavy + " if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=ROOT).stdout.split()
+    # the listing imports no command; every command's parser still loads no slow optional library
+    assert out == ["[]", "[]"]
+
+
+def test_points_option_and_call_helper(study, tmp_path, capsys):
+    """`--points` is the option for a detect run's folder in fit and simulate; `call` runs a
+    command module as the CLI does (exit codes included) without importing notchfit.cli."""
+    from notchfit.commands import fit, simulate
+    from notchfit.commands._common import EXIT_INPUT_ERROR, add_command, call
+
+    for mod in (fit, simulate):
+        args = add_command(None, mod).parse_args([str(study), "--out", "o", "--points", "det"])
+        assert args.points == Path("det")
+    assert call(fit, [study, "--out", tmp_path / "o", "--models", "cc", "--no-figures"]) == 0
+    assert call(fit, [study, "--out", tmp_path / "o", "--models", "cc"]) == EXIT_INPUT_ERROR
+    assert "notchfit fit: error:" in capsys.readouterr().err

@@ -5,7 +5,6 @@ import pytest
 
 from notchfit.fitting import (
     PlaneTransform,
-    _Problem,
     compare_models,
     estimate_angles,
     fit_experiment,
@@ -15,8 +14,9 @@ from notchfit.fitting import (
     fits_table,
     initial_transform,
     pointwise_table,
-    synthetic_points,
 )
+from notchfit.fitting.lm import Problem as _Problem
+from notchfit.synth import synthetic_points
 from notchfit.geometry import notch_layout
 from notchfit.notches import notch_points
 from notchfit.shapes import get_model

@@ -38,3 +38,39 @@ def test_model_file_and_overrides_change_the_prediction(study, tmp_path):
     bad = tmp_path / "c"
     assert main(["simulate", str(study / "L045"), "--out", str(bad), "--param", "mu_x=1"]) == 2
     assert not (bad / "simulation.csv").exists()
+
+
+def test_compare_simulation_on_its_own_prediction():
+    """The comparison (notchfit.comparison) of a simulation with its own noise-free points:
+    measured and predicted a, b agree and the prediction's point error is zero."""
+    import numpy as np
+
+    from notchfit.comparison import compare_simulation, comparison_table
+    from notchfit.friction import simulate
+    from notchfit.protocols import bend_unbend
+    from notchfit.synth import synthetic_points
+
+    t, tl, tr, ids = bend_unbend(20.0, 0.45, n_up=6, n_down=5)
+    res = simulate(t, tl, tr)
+    pts, _ = synthetic_points(res.theta, res.geom, (0.004, -0.002, 0.2))
+    comp = compare_simulation(res, pts, sigma=2e-5, samples=[int(s) for s in ids])
+    np.testing.assert_allclose(comp.a_sim, res.a, atol=1e-12)
+    np.testing.assert_allclose(comp.b_sim, res.b, atol=1e-12)
+    assert np.nanmax(comp.point_rms) < 0.02e-3        # linear fit of non-linear shapes: small, not zero
+    assert np.all(comp.point_max >= comp.point_rms)
+    pts[0] = np.nan                                   # a sample without points: NaN error, not a failure
+    comp = compare_simulation(res, pts, sigma=2e-5)
+    assert np.isnan(comp.point_rms[0]) and np.isfinite(comp.point_rms[1:]).all()
+    df = comparison_table(comp, res)
+    assert list(df.columns) == ["sample", "tension_left_N", "tension_right_N", "regime", "a_meas", "b_meas",
+                                "a_sim", "b_sim", "point_rms_mm", "point_max_mm"]
+
+
+def test_simulate_figures_are_the_friction_figures(study, tmp_path):
+    """Figs. 18-19 of `simulate` come from notchfit.figures.friction (PNG and their data as CSV)."""
+    out = tmp_path / "o"
+    assert main(["simulate", str(study / "L045"), "--out", str(out), "--points", str(tmp_path)]) == 0
+    d = pd.read_csv(out / "fig19_shape_parameters.csv")
+    assert {"a_pred_rad", "a_meas_rad", "b_meas_rad", "point_rms_mm"} <= set(d.columns)
+    assert len(pd.read_csv(out / "fig18_joint_angles.csv")) == 12 * 27
+    assert (out / "fig18_joint_angles.png").stat().st_size > 1000

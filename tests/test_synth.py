@@ -72,6 +72,21 @@ def test_bad_recipe_messages():
                           "experiments": [{"name": "a", "pull": "left", "counter_N": 0.4}]})
 
 
+def test_static_friction_effect_is_mu_s_excess_and_the_old_name_still_reads():
+    """μ_s − μ_d is ``mu_s_excess`` (as in the diagnosis); ``static_excess`` is read as an alias."""
+    exp = [{"name": "a", "pull": "left", "counter_N": 0.4}]
+    new = recipe_from_dict({"name": "x", "cause": "static_friction", "effect": {"mu_s_excess": 0.2},
+                            "experiments": exp})
+    old = recipe_from_dict({"name": "x", "cause": "static_friction", "effect": {"static_excess": 0.2},
+                            "experiments": exp})
+    assert new == old and new.effect == {"mu_s_excess": (0.2, 0.2)}
+    r = load_recipe("static_friction")
+    assert set(r.effect) == {"mu_s_excess"}
+    assert r.replace(effect={"static_excess": (0.3, 0.3)}).effect == {"mu_s_excess": (0.3, 0.3)}
+    st = synthesize(r.scaled(n_experiments=1, n_up=2, n_down=2), seed=1, method="fast")
+    assert st.params.mu_s - st.params.mu_d == pytest.approx(st.effect["mu_s_excess"])
+
+
 def test_synth_command_refuses_to_overwrite(tmp_path):
     out = tmp_path / "s"
     assert main(["synth", "null", "--out", str(out), "--seed", "1"]) == 0

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..batch import load_image
+from ._common import EXIT_ITEMS_FAILED, InputError
+
 NAME = "calibrate"
 ORDER = 20
 HELP = "calibrate the camera from board images (ChArUco or chessboard) and the bending plane"
@@ -39,9 +42,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from ..batch import load_image
+    # slow optional dependency: notchfit.camera imports cv2
     from ..camera import calibrate_camera, estimate_plane_pose, load_board, write_camera
-    from ..cli import InputError
 
     if args.out.exists() and not args.force:
         raise InputError(f"{args.out} exists; use --force to replace it")
@@ -75,4 +77,4 @@ def run(args) -> int:
     rejected.update(unreadable)
     for k, v in rejected.items():
         print(f"  REJECTED {k}: {v}")
-    return 1 if rejected else 0
+    return EXIT_ITEMS_FAILED if rejected else 0

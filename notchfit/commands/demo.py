@@ -4,8 +4,15 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import time
 from pathlib import Path
+
+from .. import io
+from ..report import build_report, summary_lines
+from ..synth import generate_study, load_recipe
+from . import detect, fit, simulate
+from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call
 
 NAME = "demo"
 ORDER = 0
@@ -59,11 +66,6 @@ def _step(name: str, t0: float) -> float:
 
 
 def run(args) -> int:
-    from .. import io
-    from ..cli import InputError, main as cli_main
-    from ..report import build_report, summary_lines
-    from ..synth import generate_study, load_recipe
-
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
     out = Path(args.out)
     study_dir, res_dir = out / "study", out / "results"
@@ -79,22 +81,21 @@ def run(args) -> int:
           f"{', rendering images' if images else ''} -> {study_dir}", t0)
     generate_study(recipe, study_dir, seed=args.seed, force=True, jobs=jobs, images=images)
     if res_dir.exists() and args.force:
-        import shutil
         shutil.rmtree(res_dir)
     common = ["--out", str(res_dir), "--jobs", str(jobs)]
     steps = []
     if images:
-        steps.append(("detect", ["detect", str(study_dir), *common]))
-    steps += [("fit", ["fit", str(study_dir), "--models", "cc,linear", *common]),
-              ("simulate", ["simulate", str(study_dir), *common])]
+        steps.append((detect, [str(study_dir), *common]))
+    steps += [(fit, [str(study_dir), "--models", "cc,linear", *common]),
+              (simulate, [str(study_dir), *common])]
     failed = []
-    for name, argv in steps:
-        _step(f"{name}", t0)
-        rc = cli_main(argv)
-        if rc == 2:
-            raise InputError(f"the {name} step failed (see the message above)")
-        if rc == 1:
-            failed.append(name)
+    for command, argv in steps:
+        _step(f"{command.NAME}", t0)
+        rc = call(command, argv)
+        if rc == EXIT_INPUT_ERROR:
+            raise InputError(f"the {command.NAME} step failed (see the message above)")
+        if rc == EXIT_ITEMS_FAILED:
+            failed.append(command.NAME)
     _step("diagnose", t0)
     diagnose(study_dir, res_dir, jobs=jobs, seed=args.seed)
     _step("report", t0)
@@ -112,7 +113,7 @@ def run(args) -> int:
         pass
     if failed:
         print(f"some items failed in: {', '.join(failed)} (listed above)")
-        return 1
+        return EXIT_ITEMS_FAILED
     return 0
 
 

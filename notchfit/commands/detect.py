@@ -5,10 +5,16 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
+import pandas as pd
+
+from .. import io
+from ..batch import load_image, run_batch
+from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options
+
 NAME = "detect"
 ORDER = 30
 HELP = "find the notch corners in the images of an experiment or a study (detections.csv + overlays)"
-DESCRIPTION = """Find the 4 + 2n numbered notch corners (geometry.md) in every sample image of an
+DESCRIPTION = """Find the 4 + 2n numbered notch corners (docs/geometry.md) in every sample image of an
 experiment, or of every experiment of a study, with the experiment's camera file
 (experiment.toml `calibration`, written by `notchfit calibrate`). The detector works on the
 silhouette only (no kinematic model): sharp corners of the outline in the calibrated plane,
@@ -30,33 +36,32 @@ Examples:
 def add_arguments(parser) -> None:
     parser.add_argument("input", type=Path, help="experiment folder or study folder")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; 0 = all CPUs)")
-    parser.add_argument("--scheduler", default=None, help="Dask distributed scheduler address")
+    add_batch_options(parser)
     parser.add_argument("--no-overlays", action="store_true", help="skip the overlay PNGs")
     parser.add_argument("--force", action="store_true", help="replace existing detections in --out")
 
 
 @functools.lru_cache(maxsize=8)
 def _camera(path: str):
-    from ..camera import read_camera
+    """The camera file at ``path`` (cached per worker process)."""
+    from ..camera import read_camera  # slow optional dependency: notchfit.camera imports cv2
 
     return read_camera(path)
 
 
 def detect_one(item: dict) -> dict:
     """Detect the corners of one sample image (a batch item; module level so that it pickles)."""
+    # slow optional dependency: the detector and the image writer are OpenCV
     import cv2
 
-    from ..batch import load_image
-    from ..detection import detect_notches, detections_table, draw_overlay
+    from ..detection import detect_notches, detections_table
+    from ..figures.detection import detection_overlay
 
     img = load_image(item["image"])
     cam = _camera(str(item["calibration"]))
     det = detect_notches(img, cam, item["geometry"], mirror=item["mirror"])
     if item["overlay"] is not None:
-        ov = draw_overlay(img, det)
-        cv2.putText(ov, f"sample {item['sample']}: {det.n_ok}/{len(det.status)} ok", (10, 25),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.7, (0, 0, 255), 2, cv2.LINE_AA)
+        ov = detection_overlay(img, det, item["sample"])
         Path(item["overlay"]).parent.mkdir(parents=True, exist_ok=True)
         if not cv2.imwrite(str(item["overlay"]), ov):
             raise OSError(f"could not write {item['overlay']}")
@@ -65,12 +70,6 @@ def detect_one(item: dict) -> dict:
 
 
 def run(args) -> int:
-    import pandas as pd
-
-    from .. import io
-    from ..batch import run_batch
-    from ..cli import InputError
-
     exps = io.read_study(args.input, missing_images="keep")
     study = not io.is_experiment_dir(args.input)
     failed: dict[str, str] = {}
@@ -113,8 +112,8 @@ def run(args) -> int:
             sub = io.experiment_output_dir("", e.name, study)
             rows = [r for r, o in zip(res.items, owners) if o == e.name]
             tables = [r.value["table"] for r in rows if r.ok]
-            cols = ["sample", "point", "x_mm", "y_mm", "u_px", "v_px", "sigma_mm", "status"]
-            df = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame(columns=cols)
+            df = (pd.concat(tables, ignore_index=True) if tables
+                  else pd.DataFrame(columns=list(io.DETECTION_COLUMNS)))
             io.write_table_atomic(df, run_.path(sub / "detections.csv"))
             summary[e.name] = {r.key: ({"image_status": r.value["image_status"], "n_ok": r.value["n_ok"],
                                         "message": r.value["message"]} if r.ok else {"error": r.error})
@@ -129,4 +128,4 @@ def run(args) -> int:
           f"in {res.seconds:.1f} s; outputs in {args.out}")
     for k, v in failed.items():
         print(f"  FAILED {k}: {v}")
-    return 1 if failed else 0
+    return EXIT_ITEMS_FAILED if failed else 0

@@ -43,7 +43,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from ..cli import InputError
+    from ._common import InputError
     from ..diagnosis import CAUSES, diagnose_study
     from ..io import OutputRun, find_output, load_detected_points, read_study
 

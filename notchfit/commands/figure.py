@@ -6,6 +6,9 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from ..figures import discover
+from ._common import EXIT_ITEMS_FAILED, InputError
+
 NAME = "figure"
 ORDER = 80
 HELP = "write a paper figure's data (CSV) and PNG"
@@ -29,9 +32,6 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from ..cli import InputError
-    from ..figures import discover
-
     figures = discover()
     if args.list:
         for name, func in figures.items():
@@ -67,5 +67,5 @@ def run(args) -> int:
             print(f"{name}: " + ", ".join(str(t) for t in targets))
     if failed:
         print(f"failed: {', '.join(failed)}")
-        return 1
+        return EXIT_ITEMS_FAILED
     return 0

@@ -4,6 +4,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pandas as pd
+
+from .. import io
+from ..batch import load_image, run_batch
+from ..figures.fitting import experiment_figures, fig12_sample_index
+from ..fitting import failed_fits, fit_experiment, fit_summary, fits_table, pointwise_table
+from ..shapes import get_model
+from ..units import MM
+from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option
+
 NAME = "fit"
 ORDER = 40
 HELP = "fit shape models (cc, linear, ...) to the notch points of an experiment or a study"
@@ -29,29 +39,22 @@ Examples:
   notchfit fit study/ --out out/ --scheduler tcp://10.0.0.5:8786
 """
 
-_MM = 1e-3
-
-
 def add_arguments(parser) -> None:
     parser.add_argument("input", type=Path, help="experiment folder or study folder")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--models", default="cc,linear", help="comma-separated shape models (default cc,linear)")
-    parser.add_argument("--points", type=Path, default=None,
-                        help="folder with detect's detections.csv (default: --out) for experiments "
-                             "without notch_points.csv")
+    add_points_option(parser, help="folder with detect's detections.csv (default: --out) for experiments "
+                                   "without notch_points.csv")
     parser.add_argument("--sigma-mm", type=float, default=None,
                         help="point uncertainty [mm] (default: [uncertainty] point_mm, else estimated)")
     parser.add_argument("--loss", default="linear", help="linear, soft_l1, huber, cauchy or arctan")
     parser.add_argument("--no-figures", action="store_true", help="skip the Figs. 12-15 PNGs")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; 0 = all CPUs)")
-    parser.add_argument("--scheduler", default=None, help="Dask distributed scheduler address")
+    add_batch_options(parser)
     parser.add_argument("--force", action="store_true", help="replace existing fits in --out")
 
 
 def fit_one(item: dict) -> dict:
     """Fit one experiment (a batch item; module level so that it pickles)."""
-    from ..fitting import fit_experiment, fits_table, pointwise_table
-
     res = fit_experiment(item["points"], item["geometry"], item["models"], mirror=item["mirror"],
                          sigma=item["sigma"], loss=item["loss"], samples=item["samples"])
     return {"result": res, "fits": fits_table(res), "pointwise": pointwise_table(res)}
@@ -60,56 +63,56 @@ def fit_one(item: dict) -> dict:
 def fit_figures(result, out_dir: Path, name: str, exp=None) -> list[Path]:
     """Figs. 12-15 of one experiment (:func:`notchfit.figures.fitting.experiment_figures`).
 
-    Fig. 15 is drawn against the tension difference ``T_left - T_right`` [N] when the
-    experiment is given.
+    With the experiment given, Fig. 15 is drawn against the tension difference
+    ``T_left - T_right`` [N], and Fig. 12 on the sample's own image when the
+    experiment has images and a camera file.
     """
-    from ..figures.fitting import experiment_figures
-
     kw = {}
     if exp is not None:
         kw = {"x": exp.tension_left - exp.tension_right, "xlabel": "T_left − T_right [N]"}
-        kw.update(_overlay_image(result, exp))
+        kw.update(_read_overlay_image(result, exp))
     return list(experiment_figures(result, out_dir, title=name, **kw))
 
 
-def _overlay_image(result, exp) -> dict:
-    """Fig. 12 on the sample's own image (as in the paper) when the experiment has images and a camera."""
+def _read_overlay_image(result, exp) -> dict:
+    """The image and plane-to-pixel mapping of Fig. 12's sample, as in the paper (empty when not available)."""
     if not exp.has_images or exp.calibration_path is None:
         return {}
-    from ..batch import load_image
-    from ..figures.fitting import loading_unloading_groups
-    from ..io import read_camera
-
     try:
-        load = loading_unloading_groups(result)["loading"]
-        s = int(load[-1]) if len(load) else len(result.samples) - 1
+        s = fig12_sample_index(result)
         path = exp.image_paths[s]
         if path is None:
             return {}
-        camera = read_camera(exp.calibration_path)
+        camera = io.read_camera(exp.calibration_path)
         return {"sample": result.samples[s], "image": load_image(path), "to_pixel": camera.plane_to_pixel}
     except (FileNotFoundError, ValueError, KeyError, IndexError):
         return {}        # the plane-frame overlay is drawn instead
 
 
-def run(args) -> int:
-    from .. import io
-    from ..batch import run_batch
-    from ..cli import InputError
-    from ..shapes import get_model
-
-    models = tuple(m.strip() for m in args.models.split(",") if m.strip())
+def _model_names(text: str) -> tuple:
+    """The ``--models`` list (at least one name)."""
+    models = tuple(m.strip() for m in text.split(",") if m.strip())
     if not models:
         raise InputError("--models needs at least one model")
-    exps = io.read_study(args.input)
+    return models
+
+
+def _check_models(models, n_joints: int) -> None:
+    """Each ``--models`` name must be in the shape-model registry."""
     for m in models:
         try:
-            get_model(m, exps[0].geometry.n_joints)
+            get_model(m, n_joints)
         except ValueError as exc:
             raise InputError(f"--models: {exc}") from None
+
+
+def run(args) -> int:
+    models = _model_names(args.models)
+    exps = io.read_study(args.input)
+    _check_models(models, exps[0].geometry.n_joints)
     study = not io.is_experiment_dir(args.input)
     exps, problems = io.attach_detections(exps, args.points if args.points is not None else args.out)
-    sigma_cli = None if args.sigma_mm is None else args.sigma_mm * _MM
+    sigma_cli = None if args.sigma_mm is None else args.sigma_mm * MM
     items = [{"points": e.points, "geometry": e.geometry, "models": models, "mirror": e.mirror,
               "sigma": sigma_cli if sigma_cli is not None else e.point_sigma, "loss": args.loss,
               "samples": tuple(int(s) for s in e.sample_ids)} for e in exps]
@@ -128,10 +131,8 @@ def run(args) -> int:
             sub = io.experiment_output_dir("", e.name, study)
             io.write_table_atomic(r.value["fits"], run_.path(sub / "fits.csv"))
             io.write_table_atomic(r.value["pointwise"], run_.path(sub / "pointwise.csv"))
-            f = r.value["fits"]
-            if "success" in f:
-                for _, row in f[~f["success"].astype(bool)].iterrows():
-                    bad_samples.append(f"{e.name} sample {row['sample']} ({row['model']}): {row.get('message', '')}")
+            for row in failed_fits(r.value["fits"]).itertuples(index=False):
+                bad_samples.append(f"{e.name} sample {row.sample} ({row.model}): {getattr(row, 'message', '')}")
             if not args.no_figures:
                 try:
                     fit_figures(r.value["result"], run_.path(sub / "x").parent, e.name, e)
@@ -141,21 +142,15 @@ def run(args) -> int:
                                            failures=failed, failed_samples=bad_samples),
                              run_.path("fit_run.json"))
     _print_summary(res, len(exps) + len(problems), failed, bad_samples, args.out)
-    return 1 if (failed or bad_samples) else 0
+    return EXIT_ITEMS_FAILED if (failed or bad_samples) else 0
 
 
 def _print_summary(res, n_total, failed, bad_samples, out):
-    import numpy as np
-    import pandas as pd
-
     frames = [r.value["fits"] for r in res.items if r.ok]
     if frames:
-        df = pd.concat(frames, ignore_index=True)
-        ok = df["success"].astype(bool) if "success" in df else np.ones(len(df), bool)
-        for model, g in df[ok].groupby("model", sort=False):
-            r = g["rms_mm"].to_numpy(float)
-            print(f"  {model:12s} rms {np.sqrt(np.mean(r ** 2)):.4f} mm, max {g['max_mm'].max():.4f} mm "
-                  f"over {len(g)} samples")
+        for row in fit_summary(pd.concat(frames, ignore_index=True)).itertuples(index=False):
+            print(f"  {row.model:12s} rms {row.rms_mm:.4f} mm, max {row.max_mm:.4f} mm "
+                  f"over {row.n_samples} samples")
     n_ok = sum(r.ok for r in res.items)
     print(f"fit: {n_ok} of {n_total} experiments fitted in {res.seconds:.1f} s; outputs in {out}")
     for k, v in failed.items():

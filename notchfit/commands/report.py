@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..report import build_report, summary_lines
+
 NAME = "report"
 ORDER = 80
 HELP = "build one self-contained HTML report (report.html) from an output folder"
@@ -30,8 +32,6 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from ..report import build_report, summary_lines
-
     path = build_report(args.dir, study=args.study, title=args.title, force=args.force)
     for line in summary_lines(args.dir):
         print(line)

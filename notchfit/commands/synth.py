@@ -4,13 +4,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..synth import generate_study, list_recipes, load_recipe
+from ._common import InputError
+
 NAME = "synth"
 ORDER = 10
 HELP = "generate a synthetic study from a recipe (ground truth in truth.json)"
 DESCRIPTION = """Generate a synthetic study: several paper-like bend/unbend tests simulated by the
 friction model (reference solver) with base parameters drawn away from the paper's values,
-optionally one hidden physical effect (a data-format.md cause id), seeded measurement noise
-and a random plane transform per experiment. Writes OUT/<experiment>/ per data-format.md
+optionally one hidden physical effect (a cause id of docs/data-formats.md), seeded measurement
+noise and a random plane transform per experiment. Writes OUT/<experiment>/ per docs/data-formats.md
 and OUT/truth.json (the ground truth; no analysis command reads it).
 
 RECIPE is a TOML file or the name of a shipped recipe in datasets/recipes/:
@@ -43,9 +46,6 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from ..cli import InputError
-    from ..synth import generate_study, list_recipes, load_recipe
-
     if args.list:
         for name in list_recipes():
             r = load_recipe(name)

@@ -13,6 +13,8 @@ import importlib
 import pkgutil
 from typing import Callable
 
+import pandas as pd
+
 __all__ = ["discover", "new_figure", "save_png", "write_csv"]
 
 
@@ -57,7 +59,8 @@ def discover(package: str = __name__) -> dict[str, Callable]:
 
 
 def new_figure(width: float = 6.4, height: float = 4.8):
-    """A matplotlib Figure on an Agg canvas (no global pyplot state)."""
+    """A matplotlib Figure on an Agg canvas (no global pyplot state); ``width``, ``height`` [inch]."""
+    # slow optional dependency: matplotlib loads only when a figure is drawn
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -74,7 +77,5 @@ def save_png(fig, path, dpi: int = 150):
 
 def write_csv(path, columns: dict, float_format: str = "%.9g"):
     """Write equal-length columns (header = the dict keys, with units) and return the path."""
-    import pandas as pd
-
     pd.DataFrame(columns).to_csv(path, index=False, float_format=float_format)
     return path

@@ -24,11 +24,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fitting import fit_experiment, pointwise_table
+from ..geometry import default_geometry
+from ..synth import synthetic_points
+from ..units import MM
 from . import new_figure, save_png, write_csv
 
 __all__ = [
     "FIGURES",
     "experiment_figures",
+    "fig12_sample_index",
     "loading_unloading_groups",
     "plot_overlay",
     "plot_pointwise",
@@ -36,7 +41,6 @@ __all__ = [
     "synthetic_bend_unbend",
 ]
 
-_MM = 1e-3
 _MODEL_LABEL = {"cc": r"constant curvature $\theta_j = a$", "linear": r"linear $\theta_j = a + b j$",
                 "quadratic": r"quadratic $\theta_j = a + b j + c j^2$", "free": r"free $\theta_j$"}
 
@@ -103,7 +107,7 @@ def plot_overlay(result, sample, path, *, models=("cc", "linear"), image=None, t
                 return out
         else:
             def xy(P):
-                return np.asarray(P, dtype=float) / _MM
+                return np.asarray(P, dtype=float) / MM
         q = xy(Q)
         ax.plot(q[:, 0], q[:, 1], "o", mfc="none", mec="k", ms=5, mew=0.8, label=r"measured $Q_i$")
         if f.success:
@@ -114,7 +118,7 @@ def plot_overlay(result, sample, path, *, models=("cc", "linear"), image=None, t
             for i in annotate:
                 if 1 <= i <= len(p) and np.isfinite(q[i - 1]).all():
                     ax.annotate(str(i), q[i - 1], textcoords="offset points", xytext=(4, 4), fontsize=7)
-            sub = f"rms {f.rms / _MM:.3f} mm, max {f.max_error / _MM:.3f} mm"
+            sub = f"rms {f.rms / MM:.3f} mm, max {f.max_error / MM:.3f} mm"
         else:
             sub = f"fit failed: {f.message}"
         ax.set_title(f"{_label(name)}\n{sub}", fontsize=8)
@@ -148,6 +152,16 @@ def loading_unloading_groups(result, model: str = "linear") -> dict:
     return {"loading": idx[:k + 1], "unloading": idx[k + 1:]}
 
 
+def fig12_sample_index(result) -> int:
+    """Index of the sample Fig. 12 shows by default: the last loading sample (end of regime I).
+
+    The paper shows the last point of regime I; with no loading sample, the
+    last sample.
+    """
+    load = loading_unloading_groups(result)["loading"]
+    return int(load[-1]) if len(load) else len(result.samples) - 1
+
+
 def plot_pointwise(result, path, *, models=("cc", "linear"), groups=None, title: str = "",
                    dpi: int = 150) -> Path:
     """Figs. 13–14: pointwise error ``||Q_i − Q̃_i||`` for all points and samples.
@@ -167,7 +181,7 @@ def plot_pointwise(result, path, *, models=("cc", "linear"), groups=None, title:
     -------
     Path
     """
-    import matplotlib as mpl
+    import matplotlib as mpl  # slow optional dependency: only when drawing
 
     models = _models_present(result, models)
     if groups is None:
@@ -183,11 +197,11 @@ def plot_pointwise(result, path, *, models=("cc", "linear"), groups=None, title:
     norm = mpl.colors.Normalize(0, max(S - 1, 1))
     m = result.points.shape[1]
     pts = np.arange(1, m + 1)
-    ymax = max(np.nanmax(np.r_[result.errors(mm).ravel(), 0.0]) for mm in models) / _MM
+    ymax = max(np.nanmax(np.r_[result.errors(mm).ravel(), 0.0]) for mm in models) / MM
     for r, (gname, idx) in enumerate(groups.items()):
         for c, name in enumerate(models):
             ax = axes[r, c]
-            E = result.errors(name)[idx] / _MM
+            E = result.errors(name)[idx] / MM
             for s, e in zip(idx, E):
                 ax.plot(pts, e, "-", color=cmap(norm(s)), lw=0.8)
             finite = np.isfinite(E).all(1) if E.size else np.array([], bool)
@@ -287,8 +301,6 @@ def experiment_figures(result, out_dir, *, title: str = "", x=None, xlabel: str 
     -------
     list of Path
     """
-    from ..fitting import pointwise_table
-
     out = Path(out_dir)
     pre = f"{title}: " if title else ""
     if groups is None:
@@ -339,9 +351,6 @@ def synthetic_bend_unbend(geom=None, *, n_samples=(18, 8, 12), a_peak: float = -
     points : ndarray (S, m, 2) [m]; truth : dict (theta, a, b, tension_N,
     regime, transform, mirror, noise)
     """
-    from ..fitting import synthetic_points
-    from ..geometry import default_geometry
-
     geom = geom or default_geometry()
     n1, n2, n3 = n_samples
     a = np.r_[np.linspace(0, a_peak, n1), np.full(n2, a_peak), np.linspace(a_peak, 0, n3 + 1)[1:]]
@@ -358,9 +367,6 @@ def synthetic_bend_unbend(geom=None, *, n_samples=(18, 8, 12), a_peak: float = -
 
 
 def _demo(out_dir, **kw):
-    from ..fitting import fit_experiment
-    from ..geometry import default_geometry
-
     geom = default_geometry()
     pts, truth = synthetic_bend_unbend(geom, **kw)
     res = fit_experiment(pts, geom, ("cc", "linear"), mirror=truth["mirror"], sigma=truth["noise"])
@@ -377,9 +383,9 @@ def fig12(out_dir: Path, **kw) -> list[Path]:
     out = Path(out_dir)
     f_cc, f_lin = res.get("cc", s), res.get("linear", s)
     rows = {"point": np.arange(1, res.points.shape[1] + 1),
-            "x_mm": res.points[s, :, 0] / _MM, "y_mm": res.points[s, :, 1] / _MM,
-            "cc_x_mm": f_cc.predicted[:, 0] / _MM, "cc_y_mm": f_cc.predicted[:, 1] / _MM,
-            "linear_x_mm": f_lin.predicted[:, 0] / _MM, "linear_y_mm": f_lin.predicted[:, 1] / _MM}
+            "x_mm": res.points[s, :, 0] / MM, "y_mm": res.points[s, :, 1] / MM,
+            "cc_x_mm": f_cc.predicted[:, 0] / MM, "cc_y_mm": f_cc.predicted[:, 1] / MM,
+            "linear_x_mm": f_lin.predicted[:, 0] / MM, "linear_y_mm": f_lin.predicted[:, 1] / MM}
     return [write_csv(out / "fig12.csv", rows),
             plot_overlay(res, s, out / "fig12.png",
                          title=f"Fig. 12 (synthetic): last sample of regime I, a = {truth['a'][s]:.3f} rad")]
@@ -387,8 +393,6 @@ def fig12(out_dir: Path, **kw) -> list[Path]:
 
 def fig13(out_dir: Path, **kw) -> list[Path]:
     """Fig. 13 on synthetic data: pointwise error, regime I, CC and linear."""
-    from ..fitting import pointwise_table
-
     res, truth, groups = _demo(out_dir, **kw)
     out = Path(out_dir)
     df = pointwise_table(res)
@@ -401,8 +405,6 @@ def fig13(out_dir: Path, **kw) -> list[Path]:
 
 def fig14(out_dir: Path, **kw) -> list[Path]:
     """Fig. 14 on synthetic data: pointwise error of the linear model, regimes II and III."""
-    from ..fitting import pointwise_table
-
     res, truth, groups = _demo(out_dir, **kw)
     out = Path(out_dir)
     df = pointwise_table(res)

@@ -15,6 +15,10 @@ paper's parameters and plot it:
   pulled tension (predicted dashed, measured solid when given);
 * ``hysteresis``: tension difference vs tip angle loops for several ``μ_d``
   with their areas.
+
+``notchfit simulate`` draws each experiment's Figs. 18–19 with
+:func:`plot_fig18` and :func:`plot_fig19`, the measured data coming from
+:func:`notchfit.comparison.compare_simulation`.
 """
 
 from __future__ import annotations
@@ -23,26 +27,22 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cables import LEFT
+from ..cables import pulled_side as pulled_cable
 from ..friction import FrictionParams, SimulationResult, simulate
+from ..polygon import polygon_area
 from ..protocols import bend_unbend
+from ..units import MM
 from . import new_figure, save_png, write_csv
 
-__all__ = ["FIGURES", "loop_area", "measured_linear_theta", "plot_fig11", "plot_fig18", "plot_fig19",
-           "plot_hysteresis", "pulled_side"]
+__all__ = ["FIGURES", "plot_fig11", "plot_fig18", "plot_fig19", "plot_hysteresis", "pulled_side"]
 
 REGIME_COLORS = {"I": "#4c72b0", "II": "#dd8452", "III": "#55a868"}
 
 
 def pulled_side(result: SimulationResult) -> str:
-    """``"left"`` or ``"right"``: the cable whose tension varies more."""
-    return "left" if np.ptp(result.input_left) >= np.ptp(result.input_right) else "right"
-
-
-def loop_area(load, tip) -> float:
-    """Area of the closed polygon (load, tip) by the shoelace formula [units of load × tip]."""
-    x = np.asarray(load, float)
-    y = np.asarray(tip, float)
-    return float(0.5 * abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)))
+    """``"left"`` or ``"right"``: the pulled cable of the test (:func:`notchfit.cables.pulled_side`)."""
+    return "left" if pulled_cable(result.input_left, result.input_right) == LEFT else "right"
 
 
 def _shade(ax, x, regime):
@@ -74,13 +74,13 @@ def plot_fig11(result: SimulationResult, out_dir, measured_displacement=None, na
     side = pulled_side(result)
     T = result.input_left if side == "left" else result.input_right
     d = result.displacement_left if side == "left" else result.displacement_right
-    d_mm = (d - d[0]) * 1e3
+    d_mm = (d - d[0]) / MM
     cols = {"sample": np.arange(1, result.n_samples + 1), "time_s": result.time,
             "regime": np.asarray(result.regime).astype(str), f"tension_{side}_N": T,
             f"displacement_{side}_mm": d_mm}
     dm = None
     if measured_displacement is not None:
-        dm = (np.asarray(measured_displacement, float) - measured_displacement[0]) * 1e3
+        dm = (np.asarray(measured_displacement, float) - measured_displacement[0]) / MM
         cols[f"displacement_{side}_measured_mm"] = dm
     out = [write_csv(out_dir / f"{name}.csv", cols)]
     fig = new_figure(10.0, 4.0)
@@ -127,7 +127,7 @@ def plot_fig18(result: SimulationResult, out_dir, measured_theta=None, name: str
             raise ValueError(f"measured_theta must have shape {(S, n)}, got {mt.shape}")
         cols["theta_meas_rad"] = mt.ravel()
     out = [write_csv(out_dir / f"{name}.csv", cols)]
-    import matplotlib
+    import matplotlib  # slow optional dependency: only when drawing
 
     cmap = matplotlib.colormaps["viridis"]
     rows = 2 if mt is not None else 1
@@ -147,8 +147,22 @@ def plot_fig18(result: SimulationResult, out_dir, measured_theta=None, name: str
     return out
 
 
-def plot_fig19(result: SimulationResult, out_dir, measured_a=None, measured_b=None, name: str = "fig19"):
-    """Fig. 19: shape parameters a, b vs the pulled tension; predicted dashed, measured solid."""
+def plot_fig19(result: SimulationResult, out_dir, measured_a=None, measured_b=None, name: str = "fig19",
+               point_rms_mm=None):
+    """Fig. 19: shape parameters a, b vs the pulled tension; predicted dashed, measured solid.
+
+    Parameters
+    ----------
+    result : SimulationResult
+    out_dir : path
+    measured_a, measured_b : array_like (S,) [rad], optional
+        The measured shape parameters (e.g. the linear-model fit per sample).
+    name : str
+        File stem of the CSV and PNG.
+    point_rms_mm : array_like (S,) [mm], optional
+        Notch-point rms error of the prediction per sample; drawn in a third
+        panel against the sample number when given.
+    """
     out_dir = Path(out_dir)
     side = pulled_side(result)
     T = result.input_left if side == "left" else result.input_right
@@ -158,9 +172,11 @@ def plot_fig19(result: SimulationResult, out_dir, measured_a=None, measured_b=No
         cols["a_meas_rad"] = np.asarray(measured_a, float)
     if measured_b is not None:
         cols["b_meas_rad"] = np.asarray(measured_b, float)
+    if point_rms_mm is not None:
+        cols["point_rms_mm"] = np.asarray(point_rms_mm, float)
     out = [write_csv(out_dir / f"{name}.csv", cols)]
-    fig = new_figure(9.0, 3.6)
-    axes = fig.subplots(1, 2)
+    fig = new_figure(13.0 if point_rms_mm is not None else 9.0, 3.6)
+    axes = fig.subplots(1, 3 if point_rms_mm is not None else 2)
     for ax, key, lab in ((axes[0], "a", "a [rad]"), (axes[1], "b", "b [rad per joint]")):
         ax.plot(T, cols[f"{key}_pred_rad"], "k--", lw=1.0, label="predicted")
         meas = cols.get(f"{key}_meas_rad")
@@ -172,6 +188,10 @@ def plot_fig19(result: SimulationResult, out_dir, measured_a=None, measured_b=No
         ax.set_xlabel(f"{side} cable tension [N]")
         ax.set_ylabel(lab)
     axes[0].legend(fontsize=7)
+    if point_rms_mm is not None:
+        axes[2].plot(cols["sample"], cols["point_rms_mm"], "k-o", ms=3)
+        axes[2].set_xlabel("sample")
+        axes[2].set_ylabel("notch-point rms of the prediction [mm]")
     fig.suptitle(r"Fig. 19: shape parameters of $\theta_j = a + b j$ (dashed: predicted)", fontsize=9)
     out.append(save_png(fig, out_dir / f"{name}.png"))
     return out
@@ -193,7 +213,7 @@ def plot_hysteresis(results: dict, out_dir, name: str = "hysteresis"):
         side = pulled_side(r)
         load = (r.input_left - r.input_right) if side == "left" else (r.input_right - r.input_left)
         tip = r.tip_angle * (-1.0 if side == "left" else 1.0)
-        area = loop_area(load, tip)
+        area = polygon_area(load, tip)
         ax.plot(tip, load, ".-", lw=1.0, ms=3, label=f"{label}: area {area:.2f} N rad")
         rows["model"] += [label] * r.n_samples
         rows["sample"] += list(range(1, r.n_samples + 1))
@@ -262,10 +282,3 @@ def hysteresis(out_dir: Path, mus=(0.0, 0.1, 0.29), **_) -> list[Path]:
 
 
 FIGURES = {"fig11": fig11, "fig17": fig17, "fig18": fig18, "fig19": fig19, "hysteresis": hysteresis}
-
-
-def measured_linear_theta(a, b, n: int) -> np.ndarray:
-    """``θ_j = a + b j`` (S, n) from per-sample shape parameters (for :func:`plot_fig18`)."""
-    j = np.arange(1, n + 1)
-    return np.asarray(a, float)[:, None] + np.asarray(b, float)[:, None] * j
-
