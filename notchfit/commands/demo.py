@@ -7,6 +7,10 @@ import os
 import time
 from pathlib import Path
 
+from .. import io
+from ..diagnosis import diagnose_study
+from .diagnose import write_diagnosis
+
 NAME = "demo"
 ORDER = 0
 HELP = "run the whole pipeline on a built-in synthetic study with one hidden effect"
@@ -117,11 +121,8 @@ def run(args) -> int:
 
 
 def diagnose(study_dir: Path, out_dir: Path, *, jobs: int = 1, seed: int = 0) -> dict:
-    """The diagnose step: ``notchfit.diagnosis.diagnose_study`` on the study's experiments."""
-    from .. import io
-    from ..diagnosis import diagnose_study
-
+    """The diagnose step: the study's experiments diagnosed, the results written into ``out_dir``."""
     exps, problems = io.attach_detections(io.read_study(study_dir), out_dir)
     for name, why in problems.items():
         print(f"  diagnose: leaving out {name}: {why}")
-    return diagnose_study(exps, out_dir=Path(out_dir), jobs=jobs, seed=seed)
+    return write_diagnosis(diagnose_study(exps, jobs=jobs, seed=seed), out_dir)
