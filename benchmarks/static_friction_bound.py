@@ -32,6 +32,7 @@ from notchfit.friction import simulate
 from notchfit.io import read_study
 from notchfit.notches import notch_points, to_plane
 from notchfit.synth import load_recipe, synthesize, write_study
+from notchfit.units import MM
 
 
 def mc_mean_points(prep, params, draws: int, seed: int):
@@ -49,7 +50,7 @@ def mc_mean_points(prep, params, draws: int, seed: int):
 
 def rms_mm(preds, preps) -> float:
     se = np.concatenate([np.sum((P - p.measured) ** 2, axis=-1)[p.valid] for P, p in zip(preds, preps)])
-    return float(np.sqrt(np.mean(se))) * 1e3
+    return float(np.sqrt(np.mean(se))) / MM
 
 
 def bound(excess: float, sigma_T: float, seed: int, draws: int, tmp: Path) -> dict:
