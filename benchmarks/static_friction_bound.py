@@ -1,9 +1,9 @@
 """Static friction: the best held-out gain that *any* analysis could reach (an oracle bound).
 
-For the static_friction cause (data-format.md), issue 8 asks for a held-out notch-point rms
+For the static_friction cause (docs/diagnosis.md), issue 8 asks for a held-out notch-point rms
 at least 30 % below the calibrated baseline's. This script measures the ceiling on that gain:
 it scores the **true** model (the generator's own parameters, μ_s − μ_d as drawn) and the
-baseline **at the true parameters** (μ_s − μ_d = 0.01, models.md) against the same noisy
+baseline **at the true parameters** (μ_s − μ_d = 0.01, docs/models.md) against the same noisy
 measurements, exactly as the diagnosis scores its predictions (fast solver driven by the
 *measured* tensions, registration from the free-θ fit). No calibration can do better than the
 truth, so ``1 − rms_true / rms_base`` bounds the gain of any fitted extension from above (up
