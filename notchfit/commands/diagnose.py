@@ -8,6 +8,7 @@ from pathlib import Path
 from .. import io
 from ..cli import InputError
 from ..diagnosis import CAUSES, Diagnosis, diagnose_study
+from ..figures.diagnosis import write_diagnosis_figures
 from ..friction import save_params
 
 NAME = "diagnose"
@@ -71,9 +72,6 @@ def write_diagnosis(diag: Diagnosis, out_dir, *, figures: bool = True) -> dict:
     model_path = save_params(params, out / "extended_model.toml", **meta)
     names = None
     if figures:
-        # matplotlib: a slow import, only when figures are drawn
-        from ..figures.diagnosis import write_diagnosis_figures
-
         names = [Path(p).name for p in write_diagnosis_figures(diag, out)]
     data = diag.to_dict(extended_model_file=Path(model_path).name, figures=names)
     io.write_json_atomic(data, out / "diagnosis.json")
