@@ -44,15 +44,15 @@ class SimulationCache:
         self.max_items = max_items
         self._d: dict = {}
 
-    def theta(self, prep: Prepared, params: FrictionParams, dl: float = 0.0, dr: float = 0.0) -> np.ndarray:
-        """Simulated joint angles [rad] (S, n) of ``prep`` with tensions offset by ``dl``, ``dr`` [N]."""
-        key = (prep.name, dl, dr, dataclasses.astuple(params))
+    def theta(self, prep: Prepared, params: FrictionParams) -> np.ndarray:
+        """Simulated joint angles [rad] (S, n) of ``prep`` driven by its measured tensions."""
+        key = (prep.name, dataclasses.astuple(params))
         th = self._d.get(key)
         if th is None:
             if len(self._d) >= self.max_items:
                 self._d.clear()
-            th = simulate(prep.time, prep.tension_left + dl, prep.tension_right + dr, params,
-                          prep.geom, method="fast").theta
+            th = simulate(prep.time, prep.tension_left, prep.tension_right, params, prep.geom,
+                          method="fast").theta
             self._d[key] = th
         return th
 
@@ -151,10 +151,6 @@ class Calibration:
     message: str
     nfev: int
     registration: tuple = ()
-
-    @property
-    def n_params(self) -> int:
-        return len(self.values)
 
 
 @dataclass(frozen=True)

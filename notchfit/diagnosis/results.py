@@ -150,10 +150,6 @@ class Diagnosis:
     heldout: dict = field(repr=False, default_factory=dict)
     prepared: tuple = field(repr=False, default=())
 
-    def candidate(self, cause: str) -> CandidateResult | None:
-        """The result of candidate ``cause`` (None when it was not tried)."""
-        return next((c for c in self.candidates if c.cause == cause), None)
-
     def to_dict(self, *, extended_model_file: str | None = None, figures=None) -> dict:
         """The content of ``diagnosis.json`` (docs/data-formats.md).
 
