@@ -15,6 +15,7 @@ from pathlib import Path
 from notchfit.diagnosis import diagnose
 from notchfit.io import read_study
 from notchfit.synth import generate_study, load_recipe
+from notchfit.units import MM
 
 
 def main():
@@ -34,11 +35,11 @@ def main():
         times = {}
         for jobs in runs:
             t = time.perf_counter()
-            d, _ = diagnose(exps, jobs=jobs)
+            d = diagnose(exps, jobs=jobs)
             times[jobs] = time.perf_counter() - t
             print(f"jobs={jobs}: {times[jobs]:.1f} s  cause={d.cause}  held-out rms "
-                  f"{d.gain['baseline']:.3f} -> {d.gain['extended']:.3f} mm "
-                  f"({d.gain['reduction_pct']:.0f}% lower)")
+                  f"{d.gain.baseline / MM:.3f} -> {d.gain.extended / MM:.3f} mm "
+                  f"({d.gain.reduction_pct:.0f}% lower)")
         if 1 in times:
             print(f"speed-up of 2 workers over serial: {times[1] / times[2]:.2f}x")
         print(f"target < 120 s with 2 workers: {'met' if times[2] < 120 else 'NOT met'}")

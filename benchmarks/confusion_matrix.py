@@ -32,7 +32,7 @@ def run(recipe_name: str, seed: int, full: bool, jobs: int, tmp: Path):
     shutil.rmtree(study, ignore_errors=True)
     generate_study(recipe, study, seed=seed)
     (study / "truth.json").unlink()
-    d, _ = diagnose(read_study(study), jobs=jobs, max_folds=6 if full else 2)
+    d = diagnose(read_study(study), jobs=jobs, max_folds=6 if full else 2)
     return d
 
 
@@ -55,7 +55,7 @@ def main():
             for s in seeds:
                 d = run(hidden, s, a.full, a.jobs, tmp)
                 named[d.cause] += 1
-                gains.append(f"{d.gain['reduction_pct']:.0f}%" if d.cause not in ("none", "unexplained")
+                gains.append(f"{d.gain.reduction_pct:.0f}%" if d.cause not in ("none", "unexplained")
                              else d.cause)
             want = "none" if hidden == "null" else hidden
             cells = [(f"**{named[c]}**" if c == want else str(named[c])) if named[c] else "" for c in COLUMNS]

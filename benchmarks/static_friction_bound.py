@@ -1,9 +1,9 @@
 """Static friction: the best held-out gain that *any* analysis could reach (an oracle bound).
 
-For the static_friction cause (data-format.md), issue 8 asks for a held-out notch-point rms
+For the static_friction cause (docs/diagnosis.md), issue 8 asks for a held-out notch-point rms
 at least 30 % below the calibrated baseline's. This script measures the ceiling on that gain:
 it scores the **true** model (the generator's own parameters, μ_s − μ_d as drawn) and the
-baseline **at the true parameters** (μ_s − μ_d = 0.01, models.md) against the same noisy
+baseline **at the true parameters** (μ_s − μ_d = 0.01, docs/models.md) against the same noisy
 measurements, exactly as the diagnosis scores its predictions (fast solver driven by the
 *measured* tensions, registration from the free-θ fit). No calibration can do better than the
 truth, so ``1 − rms_true / rms_base`` bounds the gain of any fitted extension from above (up
@@ -32,6 +32,7 @@ from notchfit.friction import simulate
 from notchfit.io import read_study
 from notchfit.notches import notch_points, to_plane
 from notchfit.synth import load_recipe, synthesize, write_study
+from notchfit.units import MM
 
 
 def mc_mean_points(prep, params, draws: int, seed: int):
@@ -49,7 +50,7 @@ def mc_mean_points(prep, params, draws: int, seed: int):
 
 def rms_mm(preds, preps) -> float:
     se = np.concatenate([np.sum((P - p.measured) ** 2, axis=-1)[p.valid] for P, p in zip(preds, preps)])
-    return float(np.sqrt(np.mean(se))) * 1e3
+    return float(np.sqrt(np.mean(se))) / MM
 
 
 def bound(excess: float, sigma_T: float, seed: int, draws: int, tmp: Path) -> dict:

@@ -34,7 +34,7 @@ def run(cause, effect, tension_sigma, seed, tmp):
     shutil.rmtree(study, ignore_errors=True)
     generate_study(r, study, seed=seed)
     (study / "truth.json").unlink()
-    d, _ = diagnose(read_study(study), jobs=2, max_folds=2)
+    d = diagnose(read_study(study), jobs=2, max_folds=2)
     return d
 
 
@@ -53,7 +53,7 @@ def main():
                 for sig in (0.11, 0.011):
                     d = run(cause, eff, sig, args.seed, tmp)
                     if d.cause == cause:
-                        cells.append(f"found ({d.gain['reduction_pct']:.0f}%)")
+                        cells.append(f"found ({d.gain.reduction_pct:.0f}%)")
                     else:
                         cells.append(f"{d.cause}")
                 size = ", ".join(f"{k} = {v:g}" for k, v in eff.items())

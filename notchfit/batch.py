@@ -28,12 +28,14 @@ import os
 import sys
 import threading
 import time
-import traceback
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
+from threadpoolctl import threadpool_limits
+from tqdm.auto import tqdm
 
 __all__ = ["BatchResult", "ItemResult", "image_info", "load_image", "run_batch", "single_threaded_worker"]
 
@@ -43,16 +45,12 @@ def single_threaded_worker(threads: int = 1) -> None:
 
     The work items here are small (a few hundred points, 27 joints): BLAS
     thread pools only add contention, and with several worker processes
-    they oversubscribe the cores (a six-experiment diagnosis took
-    53 s with 2 workers and default BLAS threads, 25 s with one thread each:
-    ``benchmarks/bench_diagnose.py``). Uses threadpoolctl; the limit holds
-    for the life of the process.
+    they oversubscribe the cores (``benchmarks/bench_diagnose.py`` measures
+    both). Uses threadpoolctl; the limit holds for the life of the process.
 
     OpenCV's own pool is left alone: ``cv2.setNumThreads`` in a forked
     child whose parent already used that pool never returns.
     """
-    from threadpoolctl import threadpool_limits
-
     threadpool_limits(limits=threads)
 
 
@@ -99,9 +97,6 @@ class BatchResult:
         """Values in input order (None for failed items)."""
         return [r.value for r in self.items]
 
-    def ok_items(self) -> list[ItemResult]:
-        return [r for r in self.items if r.ok]
-
     def summary(self, what: str = "batch") -> str:
         """``"fit: 7 of 8 ok in 3.2 s; 1 failed:\\n  ct045: ValueError: ..."``."""
         n = len(self.items)
@@ -134,25 +129,27 @@ def _call(func, item):
 
 
 def _progress(total, desc, progress):
-    from tqdm.auto import tqdm
-
     disable = (not sys.stderr.isatty()) if progress is None else (not progress)
     return tqdm(total=total, desc=desc, disable=disable, leave=False, file=sys.stderr)
 
 
-def _mp_context():
-    """Start method for worker processes: fork when this process runs no other thread, else spawn.
+def _mp_context(start_method: str | None = None):
+    """Start method for worker processes: ``start_method`` when given, else fork when this
+    process runs no other thread, else spawn.
 
     fork is fastest; forking a process that runs other threads (a Dask
     client, tqdm's monitor, a native pool) can leave a lock held forever in
     the child."""
+    if start_method is not None:
+        return multiprocessing.get_context(start_method)
     if sys.platform.startswith("linux") and threading.active_count() == 1:
         return multiprocessing.get_context("fork")
     return multiprocessing.get_context("spawn")
 
 
 def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = None, jobs: int = 1,
-              scheduler=None, desc: str | None = None, progress: bool | None = None) -> BatchResult:
+              scheduler=None, desc: str | None = None, progress: bool | None = None,
+              start_method: str | None = None) -> BatchResult:
     """Call ``func(item)`` for every item, isolating failures.
 
     Parameters
@@ -172,6 +169,10 @@ def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = N
         Progress-bar label.
     progress : bool, optional
         Force the bar on/off (default: on when stderr is a terminal).
+    start_method : str, optional
+        ``multiprocessing`` start method of the worker processes (``"fork"``,
+        ``"spawn"``, ``"forkserver"``); default: fork when this process runs
+        no other thread, else spawn.
 
     Returns
     -------
@@ -194,18 +195,15 @@ def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = N
                 out.append(_call(func, it))
                 bar.update(1)
     else:
-        out = _run_pool(func, items, min(jobs, len(items)), desc, progress)
+        out = _run_pool(func, items, min(jobs, len(items)), desc, progress, _mp_context(start_method))
     res = tuple(ItemResult(key=k, ok=o[0], value=o[1], error=o[2], seconds=o[3]) for k, o in zip(keys, out))
     return BatchResult(items=res, seconds=time.perf_counter() - t0)
 
 
-def _run_pool(func, items, jobs, desc, progress):
+def _run_pool(func, items, jobs, desc, progress, ctx):
     """Process pool with at most ``jobs`` items in flight, so a dead worker blames few items."""
-    from concurrent.futures.process import BrokenProcessPool
-
     out: list = [None] * len(items)
     todo = list(range(len(items)))[::-1]
-    ctx = _mp_context()
     with _progress(len(items), desc, progress) as bar:
         while todo:
             pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=single_threaded_worker)
@@ -244,8 +242,6 @@ def _run_pool(func, items, jobs, desc, progress):
 
 
 def _run_isolated(func, item, ctx):
-    from concurrent.futures.process import BrokenProcessPool
-
     with cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=single_threaded_worker) as pool:
         try:
             return pool.submit(_call, func, item).result()
@@ -257,7 +253,7 @@ def _run_isolated(func, item, ctx):
 
 
 def _run_dask(func, items, scheduler, desc, progress):
-    try:
+    try:  # Dask is an optional extra, slow to import: only with a scheduler
         from distributed import Client, as_completed
     except ImportError:
         raise ValueError("--scheduler needs Dask distributed: pip install 'notchfit[dask]'") from None
@@ -316,7 +312,3 @@ def image_info(path) -> dict:
     return {"path": str(path), "height": int(img.shape[0]), "width": int(img.shape[1]),
             "channels": int(img.shape[2]) if img.ndim == 3 else 1, "dtype": str(img.dtype),
             "min": float(img.min()), "max": float(img.max())}
-
-
-def format_traceback(exc: BaseException) -> str:  # pragma: no cover - debugging aid
-    return "".join(traceback.format_exception(exc))

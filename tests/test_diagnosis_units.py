@@ -4,9 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from notchfit.diagnosis import (CANDIDATES, CAUSES, _effective_n, _loop_area, _release_tension,
-                                folds_by_experiment, loading_stalls, measured_regimes, paired_z,
-                                rank_candidates)
+from notchfit.diagnosis import (CANDIDATES, CAUSES, folds_by_experiment, loading_stalls,
+                                measured_regimes, paired_z, rank_candidates)
+from notchfit.diagnosis.noise import _effective_n
+from notchfit.diagnosis.signatures import _loop_area, _release_tension
 
 
 def test_causes_match_data_format_table():

@@ -9,10 +9,12 @@ import time
 from pathlib import Path
 
 from .. import io
+from ..diagnosis import diagnose_study
 from ..report import build_report, summary_lines
 from ..synth import generate_study, load_recipe
 from . import detect, fit, simulate
 from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call
+from .diagnose import write_diagnosis
 
 NAME = "demo"
 ORDER = 0
@@ -118,11 +120,8 @@ def run(args) -> int:
 
 
 def diagnose(study_dir: Path, out_dir: Path, *, jobs: int = 1, seed: int = 0) -> dict:
-    """The diagnose step: ``notchfit.diagnosis.diagnose_study`` on the study's experiments."""
-    from .. import io
-    from ..diagnosis import diagnose_study
-
+    """The diagnose step: the study's experiments diagnosed, the results written into ``out_dir``."""
     exps, problems = io.attach_detections(io.read_study(study_dir), out_dir)
     for name, why in problems.items():
         print(f"  diagnose: leaving out {name}: {why}")
-    return diagnose_study(exps, out_dir=Path(out_dir), jobs=jobs, seed=seed)
+    return write_diagnosis(diagnose_study(exps, jobs=jobs, seed=seed), out_dir)

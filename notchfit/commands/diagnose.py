@@ -5,6 +5,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .. import io
+from ..diagnosis import CAUSES, Diagnosis, diagnose_study
+from ..figures.diagnosis import write_diagnosis_figures
+from ..friction import save_params
+from ._common import InputError, add_batch_options, add_points_option
+
 NAME = "diagnose"
 ORDER = 60
 HELP = "name the physical cause of the friction model's discrepancies and measure the gain"
@@ -17,58 +23,83 @@ reports discrepancy signatures, fits every candidate extension
 stiffness_gradient, calibration_error), names the cause (or "none" /
 "unexplained"), saves the extended model and the held-out gain.
 
-Writes into --out: diagnosis.json (data-format.md), extended_model.toml
+Writes into --out: diagnosis.json (docs/data-formats.md), extended_model.toml
 (read by `notchfit simulate --model`), diagnosis_*.png and their data.
 
-Notch points come from each experiment's notch_points.csv, or from the
-detections.csv files of a `notchfit detect` run given with --detections.
+Notch points come from each experiment's notch_points.csv, or, for an
+experiment without one, from the detections.csv of a `notchfit detect` run
+(--points DIR, default: the --out folder; --detections is the old name).
+The (model x fold) calibrations run in parallel (--jobs, or a Dask cluster
+with --scheduler); --seed seeds the noise floor's Monte Carlo draws.
 
 Examples:
   notchfit diagnose study/ --out results/
-  notchfit diagnose study/ --out results/ --jobs 2 --detections detections/
+  notchfit diagnose study/ --out results/ --jobs 2 --points detections/
   notchfit diagnose study/ --out results/ --causes proximal_friction,static_friction
+  notchfit diagnose study/ --out results/ --scheduler tcp://10.0.0.5:8786
 """
+
+#: The files every run writes (the figures besides, unless --no-figures).
+OUTPUTS = ("diagnosis.json", "extended_model.toml")
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("study", help="a study folder (or one experiment folder)")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--force", action="store_true", help="replace existing diagnosis outputs")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
-    parser.add_argument("--detections", help="folder of a `notchfit detect` run to take points from")
+    add_points_option(parser, "--detections",
+                      help="folder with detect's detections.csv (default: --out) for experiments "
+                           "without notch_points.csv (--detections: the old name)")
     parser.add_argument("--causes", help="comma-separated candidate causes to try (default: all)")
     parser.add_argument("--max-folds", type=int, default=6,
                         help="leave-one-experiment-out up to this many experiments, else k-fold")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the noise floor's draws (default 0)")
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    add_batch_options(parser)
+
+
+def write_diagnosis(diag: Diagnosis, out_dir, *, figures: bool = True) -> dict:
+    """Write ``diagnosis.json``, ``extended_model.toml`` and (``figures``) ``diagnosis_*.png`` into ``out_dir``.
+
+    Returns
+    -------
+    dict
+        The content of ``diagnosis.json``.
+    """
+    out = Path(out_dir)
+    params, meta = diag.extension_model()
+    model_path = save_params(params, out / "extended_model.toml", **meta)
+    names = None
+    if figures:
+        names = [Path(p).name for p in write_diagnosis_figures(diag, out)]
+    data = diag.to_dict(extended_model_file=Path(model_path).name, figures=names)
+    io.write_json_atomic(data, out / "diagnosis.json")
+    return data
+
+
+def _experiments(args) -> list:
+    """The study's experiments, each with notch points (its own, or detect's)."""
+    exps = io.read_study(args.study, missing_images="keep")
+    exps, problems = io.attach_detections(exps, args.points if args.points is not None else args.out,
+                                          require=False)
+    if problems:
+        raise InputError("no notch points for " + "; ".join(f"{k}: {v}" for k, v in problems.items()))
+    return exps
 
 
 def run(args) -> int:
-    from ._common import InputError
-    from ..diagnosis import CAUSES, diagnose_study
-    from ..io import OutputRun, find_output, load_detected_points, read_study
-
-    exps = read_study(args.study, missing_images="keep")
-    if args.detections:
-        found = find_output(args.detections, "detections.csv")
-        if not found:
-            raise InputError(f"{args.detections}: no detections.csv found")
-        exps = [load_detected_points(e, found.get(e.name) or found.get("")) if
-                (e.name in found or "" in found) else e for e in exps]
-    missing = [e.name for e in exps if e.points is None]
-    if missing:
-        raise InputError(f"no notch points for {', '.join(missing)}: add notch_points.csv or "
-                         "give --detections from `notchfit detect`")
     causes = tuple(c.strip() for c in args.causes.split(",")) if args.causes else CAUSES
     bad = [c for c in causes if c not in CAUSES]
     if bad:
         raise InputError(f"unknown cause(s) {', '.join(bad)}; known: {', '.join(CAUSES)}")
-    if args.jobs < 1:
-        raise InputError("--jobs must be at least 1")
-    outputs = ["diagnosis.json", "extended_model.toml"]
-    with OutputRun(args.out, outputs=outputs, force=args.force, name="diagnose") as run_:
-        data = diagnose_study(exps, out_dir=run_.stage, jobs=args.jobs, causes=causes,
-                              max_folds=args.max_folds, figures=not args.no_figures,
+    if args.jobs < 0:
+        raise InputError("--jobs must be at least 0 (0: one per CPU)")
+    exps = _experiments(args)
+    with io.OutputRun(args.out, outputs=list(OUTPUTS), force=args.force, name="diagnose") as run_:
+        diag = diagnose_study(exps, jobs=args.jobs, scheduler=args.scheduler, seed=args.seed,
+                              causes=causes, max_folds=args.max_folds,
                               progress=lambda m: print(f"diagnose: {m}", file=sys.stderr))
+        data = write_diagnosis(diag, run_.stage, figures=not args.no_figures)
     g = data["gain"]
     print(f"cause: {data['cause']}")
     print(f"held-out rms: baseline {g['baseline']:.3f} mm, extended {g['extended']:.3f} mm "

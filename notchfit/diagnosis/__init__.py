@@ -1,0 +1,83 @@
+"""Diagnosis: what the friction simulation gets wrong, the cause, the extension, the gain.
+
+Given measured experiments (tensions and notch points), :func:`diagnose`
+answers four questions about the paper's friction model (Sec. IV-B):
+
+1. **What does the simulation get wrong?** The baseline (the friction
+   simulator with ``k_lin``, ``k_mid`` and ``μ_d`` calibrated, docs/models.md)
+   is fitted on training experiments and compared with held-out ones
+   (cross-validation by experiment). Discrepancy *signatures* are measured
+   (:mod:`~notchfit.diagnosis.signatures`).
+2. **What is the cause?** Every candidate cause is a physical extension of
+   the simulator (:data:`CANDIDATES`); each is fitted together with the
+   baseline parameters on the training folds and scored on the held-out
+   ones. The significance rule treats the residuals of one experiment as
+   serially correlated and measures improvement against the noise floor
+   (:mod:`~notchfit.diagnosis.noise`); the decision rule is in
+   :mod:`~notchfit.diagnosis.decision`.
+3. **Extend the model**: the chosen candidate refitted on all experiments,
+   with standard errors (:meth:`Diagnosis.extension_model`), which the
+   ``diagnose`` command saves as a parameter TOML that
+   ``notchfit simulate --model FILE`` reads.
+4. **Measure the gain**: held-out notch-point rms of baseline and extension,
+   overall and per regime.
+
+The analysis returns a :class:`Diagnosis` and writes nothing; it never reads
+a study's ``truth.json``. Modules:
+
+=================  ==========================================================
+``specs``          candidate causes and their fitted parameters
+``prepare``        measured experiments registered and summarised once
+``calibration``    predicted notch points, model calibration
+``noise``          noise floor, paired significance, pooled rms
+``crossval``       folds and the (model × fold) fan-out (processes or Dask)
+``signatures``     what the held-out baseline gets wrong
+``decision``       ranking, decision rule, explanation
+``results``        typed results; ``Diagnosis.to_dict()`` is diagnosis.json
+``study``          :func:`diagnose`, the whole analysis
+=================  ==========================================================
+"""
+
+from .calibration import Calibration, SimulationCache, calibrate, predict_points, reregister
+from .crossval import HeldOut, folds_by_experiment, run_folds
+from .decision import rank_candidates
+from .noise import noise_floor, paired_z, pooled_rms
+from .prepare import Prepared, measured_regimes, prepare_experiment
+from .results import CandidateResult, Diagnosis, Gain, Signature
+from .signatures import loading_stalls
+from .specs import (BASELINE, BASELINE_MU_EXCESS, CANDIDATES, CAUSES, REGISTRATION_BOUNDS,
+                    WARP_CENTER_RANGE, WARP_RADIUS, ParamSpec)
+from .study import diagnose, diagnose_study
+
+__all__ = [
+    "BASELINE",
+    "BASELINE_MU_EXCESS",
+    "CANDIDATES",
+    "CAUSES",
+    "REGISTRATION_BOUNDS",
+    "WARP_CENTER_RANGE",
+    "WARP_RADIUS",
+    "Calibration",
+    "CandidateResult",
+    "Diagnosis",
+    "Gain",
+    "HeldOut",
+    "ParamSpec",
+    "Prepared",
+    "Signature",
+    "SimulationCache",
+    "calibrate",
+    "diagnose",
+    "diagnose_study",
+    "folds_by_experiment",
+    "loading_stalls",
+    "measured_regimes",
+    "noise_floor",
+    "paired_z",
+    "pooled_rms",
+    "predict_points",
+    "prepare_experiment",
+    "rank_candidates",
+    "reregister",
+    "run_folds",
+]

@@ -1,0 +1,195 @@
+"""Ranking the candidates, the decision rule, and the explanation in words.
+
+Decision rule (the thresholds are keyword arguments of
+:func:`notchfit.diagnosis.diagnose`):
+
+* ``none`` when the baseline's held-out mean squared point error is within
+  ``(1 + none_tol)`` of the noise floor;
+* otherwise the best candidate by held-out error if it improves on the
+  baseline with ``z >= z_crit`` and removes at least ``min_excess_removed``
+  of the baseline's excess over the noise floor;
+* otherwise ``unexplained``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..units import MM
+from .crossval import HeldOut
+from .noise import paired_z
+from .results import CandidateResult, Signature
+from .specs import CANDIDATES, specs_for
+
+__all__ = ["decide", "explain", "rank_candidates", "score_candidate"]
+
+
+def _signature_values(sigs) -> dict:
+    """``{name: value}`` of Signature objects or of their dictionaries."""
+    return {(s.name if isinstance(s, Signature) else s["signature"]):
+            (s.value if isinstance(s, Signature) else s["value"]) for s in sigs}
+
+
+def rank_candidates(sigs, noise_rms: float) -> list[tuple[str, float, str]]:
+    """Order the candidate causes by how well the signatures point to each.
+
+    A heuristic score per cause from the signatures (the weights below); it
+    orders the search and the explanation, the held-out test decides.
+
+    Parameters
+    ----------
+    sigs : sequence of Signature (or of their dictionaries)
+    noise_rms : float
+        Root of the noise floor [m].
+
+    Returns
+    -------
+    list of (cause, score, reason)
+        Highest score first.
+    """
+    s = _signature_values(sigs)
+    hold = s.get("unloading_hold", 0.0)
+    loop = s.get("loop_area_ratio", 1.0)
+    spat = s.get("spatial_pattern", 1.0)
+    asym = abs(s.get("direction_asymmetry", 0.0))
+    bend = s.get("residual_bend", 0.0)
+    bl = s.get("b_loading_error", 0.0)
+    stalls = s.get("loading_stalls", 0.0)
+    out = [
+        ("calibration_error", 3.0 * max(spat - 1.2, 0.0),
+         "free-θ fits leave a spatial residual pattern"),
+        ("external_load", 400.0 * asym, "the error does not mirror between pull directions"),
+        ("joint_hysteresis", 50.0 * max(bend, 0.0) + 0.2 * max(hold, 0.0),
+         "a bend remains after unloading"),
+        ("proximal_friction", 0.5 * max(hold, 0.0) + 0.5 * max(loop - 1.0, 0.0),
+         "the shape holds longer while unloading and the loop is wider"),
+        ("static_friction", 0.4 * max(hold, 0.0) + 0.5 * max(loop - 1.0, 0.0) + 20.0 * stalls,
+         "the shape stalls on some loading steps: the cables stick longer than μ_s ≈ μ_d allows"),
+        ("stiffness_gradient", 200.0 * abs(bl), "the shape differs along the backbone while loading"),
+    ]
+    return sorted(out, key=lambda t: -t[1])
+
+
+def score_candidate(cause: str, held: HeldOut, preps, base_mse, base_ms: float, excess: float, *,
+                    z_crit: float = 3.0, min_excess_removed: float = 0.3) -> CandidateResult:
+    """Held-out score of one candidate against the baseline.
+
+    Parameters
+    ----------
+    cause : str
+    held : HeldOut
+        The candidate's held-out predictions.
+    preps : sequence of Prepared
+    base_mse : list of ndarray, shape (S_i,) [m²]
+        The baseline's per-sample held-out mean squared point errors.
+    base_ms : float
+        Their mean [m²].
+    excess : float
+        The baseline's excess over the noise floor [m²].
+    z_crit, min_excess_removed : float
+        The significance thresholds (module docstring).
+
+    Returns
+    -------
+    CandidateResult
+    """
+    mse = held.sample_mse(preps)
+    ms = float(np.nanmean(np.concatenate(mse)))
+    z = paired_z(base_mse, mse)
+    removed = (base_ms - ms) / excess if excess > 0 else 0.0
+    cals = held.calibrations
+    vals = {k: float(np.mean([c.values[k] for c in cals])) for k in cals[0].values}
+    n_par = len(specs_for(cause))
+    n_res = sum(c.n_residuals for c in cals)
+    cost = sum(c.cost for c in cals)
+    aic = n_res * math.log(max(2 * cost / max(n_res, 1), 1e-300)) + 2 * n_par
+    names = [s.name for s in CANDIDATES[cause]]
+    return CandidateResult(cause=cause, params={k: vals[k] for k in names}, n_params=len(names),
+                           train_rms=float(np.mean([c.train_rms for c in cals])),
+                           heldout_rms=math.sqrt(ms), aic=aic, z=z, excess_removed=removed,
+                           significant=bool(z >= z_crit and removed >= min_excess_removed))
+
+
+def decide(within_noise: bool, cands) -> str:
+    """``none`` within the noise, else the best candidate if significant, else ``unexplained``."""
+    best = min(cands, key=lambda c: c.heldout_rms) if cands else None
+    if within_noise:
+        return "none"
+    if best is not None and best.significant:
+        return best.cause
+    return "unexplained"
+
+
+_PHYSICS = {
+    "proximal_friction": "Physically: friction between the load cell and the manipulator base (sheath, "
+                         "pulleys) means the tension reaching the base lags the measured one: a capstan "
+                         "band that sticks until the measured tension has changed by a factor e^β.",
+    "static_friction": "Physically: the cables stick in their channels longer than μ_s ≈ μ_d allows; a "
+                       "larger static coefficient holds the shape while the tension falls.",
+    "joint_hysteresis": "Physically: the superelastic Nitinol flexures are hysteretic; each joint holds "
+                        "its angle until the torque on it changes by the play width.",
+    "external_load": "Physically: a steady force acts on the end effector (payload, gravity, contact); it "
+                     "bends both pull directions the same way, breaking the model's mirror symmetry.",
+    "stiffness_gradient": "Physically: the joint stiffness varies along the backbone (slot dimensions or "
+                          "material), changing the shape's base-to-tip distribution even without friction.",
+    "calibration_error": "Physically: the image-to-plane mapping is wrong (scale or lens distortion); a "
+                         "warp correction fitted across all samples removes a residual pattern that no "
+                         "joint configuration can.",
+}
+
+
+def _stall_hint(sigs, stall_hint: float) -> str:
+    """For ``unexplained``: static friction named as the likely cause when the shape stalls."""
+    stalls = next((s.value for s in sigs if s.name == "loading_stalls"), 0.0)
+    if stalls < stall_hint:
+        return ""
+    return (f" The measured shape stalls on {100 * stalls:.0f}% of the upper loading steps, the "
+            "mark of static friction well above the sliding friction: when the load-cell noise is "
+            "comparable to the break-away excess, that noise decides which steps break a cable "
+            "away, and no deterministic model predicts these shapes much better from the measured "
+            "tensions (docs/diagnosis.md, 'What it cannot find').")
+
+
+def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_tol: float,
+            z_crit: float, min_removed: float, stall_hint: float = 0.05) -> str:
+    """The diagnosis in words: the baseline against the noise, the signatures, the verdict and its physics.
+
+    Parameters
+    ----------
+    cause : str
+        The verdict (:func:`decide`).
+    sigs : sequence of Signature
+    cands : sequence of CandidateResult
+    base_rms, noise_rms : float
+        The baseline's held-out rms and the root of the noise floor [m].
+    none_tol, z_crit, min_removed : float
+        The thresholds of the decision rule (module docstring).
+    stall_hint : float
+        For ``unexplained``: the fraction of stalled loading steps above which
+        static friction is named as the likely cause.
+    """
+    lead = (f"The calibrated baseline (the paper's friction model with k_lin, k_mid and μ_d fitted) "
+            f"predicts held-out notch points with {base_rms / MM:.3f} mm rms against a noise floor "
+            f"of {noise_rms / MM:.3f} mm.")
+    top = [f"{c} ({why})" for c, sc, why in rank_candidates(sigs, noise_rms) if sc > 0][:3]
+    hint = (" The discrepancy signatures point first to " + "; then ".join(top) + ".") if top else ""
+    ranked = sorted(cands, key=lambda c: c.heldout_rms)
+    table = "; ".join(f"{c.cause} {c.heldout_rms / MM:.3f} mm (z = {c.z:.1f})" for c in ranked[:4])
+    if cause == "none":
+        return (lead + f" That is within {math.sqrt(1 + none_tol):.2f}× the noise: the baseline explains "
+                "the data within the measurement uncertainty, so no extension is justified." + hint
+                + (f" Held-out rms of the candidates: {table}." if table else ""))
+    if cause == "unexplained":
+        return (lead + " The excess over noise is significant, but no candidate extension removes "
+                f"at least {100 * min_removed:.0f}% of it with z ≥ {z_crit:g} on held-out experiments."
+                + hint + _stall_hint(sigs, stall_hint) + f" Held-out rms of the candidates: {table}.")
+    c = next(r for r in cands if r.cause == cause)
+    second = next((r for r in ranked if r.cause != cause), None)
+    sec = (f" The next best, {second.cause}, reached {second.heldout_rms / MM:.3f} mm." if second else "")
+    return (lead + hint + f" Fitting each candidate with the baseline parameters on the training "
+            f"experiments, {cause} lowers the held-out rms to {c.heldout_rms / MM:.3f} mm "
+            f"(z = {c.z:.1f} for the per-sample improvement with serial correlation accounted for, "
+            f"{100 * c.excess_removed:.0f}% of the excess over noise removed)." + sec
+            + " " + _PHYSICS[cause])
