@@ -329,7 +329,7 @@ def stepwise_regimes(tension_left, tension_right, shape, *, tension_tol: float =
     shape followed it, so a history with several loading/unloading cycles gets
     several runs of I–III. It labels simulated histories
     (:attr:`SimulationResult.regime`). The diagnosis labels measured tests with
-    :func:`notchfit.diagnosis.measured_regimes` instead: one loading up to the
+    :func:`notchfit.diagnosis.peak_regimes` instead: one loading up to the
     pulled tension's peak, then II until the tip angle has lost a fraction of its
     drop, then III — robust to measurement noise on the shape, but one cycle only.
 

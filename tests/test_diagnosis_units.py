@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from notchfit.diagnosis import (CANDIDATES, CAUSES, folds_by_experiment, loading_stalls,
-                                measured_regimes, paired_z, rank_candidates)
+                                paired_z, rank_candidates)
+from notchfit.diagnosis import peak_regimes as measured_regimes
 from notchfit.diagnosis.noise import _effective_n
 from notchfit.diagnosis.signatures import _loop_area, _release_tension
 

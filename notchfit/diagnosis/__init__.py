@@ -42,7 +42,7 @@ from .calibration import Calibration, SimulationCache, calibrate, predict_points
 from .crossval import HeldOut, folds_by_experiment, run_folds
 from .decision import rank_candidates
 from .noise import noise_floor, paired_z, pooled_rms
-from .prepare import Prepared, measured_regimes, prepare_experiment
+from .prepare import Prepared, peak_regimes, prepare_experiment
 from .results import CandidateResult, Diagnosis, Gain, Signature
 from .signatures import loading_stalls
 from .specs import (BASELINE, BASELINE_MU_EXCESS, CANDIDATES, CAUSES, REGISTRATION_BOUNDS,
@@ -71,7 +71,7 @@ __all__ = [
     "diagnose_study",
     "folds_by_experiment",
     "loading_stalls",
-    "measured_regimes",
+    "peak_regimes",
     "noise_floor",
     "paired_z",
     "pooled_rms",

@@ -16,7 +16,7 @@ from ..cables import RIGHT, pulled_side
 from ..fitting import fit_experiment
 from ..notches import notch_points
 
-__all__ = ["Prepared", "measured_regimes", "prepare_experiment"]
+__all__ = ["Prepared", "peak_regimes", "prepare_experiment"]
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ class Prepared:
         +1 when the right cable is the ramped one (bends toward +θ), -1 left
         (:func:`notchfit.cables.pulled_side`).
     regime : ndarray of str, shape (S,)
-        I / II / III from the measured data (:func:`measured_regimes`).
+        I / II / III from the measured data (:func:`peak_regimes`).
     counter_tension : float
         Median tension of the cable that is not ramped [N].
     tension_sigma : float
@@ -82,7 +82,7 @@ class Prepared:
         return self.pulled * self.theta_free.sum(axis=1)
 
 
-def measured_regimes(pulled_tension, tip_angle, *, hold_fraction: float = 0.2) -> np.ndarray:
+def peak_regimes(pulled_tension, tip_angle, *, hold_fraction: float = 0.2) -> np.ndarray:
     """Regime of each sample of one bend/unbend test from its peak (Sec. IV intro, Fig. 11).
 
     I (loading) up to the peak of the pulled tension; after it II (holding)
@@ -91,8 +91,8 @@ def measured_regimes(pulled_tension, tip_angle, *, hold_fraction: float = 0.2) -
 
     This labels a whole measured test at once from two landmarks (the
     tension peak and the lowest later tip angle), which is robust to the
-    noise of measured tensions and shapes. It differs from
-    :func:`notchfit.friction.classify_regimes`, which labels any history
+    noise of measured tensions and shapes; the diagnosis uses it on measured
+    data. It differs from :func:`notchfit.friction.stepwise_regimes`, which labels any history
     (simulated or measured) step by step from the change of the load and of
     the shape against the loading compliance, with its own tolerances; the
     two can disagree on single samples near the I/II and II/III boundaries.
@@ -158,7 +158,7 @@ def prepare_experiment(exp, *, sigma_default: float = 2e-5) -> Prepared:
     counter = float(np.median(tl if pulled == RIGHT else tr))
     a, b, _, _ = fit.ab("linear")
     tip = pulled * np.nansum(theta, axis=1)
-    regime = measured_regimes(tr if pulled == RIGHT else tl, tip)
+    regime = peak_regimes(tr if pulled == RIGHT else tl, tip)
     return Prepared(name=exp.name, geom=geom, time=exp.time, tension_left=tl, tension_right=tr,
                     measured=Q, valid=valid, transform=fit.transform, sigma=float(sig),
                     theta_free=theta, free_residuals=resid, a=a, b=b, pulled=pulled,
