@@ -56,7 +56,8 @@ from threadpoolctl import threadpool_limits
 
 from .batch import single_threaded_worker
 from .fitting import fit_experiment
-from .friction import FrictionParams, save_params, simulate
+from .friction import FrictionParams, simulate
+from .io import save_params
 from .notches import notch_points, to_plane
 from .warp import apply_point_warp, unwarp_points
 

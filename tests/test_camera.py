@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from notchfit.camera import (CameraModel, BoardDetection, calibrate_camera, detect_board, estimate_plane_pose,
-                             load_board, read_camera, write_camera)
+from notchfit.camera import CameraModel, BoardDetection, calibrate_camera, detect_board, estimate_plane_pose
+from notchfit.io import load_board, read_camera, write_camera
 from notchfit.render import render_board
 
 K_TRUE = np.array([[800.0, 0, 322.0], [0, 805.0, 236.0], [0, 0, 1]])

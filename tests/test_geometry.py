@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from notchfit.geometry import Geometry, load_geometry, notch_layout
+from notchfit.geometry import Geometry, notch_layout
+from notchfit.io import load_geometry
 
 
 def test_default_toml_matches_geometry_md(geom):

@@ -304,7 +304,7 @@ def test_output_run_whole_dirs_leaves_no_stale_files(tmp_path):
 
 
 def test_camera_io_is_re_exported():
-    from notchfit import camera
+    from notchfit.io import camera
 
     assert io.read_camera is camera.read_camera and io.write_camera is camera.write_camera
     with pytest.raises(AttributeError):

@@ -39,9 +39,9 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from ..batch import load_image
-    from ..camera import calibrate_camera, estimate_plane_pose, load_board, write_camera
+    from ..camera import calibrate_camera, estimate_plane_pose
     from ..cli import InputError
+    from ..io import load_board, load_image, write_camera
 
     if args.out.exists() and not args.force:
         raise InputError(f"{args.out} exists; use --force to replace it")

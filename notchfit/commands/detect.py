@@ -38,7 +38,7 @@ def add_arguments(parser) -> None:
 
 @functools.lru_cache(maxsize=8)
 def _camera(path: str):
-    from ..camera import read_camera
+    from ..io import read_camera
 
     return read_camera(path)
 
@@ -47,8 +47,8 @@ def detect_one(item: dict) -> dict:
     """Detect the corners of one sample image (a batch item; module level so that it pickles)."""
     import cv2
 
-    from ..batch import load_image
     from ..detection import detect_notches, detections_table, draw_overlay
+    from ..io import load_image
 
     img = load_image(item["image"])
     cam = _camera(str(item["calibration"]))

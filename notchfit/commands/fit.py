@@ -76,9 +76,8 @@ def _overlay_image(result, exp) -> dict:
     """Fig. 12 on the sample's own image (as in the paper) when the experiment has images and a camera."""
     if not exp.has_images or exp.calibration_path is None:
         return {}
-    from ..batch import load_image
     from ..figures.fitting import loading_unloading_groups
-    from ..io import read_camera
+    from ..io import load_image, read_camera
 
     try:
         load = loading_unloading_groups(result)["loading"]

@@ -49,7 +49,8 @@ def parse_params(model_file, overrides):
     """FrictionParams from a model file and ``NAME=VALUE`` overrides (raises ValueError on a bad one)."""
     import dataclasses
 
-    from ..friction import FrictionParams, load_params
+    from ..friction import FrictionParams
+    from ..io import load_params
 
     params = load_params(model_file) if model_file is not None else FrictionParams()
     fields = {f.name for f in dataclasses.fields(FrictionParams)}
