@@ -31,7 +31,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .imaging import to_gray8
 from .units import MM
+from .validation import readonly
 
 __all__ = [
     "Board",
@@ -144,16 +146,6 @@ def _cv_charuco(sx, sy, square_mm, marker_mm, dictionary, legacy):
 
 
 # ----------------------------------------------------------------------------- camera model
-def _ro(a, shape=None):
-    if a is None:
-        return None
-    a = np.array(a, dtype=float)
-    if shape is not None:
-        a = a.reshape(shape)
-    a.flags.writeable = False
-    return a
-
-
 @dataclass(frozen=True, eq=False)
 class CameraModel:
     """A calibrated camera and (optionally) the pose of the bending plane.
@@ -205,17 +197,17 @@ class CameraModel:
             raise ValueError(f"image size must be positive, got {self.image_size}")
         if (self.plane_rvec is None) != (self.plane_tvec is None):
             raise ValueError("plane_rvec and plane_tvec must be given together")
-        object.__setattr__(self, "camera_matrix", _ro(K))
-        object.__setattr__(self, "dist_coeffs", _ro(d))
+        object.__setattr__(self, "camera_matrix", readonly(K))
+        object.__setattr__(self, "dist_coeffs", readonly(d))
         object.__setattr__(self, "image_size", (w, h))
         if self.plane_rvec is not None:
             rv, tv = np.asarray(self.plane_rvec, float).ravel(), np.asarray(self.plane_tvec, float).ravel()
             if rv.size != 3 or tv.size != 3 or not (np.isfinite(rv).all() and np.isfinite(tv).all()):
                 raise ValueError("plane_rvec and plane_tvec must hold 3 finite numbers each")
-            object.__setattr__(self, "plane_rvec", _ro(rv))
-            object.__setattr__(self, "plane_tvec", _ro(tv))
+            object.__setattr__(self, "plane_rvec", readonly(rv))
+            object.__setattr__(self, "plane_tvec", readonly(tv))
         for f in ("std_intrinsics", "per_view_errors"):
-            object.__setattr__(self, f, _ro(getattr(self, f)))
+            object.__setattr__(self, f, readonly(getattr(self, f)))
 
     # -- construction -----------------------------------------------------------------
     @classmethod
@@ -258,14 +250,6 @@ class CameraModel:
     @property
     def has_plane(self) -> bool:
         return self.plane_rvec is not None
-
-    @property
-    def focal(self) -> tuple[float, float]:
-        return float(self.camera_matrix[0, 0]), float(self.camera_matrix[1, 1])
-
-    @property
-    def principal_point(self) -> tuple[float, float]:
-        return float(self.camera_matrix[0, 2]), float(self.camera_matrix[1, 2])
 
     def _need_plane(self):
         if not self.has_plane:
@@ -445,19 +429,6 @@ class BoardDetection:
         return len(self.ids)
 
 
-def _gray8(image) -> np.ndarray:
-    img = np.asarray(image)
-    if img.ndim == 3:
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if img.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
-    if img.ndim != 2:
-        raise ValueError(f"expected a 2-D gray or a colour image, got shape {np.shape(image)}")
-    if img.dtype != np.uint8:
-        f = img.astype(float)
-        lo, hi = np.nanmin(f), np.nanmax(f)
-        img = np.clip((f - lo) / max(hi - lo, 1e-12) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-    return img
-
-
 def detect_board(image, board: Board, *, subpix_window: int = 5, subpix_iterations: int = 50,
                  subpix_eps: float = 1e-4) -> BoardDetection:
     """Find a board's inner corners in an image.
@@ -470,7 +441,7 @@ def detect_board(image, board: Board, *, subpix_window: int = 5, subpix_iteratio
     BoardDetection
         Possibly empty (``n == 0``) when the board is not found.
     """
-    gray = _gray8(image)
+    gray = to_gray8(image)
     empty = BoardDetection(np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0, dtype=int))
     if board.kind == "charuco":
         cvb = board.cv_board()
@@ -587,26 +558,10 @@ def calibrate_camera(images, board: Board, *, names=None, image_size=None, detec
     if len(names) != n:
         raise ValueError(f"{len(names)} names for {n} views")
     if image_size is None:
-        if not images:
-            raise ValueError("image_size is needed when no images are given")
-        h, w = np.asarray(images[0]).shape[:2]
-        image_size = (w, h)
-        for nm, im in zip(names, images):
-            if tuple(np.asarray(im).shape[:2]) != (h, w):
-                raise ValueError(f"{nm}: image size {np.asarray(im).shape[1]}x{np.asarray(im).shape[0]} "
-                                 f"differs from the first image's {w}x{h}")
+        image_size = _common_image_size(images, names)
     if min_corners is None:
         min_corners = max(6, board.n_corners // 4)
-    reason = {}
-    for nm, det in zip(names, detections):
-        if det.n == 0:
-            reason[nm] = "board not found"
-        elif det.n < min_corners:
-            reason[nm] = f"too few corners ({det.n} < {min_corners})"
-        elif board.kind == "charuco" and board.cv_board().checkCharucoCornersCollinear(
-                det.ids.reshape(-1, 1).astype(np.int32)):
-            reason[nm] = "corners are collinear"
-    flags = _DIST_FLAGS[dist_model]
+    reason = _unusable_views(board, names, detections, min_corners)
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, int(max_iter), float(eps))
     result = None
     rounds = 0
@@ -619,7 +574,7 @@ def calibrate_camera(images, board: Board, *, names=None, image_size=None, detec
         img = [detections[i].image_points.astype(np.float32).reshape(-1, 1, 2) for i in use]
         rounds += 1
         out = cv2.calibrateCameraExtended(obj, img, tuple(int(x) for x in image_size), None, None,
-                                          flags=flags, criteria=crit)
+                                          flags=_DIST_FLAGS[dist_model], criteria=crit)
         rms, K, dist, rvecs, tvecs, std_in, _std_ex, per_view = out
         per_view = np.asarray(per_view, float).ravel()
         result = (rms, K, dist, std_in, per_view, use)
@@ -632,6 +587,36 @@ def calibrate_camera(images, board: Board, *, names=None, image_size=None, detec
                                          f"max({max_view_rms:g} px, {rel_view_rms:g} x median {med:.3f} px))")
             continue
         break
+    return _calibration_result(result, names, detections, reason, image_size, rounds)
+
+
+def _common_image_size(images, names) -> tuple[int, int]:
+    """(width, height) of the first image; every other image must have it."""
+    if not images:
+        raise ValueError("image_size is needed when no images are given")
+    h, w = np.asarray(images[0]).shape[:2]
+    for nm, im in zip(names, images):
+        if tuple(np.asarray(im).shape[:2]) != (h, w):
+            raise ValueError(f"{nm}: image size {np.asarray(im).shape[1]}x{np.asarray(im).shape[0]} "
+                             f"differs from the first image's {w}x{h}")
+    return (w, h)
+
+
+def _unusable_views(board: Board, names, detections, min_corners: int) -> dict:
+    """``{view name: reason}`` for views rejected before calibrating (too few or collinear corners)."""
+    reason = {}
+    for nm, det in zip(names, detections):
+        if det.n == 0:
+            reason[nm] = "board not found"
+        elif det.n < min_corners:
+            reason[nm] = f"too few corners ({det.n} < {min_corners})"
+        elif board.kind == "charuco" and board.cv_board().checkCharucoCornersCollinear(
+                det.ids.reshape(-1, 1).astype(np.int32)):
+            reason[nm] = "corners are collinear"
+    return reason
+
+
+def _calibration_result(result, names, detections, reason, image_size, rounds) -> Calibration:
     rms, K, dist, std_in, per_view, use = result
     nd = len(np.ravel(dist))
     std = np.asarray(std_in, float).ravel()[: 4 + nd]
