@@ -10,7 +10,17 @@ diagnosis, report); the command-line pipeline is assembled in
 :mod:`notchfit.cli` and :mod:`notchfit.commands`.
 """
 
-from .geometry import Geometry, default_geometry, load_geometry
+from ._version import __version__
+from .geometry import Geometry, default_geometry
 
-__version__ = "0.1.0"
 __all__ = ["Geometry", "default_geometry", "load_geometry", "__version__"]
+
+
+def __getattr__(name):
+    """``notchfit.load_geometry``: :func:`notchfit.io.load_geometry`, resolved on first use."""
+    if name == "load_geometry":
+        # notchfit.io imports pandas and OpenCV; `import notchfit` stays light without them
+        from .io import load_geometry
+
+        return load_geometry
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,7 +10,7 @@ A tqdm progress bar is shown on a terminal (disabled when stderr is not a
 TTY).
 
 ``func`` must be picklable (a module-level function) for ``jobs>1`` and for
-Dask. Image batches load their images with :func:`load_image`, which turns a
+Dask. Image batches load their images with :func:`notchfit.io.load_image`, which turns a
 missing or unreadable file into an exception with the reason.
 
 Example (the image helper's ``detect`` calls it the same way)::
@@ -30,14 +30,12 @@ import threading
 import time
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Callable, Sequence
 
-import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
-__all__ = ["BatchResult", "ItemResult", "image_info", "load_image", "run_batch", "single_threaded_worker"]
+__all__ = ["BatchResult", "ItemResult", "run_batch", "single_threaded_worker"]
 
 
 def single_threaded_worker(threads: int = 1) -> None:
@@ -280,35 +278,3 @@ def _run_dask(func, items, scheduler, desc, progress):
             client.close()
 
 
-# ----------------------------------------------------------------------------- images
-def load_image(path, flags=None) -> np.ndarray:
-    """Read an image, raising with the reason when it cannot be used.
-
-    Raises
-    ------
-    FileNotFoundError
-        ``image missing: <path>``.
-    ValueError
-        ``corrupt or unreadable image: <path>`` (OpenCV cannot decode it) or
-        an empty image.
-    """
-    import cv2
-
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"image missing: {path}")
-    data = np.fromfile(path, dtype=np.uint8)
-    if data.size == 0:
-        raise ValueError(f"corrupt or unreadable image (empty file): {path}")
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED if flags is None else flags)
-    if img is None or img.size == 0:
-        raise ValueError(f"corrupt or unreadable image (OpenCV cannot decode it): {path}")
-    return img
-
-
-def image_info(path) -> dict:
-    """Shape, dtype and intensity range of an image (a cheap check of a batch of images)."""
-    img = load_image(path)
-    return {"path": str(path), "height": int(img.shape[0]), "width": int(img.shape[1]),
-            "channels": int(img.shape[2]) if img.ndim == 3 else 1, "dtype": str(img.dtype),
-            "min": float(img.min()), "max": float(img.max())}

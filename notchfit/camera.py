@@ -1,4 +1,4 @@
-"""Camera calibration and the metric bending plane (``data-format.md``).
+"""Camera calibration and the metric bending plane (docs/data-formats.md).
 
 A :class:`CameraModel` holds the pinhole intrinsics and lens distortion of a
 camera (OpenCV model and order ``k1 k2 p1 p2 k3 ...``) and, optionally, the
@@ -7,9 +7,10 @@ with ``X_plane = (x, y, 0)``. The plane frame is the frame of a calibration
 board lying in the manipulator's bending plane (board x along its columns,
 y along its rows, origin at the board's top-left outer corner, z into the
 board). Everything inside is SI (``plane_tvec`` in m); the camera file
-stores ``plane_tvec`` in mm as data-format.md says.
+(read and written by :mod:`notchfit.io.camera`) stores ``plane_tvec`` in mm.
 
-Calibration boards (:class:`Board`) are TOML files in ``calibration/``:
+Calibration boards (:class:`Board`; their TOML definitions in ``calibration/``
+are read by :func:`notchfit.io.load_board`):
 ChArUco boards (``cv2.aruco.CharucoBoard`` + ``CharucoDetector.detectBoard``
 + ``board.matchImagePoints``, the OpenCV >= 4.7 / 5.0 API) and plain
 chessboards (``findChessboardCornersSB`` + ``cornerSubPix``). Intrinsics come
@@ -25,40 +26,32 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import os
-import tempfile
-import tomllib
 from dataclasses import dataclass
-from pathlib import Path
 
 import cv2
 import numpy as np
+
+from .imaging import to_gray8
+from .units import MM
+from .validation import readonly
 
 __all__ = [
     "Board",
     "BoardDetection",
     "Calibration",
     "CameraModel",
+    "DIST_LENGTHS",
+    "PlanePose",
     "ViewReport",
-    "board_dir",
     "calibrate_camera",
     "detect_board",
     "estimate_plane_pose",
-    "load_board",
-    "read_camera",
-    "write_camera",
 ]
 
-_MM = 1e-3
-_DIST_LENGTHS = (4, 5, 8, 12, 14)
+#: Numbers of OpenCV distortion coefficients a camera model may hold.
+DIST_LENGTHS = (4, 5, 8, 12, 14)
 _INTRINSIC_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6",
                     "s1", "s2", "s3", "s4", "tau_x", "tau_y")
-
-
-def board_dir() -> Path:
-    """The folder of shipped board definitions (``calibration/`` at the repository top)."""
-    env = os.environ.get("NOTCHFIT_CALIBRATION")
-    return Path(env) if env else Path(__file__).resolve().parent.parent / "calibration"
 
 
 # ----------------------------------------------------------------------------- boards
@@ -139,8 +132,8 @@ class Board:
         """The ``cv2.aruco.CharucoBoard`` (board units: mm)."""
         if self.kind != "charuco":
             raise ValueError(f"board {self.name!r} is a plain chessboard, not a ChArUco board")
-        return _cv_charuco(self.squares_x, self.squares_y, self.square_size / _MM,
-                           self.marker_size / _MM, self.dictionary, self.legacy)
+        return _cv_charuco(self.squares_x, self.squares_y, self.square_size / MM,
+                           self.marker_size / MM, self.dictionary, self.legacy)
 
 
 @functools.lru_cache(maxsize=16)
@@ -152,73 +145,7 @@ def _cv_charuco(sx, sy, square_mm, marker_mm, dictionary, legacy):
     return b
 
 
-_BOARD_KEYS = {"name", "type", "squares_x", "squares_y", "square_mm", "marker_mm", "dictionary", "legacy"}
-
-
-def load_board(source) -> Board:
-    """Load a board definition (TOML).
-
-    Parameters
-    ----------
-    source : str or path
-        A TOML file, or the name of one in :func:`board_dir` (with or without
-        ``.toml``). Keys: ``name``, ``type`` (``charuco``/``chessboard``),
-        ``squares_x``, ``squares_y``, ``square_mm``, and for ChArUco
-        ``marker_mm``, ``dictionary``, ``legacy``.
-
-    Raises
-    ------
-    FileNotFoundError, ValueError
-        Naming the file and the problem.
-    """
-    path = Path(source)
-    if not path.is_file():
-        cand = board_dir() / (path.name if path.suffix == ".toml" else path.name + ".toml")
-        if not cand.is_file():
-            known = sorted(p.stem for p in board_dir().glob("*.toml")) if board_dir().is_dir() else []
-            raise FileNotFoundError(f"board definition not found: {source} (shipped boards: "
-                                    f"{', '.join(known) or 'none'})")
-        path = cand
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML ({exc})") from None
-    unknown = sorted(set(data) - _BOARD_KEYS)
-    if unknown:
-        raise ValueError(f"{path}: unknown board key(s) {', '.join(unknown)}")
-    kind = data.get("type", "charuco")
-    need = ["squares_x", "squares_y", "square_mm"] + (["marker_mm", "dictionary"] if kind == "charuco" else [])
-    missing = [k for k in need if k not in data]
-    if missing:
-        raise ValueError(f"{path}: missing board key(s) {', '.join(missing)}")
-
-    def num(k):
-        v = data[k]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-            raise ValueError(f"{path}: {k} must be a positive number, got {v!r}")
-        return float(v)
-
-    try:
-        return Board(name=str(data.get("name", path.stem)), kind=str(kind),
-                     squares_x=data["squares_x"], squares_y=data["squares_y"],
-                     square_size=num("square_mm") * _MM,
-                     marker_size=num("marker_mm") * _MM if "marker_mm" in data else None,
-                     dictionary=data.get("dictionary"), legacy=bool(data.get("legacy", False)))
-    except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
-
-
 # ----------------------------------------------------------------------------- camera model
-def _ro(a, shape=None):
-    if a is None:
-        return None
-    a = np.array(a, dtype=float)
-    if shape is not None:
-        a = a.reshape(shape)
-    a.flags.writeable = False
-    return a
-
-
 @dataclass(frozen=True, eq=False)
 class CameraModel:
     """A calibrated camera and (optionally) the pose of the bending plane.
@@ -263,24 +190,24 @@ class CameraModel:
         d = np.asarray(self.dist_coeffs, dtype=float).ravel()
         if d.size == 0:
             d = np.zeros(5)
-        if d.size not in _DIST_LENGTHS or not np.isfinite(d).all():
+        if d.size not in DIST_LENGTHS or not np.isfinite(d).all():
             raise ValueError(f"distortion_coefficients must hold 4, 5, 8, 12 or 14 finite numbers, got {d.size}")
         w, h = (int(x) for x in self.image_size)
         if w <= 0 or h <= 0:
             raise ValueError(f"image size must be positive, got {self.image_size}")
         if (self.plane_rvec is None) != (self.plane_tvec is None):
             raise ValueError("plane_rvec and plane_tvec must be given together")
-        object.__setattr__(self, "camera_matrix", _ro(K))
-        object.__setattr__(self, "dist_coeffs", _ro(d))
+        object.__setattr__(self, "camera_matrix", readonly(K))
+        object.__setattr__(self, "dist_coeffs", readonly(d))
         object.__setattr__(self, "image_size", (w, h))
         if self.plane_rvec is not None:
             rv, tv = np.asarray(self.plane_rvec, float).ravel(), np.asarray(self.plane_tvec, float).ravel()
             if rv.size != 3 or tv.size != 3 or not (np.isfinite(rv).all() and np.isfinite(tv).all()):
                 raise ValueError("plane_rvec and plane_tvec must hold 3 finite numbers each")
-            object.__setattr__(self, "plane_rvec", _ro(rv))
-            object.__setattr__(self, "plane_tvec", _ro(tv))
+            object.__setattr__(self, "plane_rvec", readonly(rv))
+            object.__setattr__(self, "plane_tvec", readonly(tv))
         for f in ("std_intrinsics", "per_view_errors"):
-            object.__setattr__(self, f, _ro(getattr(self, f)))
+            object.__setattr__(self, f, readonly(getattr(self, f)))
 
     # -- construction -----------------------------------------------------------------
     @classmethod
@@ -300,14 +227,14 @@ class CameraModel:
         CameraModel
         """
         K = np.array([[focal_px, 0.0, (width - 1) / 2.0], [0.0, focal_px, (height - 1) / 2.0], [0, 0, 1]])
-        dist_m = focal_px * mm_per_px * _MM
+        dist_m = focal_px * mm_per_px * MM
         ax, ay = (math.radians(t) for t in tilt_deg)
         c = math.radians(plane_angle_deg)
         Rz = np.array([[math.cos(c), -math.sin(c), 0], [math.sin(c), math.cos(c), 0], [0, 0, 1]])
         Rx = np.array([[1, 0, 0], [0, math.cos(ax), -math.sin(ax)], [0, math.sin(ax), math.cos(ax)]])
         Ry = np.array([[math.cos(ay), 0, math.sin(ay)], [0, 1, 0], [-math.sin(ay), 0, math.cos(ay)]])
         R = Rx @ Ry @ Rz
-        pc = np.array([plane_center_mm[0] * _MM, plane_center_mm[1] * _MM, 0.0])
+        pc = np.array([plane_center_mm[0] * MM, plane_center_mm[1] * MM, 0.0])
         t = np.array([0.0, 0.0, dist_m]) - R @ pc
         rvec = cv2.Rodrigues(R)[0].ravel()
         return cls(K, np.asarray(dist, float), (width, height), rvec, t)
@@ -323,14 +250,6 @@ class CameraModel:
     @property
     def has_plane(self) -> bool:
         return self.plane_rvec is not None
-
-    @property
-    def focal(self) -> tuple[float, float]:
-        return float(self.camera_matrix[0, 0]), float(self.camera_matrix[1, 1])
-
-    @property
-    def principal_point(self) -> tuple[float, float]:
-        return float(self.camera_matrix[0, 2]), float(self.camera_matrix[1, 2])
 
     def _need_plane(self):
         if not self.has_plane:
@@ -510,19 +429,6 @@ class BoardDetection:
         return len(self.ids)
 
 
-def _gray8(image) -> np.ndarray:
-    img = np.asarray(image)
-    if img.ndim == 3:
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if img.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
-    if img.ndim != 2:
-        raise ValueError(f"expected a 2-D gray or a colour image, got shape {np.shape(image)}")
-    if img.dtype != np.uint8:
-        f = img.astype(float)
-        lo, hi = np.nanmin(f), np.nanmax(f)
-        img = np.clip((f - lo) / max(hi - lo, 1e-12) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-    return img
-
-
 def detect_board(image, board: Board, *, subpix_window: int = 5, subpix_iterations: int = 50,
                  subpix_eps: float = 1e-4) -> BoardDetection:
     """Find a board's inner corners in an image.
@@ -535,7 +441,7 @@ def detect_board(image, board: Board, *, subpix_window: int = 5, subpix_iteratio
     BoardDetection
         Possibly empty (``n == 0``) when the board is not found.
     """
-    gray = _gray8(image)
+    gray = to_gray8(image)
     empty = BoardDetection(np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0, dtype=int))
     if board.kind == "charuco":
         cvb = board.cv_board()
@@ -545,7 +451,7 @@ def detect_board(image, board: Board, *, subpix_window: int = 5, subpix_iteratio
             return empty
         obj, img = cvb.matchImagePoints(cc, ci)
         ids = np.asarray(ci, dtype=int).ravel()
-        return BoardDetection(np.asarray(obj, float).reshape(-1, 3) * _MM,
+        return BoardDetection(np.asarray(obj, float).reshape(-1, 3) * MM,
                               np.asarray(img, float).reshape(-1, 2), ids)
     found, corners = cv2.findChessboardCornersSB(gray, board.inner_corners,
                                                  flags=cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE)
@@ -652,26 +558,10 @@ def calibrate_camera(images, board: Board, *, names=None, image_size=None, detec
     if len(names) != n:
         raise ValueError(f"{len(names)} names for {n} views")
     if image_size is None:
-        if not images:
-            raise ValueError("image_size is needed when no images are given")
-        h, w = np.asarray(images[0]).shape[:2]
-        image_size = (w, h)
-        for nm, im in zip(names, images):
-            if tuple(np.asarray(im).shape[:2]) != (h, w):
-                raise ValueError(f"{nm}: image size {np.asarray(im).shape[1]}x{np.asarray(im).shape[0]} "
-                                 f"differs from the first image's {w}x{h}")
+        image_size = _common_image_size(images, names)
     if min_corners is None:
         min_corners = max(6, board.n_corners // 4)
-    reason = {}
-    for nm, det in zip(names, detections):
-        if det.n == 0:
-            reason[nm] = "board not found"
-        elif det.n < min_corners:
-            reason[nm] = f"too few corners ({det.n} < {min_corners})"
-        elif board.kind == "charuco" and board.cv_board().checkCharucoCornersCollinear(
-                det.ids.reshape(-1, 1).astype(np.int32)):
-            reason[nm] = "corners are collinear"
-    flags = _DIST_FLAGS[dist_model]
+    reason = _unusable_views(board, names, detections, min_corners)
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, int(max_iter), float(eps))
     result = None
     rounds = 0
@@ -684,7 +574,7 @@ def calibrate_camera(images, board: Board, *, names=None, image_size=None, detec
         img = [detections[i].image_points.astype(np.float32).reshape(-1, 1, 2) for i in use]
         rounds += 1
         out = cv2.calibrateCameraExtended(obj, img, tuple(int(x) for x in image_size), None, None,
-                                          flags=flags, criteria=crit)
+                                          flags=_DIST_FLAGS[dist_model], criteria=crit)
         rms, K, dist, rvecs, tvecs, std_in, _std_ex, per_view = out
         per_view = np.asarray(per_view, float).ravel()
         result = (rms, K, dist, std_in, per_view, use)
@@ -697,6 +587,36 @@ def calibrate_camera(images, board: Board, *, names=None, image_size=None, detec
                                          f"max({max_view_rms:g} px, {rel_view_rms:g} x median {med:.3f} px))")
             continue
         break
+    return _calibration_result(result, names, detections, reason, image_size, rounds)
+
+
+def _common_image_size(images, names) -> tuple[int, int]:
+    """(width, height) of the first image; every other image must have it."""
+    if not images:
+        raise ValueError("image_size is needed when no images are given")
+    h, w = np.asarray(images[0]).shape[:2]
+    for nm, im in zip(names, images):
+        if tuple(np.asarray(im).shape[:2]) != (h, w):
+            raise ValueError(f"{nm}: image size {np.asarray(im).shape[1]}x{np.asarray(im).shape[0]} "
+                             f"differs from the first image's {w}x{h}")
+    return (w, h)
+
+
+def _unusable_views(board: Board, names, detections, min_corners: int) -> dict:
+    """``{view name: reason}`` for views rejected before calibrating (too few or collinear corners)."""
+    reason = {}
+    for nm, det in zip(names, detections):
+        if det.n == 0:
+            reason[nm] = "board not found"
+        elif det.n < min_corners:
+            reason[nm] = f"too few corners ({det.n} < {min_corners})"
+        elif board.kind == "charuco" and board.cv_board().checkCharucoCornersCollinear(
+                det.ids.reshape(-1, 1).astype(np.int32)):
+            reason[nm] = "corners are collinear"
+    return reason
+
+
+def _calibration_result(result, names, detections, reason, image_size, rounds) -> Calibration:
     rms, K, dist, std_in, per_view, use = result
     nd = len(np.ravel(dist))
     std = np.asarray(std_in, float).ravel()[: 4 + nd]
@@ -722,7 +642,7 @@ def estimate_plane_pose(image, board: Board, camera: CameraModel, *, min_corners
                         detection: BoardDetection | None = None) -> PlanePose:
     """Pose of a board lying in the bending plane (``solvePnP``: IPPE, then LM refinement).
 
-    The board frame becomes the metric plane frame of data-format.md.
+    The board frame becomes the metric plane frame of docs/data-formats.md.
 
     Raises
     ------
@@ -742,131 +662,3 @@ def estimate_plane_pose(image, board: Board, camera: CameraModel, *, min_corners
     proj, _ = cv2.projectPoints(obj, rvec, tvec, K, d)
     rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img.reshape(-1, 2)) ** 2, axis=1))))
     return PlanePose(np.ravel(rvec).astype(float), np.ravel(tvec).astype(float), rms, det.n)
-
-
-# ----------------------------------------------------------------------------- camera file
-def write_camera(model: CameraModel, path, *, extra: dict | None = None) -> Path:
-    """Write an OpenCV FileStorage YAML camera file (data-format.md keys), atomically.
-
-    Keys: ``camera_matrix``, ``distortion_coefficients`` (1xN), ``image_width``,
-    ``image_height``, ``avg_reprojection_error`` [px], ``plane_rvec``,
-    ``plane_tvec`` (3x1, mm) when the plane is known; extras:
-    ``intrinsics_std_dev``, ``per_view_reprojection_errors``,
-    ``plane_reprojection_error``, and ``extra`` (numbers or strings).
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    suffix = path.suffix if path.suffix.lower() in (".yml", ".yaml") else ".yml"
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{suffix}", dir=path.parent)
-    os.close(fd)
-    try:
-        fs = cv2.FileStorage(tmp, cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_FORMAT_YAML)
-        fs.write("camera_matrix", np.asarray(model.camera_matrix, np.float64))
-        fs.write("distortion_coefficients", np.asarray(model.dist_coeffs, np.float64).reshape(1, -1))
-        fs.write("image_width", int(model.image_size[0]))
-        fs.write("image_height", int(model.image_size[1]))
-        if math.isfinite(model.rms):
-            fs.write("avg_reprojection_error", float(model.rms))
-        else:
-            fs.writeComment("avg_reprojection_error -1: not measured (a synthetic or hand-made camera)")
-            fs.write("avg_reprojection_error", -1.0)
-        if model.has_plane:
-            fs.write("plane_rvec", np.asarray(model.plane_rvec, np.float64).reshape(3, 1))
-            fs.write("plane_tvec", (np.asarray(model.plane_tvec, np.float64) / _MM).reshape(3, 1))
-            if math.isfinite(model.plane_rms):
-                fs.write("plane_reprojection_error", float(model.plane_rms))
-        if model.std_intrinsics is not None:
-            fs.write("intrinsics_std_dev", np.asarray(model.std_intrinsics, np.float64).reshape(1, -1))
-        if model.per_view_errors is not None and len(model.per_view_errors):
-            fs.write("per_view_reprojection_errors", np.asarray(model.per_view_errors, np.float64).reshape(-1, 1))
-        for k, v in (extra or {}).items():
-            fs.write(str(k), v if isinstance(v, str) else float(v))
-        fs.release()
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
-def read_camera(path) -> CameraModel:
-    """Read a camera file written by :func:`write_camera` or by OpenCV's calibration sample.
-
-    Raises
-    ------
-    FileNotFoundError
-        The file does not exist.
-    ValueError
-        Not an OpenCV FileStorage file, or a key missing or malformed
-        (the message names the file and the key).
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"camera file not found: {path}")
-    try:
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-        opened = fs.isOpened()
-    except (cv2.error, SystemError) as exc:
-        text = str(exc.__cause__ or exc).strip()
-        msg = text.splitlines()[-1] if text else "parse error"
-        raise ValueError(f"{path}: not an OpenCV FileStorage camera file ({msg})") from None
-    if not opened:
-        raise ValueError(f"{path}: not an OpenCV FileStorage camera file")
-    try:
-        def mat(key, required=True):
-            node = fs.getNode(key)
-            if node.empty() or node.isNone():
-                if required:
-                    raise ValueError(f"{path}: missing key {key!r}")
-                return None
-            m = node.mat()
-            if m is None:
-                if node.isSeq():
-                    m = np.array([node.at(i).real() for i in range(node.size())])
-                else:
-                    raise ValueError(f"{path}: key {key!r} is not a matrix")
-            m = np.asarray(m, float)
-            if not np.isfinite(m).all():
-                raise ValueError(f"{path}: key {key!r} holds non-finite values")
-            return m
-
-        def num(key, required=True):
-            node = fs.getNode(key)
-            if node.empty() or node.isNone():
-                if required:
-                    raise ValueError(f"{path}: missing key {key!r}")
-                return None
-            if not (node.isInt() or node.isReal()):
-                raise ValueError(f"{path}: key {key!r} must be a number")
-            return node.real()
-
-        K = mat("camera_matrix")
-        if K.shape != (3, 3):
-            raise ValueError(f"{path}: camera_matrix must be 3x3, got {K.shape}")
-        d = mat("distortion_coefficients").ravel()
-        if d.size not in _DIST_LENGTHS:
-            raise ValueError(f"{path}: distortion_coefficients must hold 4, 5, 8, 12 or 14 values, got {d.size}")
-        w, h = num("image_width"), num("image_height")
-        if w != int(w) or h != int(h) or w <= 0 or h <= 0:
-            raise ValueError(f"{path}: image_width/image_height must be positive integers, got {w}, {h}")
-        rms = num("avg_reprojection_error", required=False)
-        rv, tv = mat("plane_rvec", required=False), mat("plane_tvec", required=False)
-        if (rv is None) != (tv is None):
-            raise ValueError(f"{path}: plane_rvec and plane_tvec must be given together")
-        if rv is not None and (rv.size != 3 or tv.size != 3):
-            raise ValueError(f"{path}: plane_rvec and plane_tvec must be 3x1")
-        std = mat("intrinsics_std_dev", required=False)
-        pve = mat("per_view_reprojection_errors", required=False)
-        prms = num("plane_reprojection_error", required=False)
-        try:
-            return CameraModel(K, d, (int(w), int(h)),
-                               plane_rvec=None if rv is None else rv.ravel(),
-                               plane_tvec=None if tv is None else tv.ravel() * _MM,
-                               rms=math.nan if rms is None or rms < 0 else float(rms),
-                               std_intrinsics=None if std is None else std.ravel(),
-                               per_view_errors=None if pve is None else pve.ravel(),
-                               plane_rms=math.nan if prms is None else float(prms))
-        except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from None
-    finally:
-        fs.release()

@@ -84,9 +84,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -95,7 +93,6 @@ from . import _friction_kernels as _k
 from . import paper
 from .cables import pulled_side
 from .geometry import Geometry, default_geometry
-from .io import toml_dumps, write_text_atomic
 from .notches import notch_points
 from .shapes import line_fit
 from .springs import PiecewiseLinearSpring, friction_spring
@@ -107,8 +104,8 @@ __all__ = [
     "FrictionParams",
     "SimulationResult",
     "cable_displacement",
-    "load_params",
-    "save_params",
+    "params_from_mapping",
+    "params_to_mapping",
     "simulate",
     "simulation_table",
     "stepwise_regimes",
@@ -595,27 +592,29 @@ def simulation_table(result: SimulationResult, sample_ids=None):
 
 
 # =============================================================================
-# parameter files
+# parameter files (the mapping of model.toml; notchfit.io reads and writes the file)
 # =============================================================================
-def load_params(path) -> FrictionParams:
-    """Friction parameters from a TOML file (keys with units, :data:`PARAM_KEYS`).
+def params_from_mapping(data: dict, origin: str = "<dict>") -> FrictionParams:
+    """Friction parameters from a parameter-file mapping (keys with units, :data:`PARAM_KEYS`).
 
-    Missing keys take the paper's values; a ``[metadata]`` table is ignored.
-    Plain field names (``k_lin``) are accepted too.
+    Parameters
+    ----------
+    data : dict
+        Missing keys take the paper's values; a ``metadata`` table is ignored.
+        Plain field names (``k_lin``) are accepted too.
+    origin : str
+        Where the mapping came from, at the start of every message.
+
+    Returns
+    -------
+    FrictionParams
 
     Raises
     ------
     ValueError
-        Naming the file and key for an unknown key, a non-number or an invalid value.
+        ``"<origin>: <problem>"`` for an unknown key, a key given twice, a
+        non-number or an invalid value.
     """
-    path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ValueError(f"{path}: friction parameter file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML ({exc})") from None
     by_key = {v: k for k, v in PARAM_KEYS.items()}
     kw = {}
     for key, val in data.items():
@@ -623,34 +622,32 @@ def load_params(path) -> FrictionParams:
             continue
         field = by_key.get(key, key if key in PARAM_KEYS else None)
         if field is None:
-            raise ValueError(f"{path}: unknown friction parameter {key!r} "
+            raise ValueError(f"{origin}: unknown friction parameter {key!r} "
                              f"(known: {', '.join(PARAM_KEYS.values())})")
         if field in kw:
-            raise ValueError(f"{path}: parameter {field} given twice")
+            raise ValueError(f"{origin}: parameter {field} given twice")
         if isinstance(val, bool) or not isinstance(val, (int, float)):
-            raise ValueError(f"{path}: {key} must be a number, got {val!r}")
+            raise ValueError(f"{origin}: {key} must be a number, got {val!r}")
         kw[field] = float(val)
     try:
         return FrictionParams(**kw)
     except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
+        raise ValueError(f"{origin}: {exc}") from None
 
 
-def save_params(params: FrictionParams, path, **metadata) -> Path:
-    """Write ``params`` as TOML (SI keys with units) plus a ``[metadata]`` table.
+def params_to_mapping(params: FrictionParams) -> dict:
+    """``{file key: value}`` of ``params`` (SI keys with units, :data:`PARAM_KEYS`), in file order."""
+    return {key: getattr(params, f) for f, key in PARAM_KEYS.items()}
 
-    Floats are written with ``repr`` (exact round trip through :func:`load_params`).
-    Metadata values: numbers (NaN allowed), strings, booleans, lists of those, or
-    nested dicts (written as ``[metadata.name]`` tables). The file is written
-    atomically (:func:`notchfit.io.write_text_atomic`): an old file is either
-    kept whole or replaced whole.
 
-    Returns
-    -------
-    Path
+def __getattr__(name):
+    """``load_params`` / ``save_params``: the model.toml reader and writer of docs/data-formats.md.
+
+    They live in :mod:`notchfit.io.models` (physics imports no file I/O);
+    these names are the documented aliases, resolved on first use.
     """
-    data = {key: getattr(params, f) for f, key in PARAM_KEYS.items()}
-    if metadata:
-        data["metadata"] = metadata
-    header = "# notchfit friction-model parameters (Sec. IV-B), SI units; read by notchfit.friction.load_params\n"
-    return write_text_atomic(header + toml_dumps(data), Path(path))
+    if name in ("load_params", "save_params"):
+        from .io import models  # file I/O on demand: friction itself imports no notchfit.io
+
+        return getattr(models, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

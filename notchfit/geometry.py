@@ -1,12 +1,14 @@
-"""Manipulator geometry as data (``../shared/spec/geometry.md``).
+"""Manipulator geometry as data (docs/geometry.md).
 
-A :class:`Geometry` is a frozen dataclass in SI units. It is loaded from a
-TOML file whose keys carry their units (``p_mm``, ``cable_E_Pa``); the default
-manipulator of the seed paper ships as ``datasets/geometry/default.toml``.
+A :class:`Geometry` is a frozen dataclass in SI units; its defaults are the
+manipulator of the seed paper (the values of ``datasets/geometry/default.toml``).
+Geometry files carry their units in their keys (``p_mm``, ``cable_E_Pa``):
+:func:`geometry_from_dict` turns such a mapping into a :class:`Geometry`, and
+:func:`notchfit.io.load_geometry` reads the file.
 
 The notch-point layout (which link each of the ``4 + 2 * n_slots`` points is
 attached to, and its link-local coordinates) is derived from the geometry by
-:func:`notch_layout`; geometry.md fixes the numbering.
+:func:`notch_layout`; docs/geometry.md fixes the numbering.
 """
 
 from __future__ import annotations
@@ -14,25 +16,23 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import os
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .units import MM
+
 __all__ = [
     "Geometry",
     "NotchLayout",
-    "datasets_dir",
+    "alternating_sides",
     "default_geometry",
-    "load_geometry",
+    "geometry_from_dict",
     "notch_layout",
 ]
 
-_MM = 1e-3
-
-# TOML key -> (dataclass field, scale to SI, must be positive)
+# geometry-file key -> dataclass field
 _LENGTH_KEYS = {
     "p_mm": "p",
     "r_x_mm": "r_x",
@@ -49,26 +49,6 @@ _SIGNED_LENGTH_KEYS = {
     "mount_bottom_z_mm": "mount_bottom_z",
 }
 _POSITIVE_SI_KEYS = {"cable_E_Pa": "cable_E", "cable_A_m2": "cable_A", "cable_L0_m": "cable_L0"}
-
-
-def datasets_dir() -> Path:
-    """Folder of shipped data (``datasets/`` at the repository top).
-
-    ``$NOTCHFIT_DATASETS`` overrides it.
-
-    Returns
-    -------
-    Path
-        The folder; raises ``FileNotFoundError`` with a hint if it is absent.
-    """
-    env = os.environ.get("NOTCHFIT_DATASETS")
-    path = Path(env) if env else Path(__file__).resolve().parent.parent / "datasets"
-    if not path.is_dir():
-        raise FileNotFoundError(
-            f"notchfit data folder not found at {path}; install notchfit from a "
-            "checkout with `pip install -e .` or set NOTCHFIT_DATASETS"
-        )
-    return path
 
 
 @dataclass(frozen=True)
@@ -173,7 +153,7 @@ class Geometry:
         The joint axis is on the backbone (x = 0); the two faces of a slot of
         width ``w`` meet at the outer edge ``x = ±R`` when
         ``R tan(θ/2) = w/2``, i.e. ``θ = 2 atan(w / 2R)`` (0.1397 rad for the
-        default: geometry.md's "closes at about 0.14 rad").
+        default: docs/geometry.md's "closes at about 0.14 rad").
         """
         return 2.0 * math.atan(self.slot_width / (2.0 * self.outer_radius))
 
@@ -183,17 +163,23 @@ class Geometry:
 
 
 def alternating_sides(n: int) -> tuple[int, ...]:
-    """Slot sides of geometry.md: joint j odd opens left (-1), even right (+1)."""
+    """Slot sides of docs/geometry.md: joint j odd opens left (-1), even right (+1)."""
     return tuple(-1 if j % 2 == 1 else 1 for j in range(1, n + 1))
 
 
-def load_geometry(source: str | os.PathLike | None = "default") -> Geometry:
-    """Load a geometry from a TOML file (keys with unit suffixes, mm lengths).
+def geometry_from_dict(data: dict, origin: str = "<dict>", *, line_of=None) -> Geometry:
+    """Build a :class:`Geometry` from a geometry-file mapping (unit-suffixed keys, mm lengths).
 
     Parameters
     ----------
-    source : str or path, optional
-        ``"default"`` (or None) for ``datasets/geometry/default.toml``, or a path.
+    data : dict
+        Keys of docs/geometry.md: ``n_joints``, ``p_mm``, ..., ``cable_L0_m``,
+        optional ``name`` and ``slot_sides`` (``"alternating"`` or a list of -1/+1).
+    origin : str
+        Where the mapping came from, at the start of every message.
+    line_of : callable, optional
+        ``line_of(key) -> int or None``: the line a key is written on, so a
+        message about one key names its line (file readers pass it).
 
     Returns
     -------
@@ -202,79 +188,67 @@ def load_geometry(source: str | os.PathLike | None = "default") -> Geometry:
     Raises
     ------
     ValueError
-        Naming the file and the key for a missing, unknown, non-numeric or
-        non-positive field.
+        ``"<origin>: [line <n>: ]<problem>"`` for a missing, unknown,
+        non-numeric or non-positive field, or an inconsistent geometry.
     """
-    if source is None or str(source) == "default":
-        path = datasets_dir() / "geometry" / "default.toml"
-    else:
-        path = Path(source)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ValueError(f"{path}: geometry file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML ({exc})") from None
-    return geometry_from_dict(data, origin=str(path))
+    def fail(problem: str, key: str | None = None) -> ValueError:
+        line = line_of(key) if line_of is not None and key is not None else None
+        return ValueError(f"{origin}: line {line}: {problem}" if line is not None else f"{origin}: {problem}")
 
-
-def geometry_from_dict(data: dict, origin: str = "<dict>") -> Geometry:
-    """Build a :class:`Geometry` from a TOML-style mapping (mm keys)."""
     required = ["n_joints", *_LENGTH_KEYS, *_SIGNED_LENGTH_KEYS, *_POSITIVE_SI_KEYS]
     known = set(required) | {"name", "slot_sides"}
     missing = [k for k in required if k not in data]
     if missing:
-        raise ValueError(f"{origin}: missing geometry field(s) {', '.join(missing)}")
+        raise fail(f"missing geometry field(s) {', '.join(missing)}")
     unknown = sorted(set(data) - known)
     if unknown:
-        raise ValueError(f"{origin}: unknown geometry field(s) {', '.join(unknown)}")
+        raise fail(f"unknown geometry field(s) {', '.join(unknown)}", unknown[0])
     kw: dict = {"name": str(data.get("name", Path(origin).stem))}
     n = data["n_joints"]
     if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-        raise ValueError(f"{origin}: n_joints must be a positive integer, got {n!r}")
+        raise fail(f"n_joints must be a positive integer, got {n!r}", "n_joints")
     kw["n_joints"] = n
 
-    def number(key):
+    def number(key, positive):
         v = data[key]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ValueError(f"{origin}: {key} must be a finite number, got {v!r}")
+            raise fail(f"{key} must be a finite number, got {v!r}", key)
+        if positive and v <= 0:
+            raise fail(f"{key} must be positive, got {float(v)}", key)
         return float(v)
 
     for key, field in _LENGTH_KEYS.items():
-        v = number(key)
-        if v <= 0:
-            raise ValueError(f"{origin}: {key} must be positive, got {v}")
-        kw[field] = v * _MM
+        kw[field] = number(key, True) * MM
     for key, field in _SIGNED_LENGTH_KEYS.items():
-        kw[field] = number(key) * _MM
+        kw[field] = number(key, False) * MM
     for key, field in _POSITIVE_SI_KEYS.items():
-        v = number(key)
-        if v <= 0:
-            raise ValueError(f"{origin}: {key} must be positive, got {v}")
-        kw[field] = v
+        kw[field] = number(key, True)
     sides = data.get("slot_sides", "alternating")
     if sides == "alternating":
         kw["slot_sides"] = alternating_sides(n)
     elif isinstance(sides, list):
         kw["slot_sides"] = tuple(sides)
     else:
-        raise ValueError(f"{origin}: slot_sides must be \"alternating\" or a list of -1/+1, got {sides!r}")
+        raise fail(f"slot_sides must be \"alternating\" or a list of -1/+1, got {sides!r}", "slot_sides")
     try:
         return Geometry(**kw)
     except ValueError as exc:
-        raise ValueError(f"{origin}: {exc}") from None
+        raise fail(str(exc)) from None
 
 
 @functools.lru_cache(maxsize=1)
 def default_geometry() -> Geometry:
-    """The seed paper's manipulator (``datasets/geometry/default.toml``)."""
-    return load_geometry("default")
+    """The seed paper's manipulator: the :class:`Geometry` defaults.
+
+    Equal, field by field, to ``notchfit.io.load_geometry("default")``
+    (``datasets/geometry/default.toml``; a test checks it).
+    """
+    return Geometry()
 
 
 @dataclass(frozen=True)
 class NotchLayout:
-    """Where the numbered notch points sit (geometry.md, 'The 58 notch points').
+    """Where the numbered notch points sit (docs/geometry.md, 'The 58 notch points').
 
     Attributes
     ----------
@@ -307,7 +281,7 @@ class NotchLayout:
 
 @functools.lru_cache(maxsize=32)
 def notch_layout(geom: Geometry) -> NotchLayout:
-    """The notch points of ``geom`` numbered as geometry.md says.
+    """The notch points of ``geom`` numbered as docs/geometry.md says.
 
     1 base-left, 2 base-right, then right-side slot corners by increasing z
     (proximal, distal), tip-right, tip-left, then left-side slot corners by

@@ -676,7 +676,7 @@ def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_p
     from pathlib import Path
 
     from .batch import run_batch
-    from .camera import write_camera
+    from .io import write_camera
 
     geom = study.geometry
     thetas, planes, keys = [], [], []

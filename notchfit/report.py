@@ -1,7 +1,7 @@
 """One self-contained HTML report per study (``notchfit report DIR``).
 
 The report gathers what the pipeline commands wrote into one output folder
-(data-format.md "Outputs") and embeds every figure as a base64 PNG, so the
+(docs/data-formats.md, "Outputs") and embeds every figure as a base64 PNG, so the
 single ``report.html`` opens from disk in any browser with no server and no
 other file. Sections, each present even when its input is absent (then it
 says "not available: <why>"):
@@ -34,8 +34,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import __version__
 from . import io as nio
+from ._version import __version__
+from .units import MM
 
 __all__ = ["SECTIONS", "build_report", "find_study", "summary_lines"]
 
@@ -161,25 +162,19 @@ def _study_section(exps, study_path, why) -> str:
 
 
 # ----------------------------------------------------------------------------- calibration
-def _read_camera_file(path: Path) -> dict:
-    import cv2
-
-    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    if not fs.isOpened():
-        raise ValueError(f"{path}: not an OpenCV FileStorage file")
-    out = {}
-    try:
-        for key in ("image_width", "image_height", "avg_reprojection_error"):
-            node = fs.getNode(key)
-            if not node.empty():
-                out[key] = node.real()
-        for key in ("camera_matrix", "distortion_coefficients", "plane_rvec", "plane_tvec"):
-            node = fs.getNode(key)
-            if not node.empty():
-                out[key] = node.mat()
-    finally:
-        fs.release()
-    return out
+def _camera_row(path: Path, cam) -> dict:
+    K, d = cam.camera_matrix, cam.dist_coeffs
+    return {
+        "file": str(path),
+        "image [px]": f"{cam.image_size[0]}×{cam.image_size[1]}",
+        # NaN: a camera that was not calibrated from views (a synthetic one)
+        "reprojection error [px]": cam.rms,
+        "f_x [px]": K[0, 0],
+        "f_y [px]": K[1, 1],
+        "c_x, c_y [px]": f"{K[0, 2]:.1f}, {K[1, 2]:.1f}",
+        "distortion": " ".join(f"{v:.3g}" for v in np.ravel(d)[:5]),
+        "plane distance [mm]": float(np.linalg.norm(cam.plane_tvec)) / MM if cam.has_plane else np.nan,
+    }
 
 
 def _calibration_section(out_dir: Path, exps) -> str:
@@ -203,25 +198,11 @@ def _calibration_section(out_dir: Path, exps) -> str:
     rows = []
     for f in files:
         try:
-            c = _read_camera_file(f)
+            cam = nio.read_camera(f)
         except Exception as exc:  # noqa: BLE001 - a report shows what it can
-            parts.append(_na(f"{f}: {exc}"))
+            parts.append(_na(str(exc)))
             continue
-        K = c.get("camera_matrix")
-        d = c.get("distortion_coefficients")
-        rows.append({
-            "file": str(f),
-            "image [px]": f"{int(c.get('image_width', 0))}×{int(c.get('image_height', 0))}",
-            # a negative value marks a camera that was not calibrated from views (a synthetic one)
-            "reprojection error [px]": (c["avg_reprojection_error"]
-                                        if c.get("avg_reprojection_error", -1) >= 0 else np.nan),
-            "f_x [px]": K[0, 0] if K is not None else np.nan,
-            "f_y [px]": K[1, 1] if K is not None else np.nan,
-            "c_x, c_y [px]": f"{K[0, 2]:.1f}, {K[1, 2]:.1f}" if K is not None else "–",
-            "distortion": (" ".join(f"{v:.3g}" for v in np.ravel(d)[:5]) if d is not None else "–"),
-            "plane distance [mm]": (float(np.linalg.norm(c["plane_tvec"])) if "plane_tvec" in c
-                                    else np.nan),
-        })
+        rows.append(_camera_row(f, cam))
     if rows:
         parts.insert(0, _table(pd.DataFrame(rows)))
     parts += [_png(p, out_dir) for p in figs]
@@ -233,14 +214,13 @@ def _overlay(exp, det: pd.DataFrame, sample: int) -> str | None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from .batch import load_image
 
     i = int(np.flatnonzero(exp.sample_ids == sample)[0])
     path = exp.image_paths[i] if exp.image_paths else None
     if path is None:
         return None
     try:
-        img = load_image(path)
+        img = nio.load_image(path)
     except (FileNotFoundError, ValueError):
         return None
     d = det[det["sample"] == sample]

@@ -37,16 +37,14 @@ Stiffness (Sec. III-C): ``K_m = K_θ + P K_c P^T`` (Eq. 17 ff.),
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import root
 
 from . import cables, kinematics, paper
-from .geometry import Geometry, datasets_dir
+from .geometry import Geometry
 from .shapes import line_fit
 from .springs import PiecewiseLinearSpring, dual_rate_spring
 from .validation import as_finite, as_joint_angles
@@ -66,7 +64,6 @@ __all__ = [
     "equivalent_stiffness_transverse",
     "joint_displacement",
     "joint_stiffness",
-    "load_fea_reference",
     "path_dependence",
     "simulate",
     "workspace_stiffness",
@@ -666,29 +663,6 @@ class FEAReference:
     axial_force: float              # [N]
     axial_max_displacement: float   # [m]
     source: str
-
-
-def load_fea_reference(path: str | Path | None = None) -> FEAReference:
-    """Read ``datasets/reference/fea_sec3d.toml`` (or ``path``)."""
-    path = Path(path) if path is not None else datasets_dir() / "reference" / "fea_sec3d.toml"
-    with open(path, "rb") as fh:
-        d = tomllib.load(fh)
-    try:
-        out = FEAReference(
-            n_joints=int(d["n_joints"]), E=float(d["E_Pa"]), nu=float(d["poisson_ratio"]),
-            moment=float(d["moment"]["moment_Nm"]),
-            theta_moment=np.asarray(d["moment"]["theta_rad"], dtype=float),
-            transverse_force=float(d["transverse"]["force_N"]),
-            theta_transverse=np.asarray(d["transverse"]["theta_rad"], dtype=float),
-            axial_force=float(d["axial"]["force_N"]),
-            axial_max_displacement=float(d["axial"]["max_displacement_mm"]) * 1e-3,
-            source=str(d.get("source", "")))
-    except KeyError as exc:
-        raise ValueError(f"{path}: missing key {exc}") from None
-    for a in (out.theta_moment, out.theta_transverse):
-        if a.shape != (out.n_joints,):
-            raise ValueError(f"{path}: joint-angle lists must have n_joints={out.n_joints} entries")
-    return out
 
 
 def equivalent_stiffness_moment(moment: float, theta) -> float:

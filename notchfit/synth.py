@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -62,7 +61,8 @@ from . import io
 from .batch import run_batch
 from .fitting.results import as_transform
 from .friction import FrictionParams, simulate
-from .geometry import Geometry, datasets_dir, load_geometry
+from .geometry import Geometry
+from .io import TomlError, datasets_dir, load_geometry, load_toml
 from .notches import notch_points, to_plane
 from .paper import FRICTION_K_LIN, FRICTION_K_MID, MU_D, MU_S
 from .protocols import bend_unbend
@@ -316,7 +316,15 @@ def list_recipes() -> list[str]:
 
 
 def load_recipe(source) -> Recipe:
-    """A recipe from a TOML path, or a shipped recipe by name (``"paper8"``, ``"proximal_friction"``)."""
+    """A recipe from a TOML path, or a shipped recipe by name (``"paper8"``, ``"proximal_friction"``).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file and no shipped recipe of that name (the message lists them).
+    TomlError
+        Bad TOML (with its line) or a recipe problem, naming the file.
+    """
     p = Path(source)
     if not p.is_file():
         cand = datasets_dir() / "recipes" / f"{source}.toml"
@@ -325,12 +333,11 @@ def load_recipe(source) -> Recipe:
         else:
             raise FileNotFoundError(f"{source}: recipe not found (a TOML path, or one of "
                                     f"{', '.join(list_recipes())})")
+    doc = load_toml(p, what="recipe")
     try:
-        with open(p, "rb") as fh:
-            d = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{p}: bad TOML: {exc}") from None
-    return recipe_from_dict(d, origin=str(p))
+        return recipe_from_dict(doc.data, origin=str(p))
+    except ValueError as exc:
+        raise TomlError(str(exc)) from None
 
 
 # ----------------------------------------------------------------------------- protocol

@@ -5,7 +5,8 @@ import cv2
 import numpy as np
 import pytest
 
-from notchfit.batch import image_info, load_image, run_batch
+from notchfit.batch import run_batch
+from notchfit.io import image_info, load_image
 
 
 @pytest.fixture

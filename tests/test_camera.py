@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from notchfit.camera import (CameraModel, BoardDetection, calibrate_camera, detect_board, estimate_plane_pose,
-                             load_board, read_camera, write_camera)
+from notchfit.camera import CameraModel, BoardDetection, calibrate_camera, detect_board, estimate_plane_pose
+from notchfit.io import load_board, read_camera, write_camera
 from notchfit.render import render_board
 
 K_TRUE = np.array([[800.0, 0, 322.0], [0, 805.0, 236.0], [0, 0, 1]])
@@ -192,3 +192,31 @@ def test_read_camera_errors(tmp_path):
     cam = CameraModel.synthetic(100, 80)
     with pytest.raises(ValueError, match="wrong calibration file"):
         cam.check_image(np.zeros((81, 100)))
+
+
+def test_board_file_errors_name_file_and_line(tmp_path):
+    from notchfit.io import TomlError
+
+    f = tmp_path / "b.toml"
+    f.write_text('type = "chessboard"\nsquares_x = 7\nsquares_y = 5\nsquare_mm = -3\n')
+    with pytest.raises(TomlError, match=r"b\.toml: line 4: square_mm must be a positive number"):
+        load_board(f)
+    f.write_text('type = "chessboard"\nsquares_x = 7\nsquares_y = 5\nsquare_mm = 3\ncolour = "red"\n')
+    with pytest.raises(TomlError, match=r"b\.toml: line 5: unknown board key\(s\) colour"):
+        load_board(f)
+    f.write_text('type = "chessboard"\nsquares_x = 7\n')
+    with pytest.raises(TomlError, match=r"b\.toml: missing board key\(s\) squares_y, square_mm"):
+        load_board(f)
+    assert load_board("chessboard_9x6").kind == "chessboard"
+
+
+def test_camera_file_has_normal_permissions(tmp_path):
+    import os
+
+    mask = os.umask(0o022)
+    try:
+        path = write_camera(CameraModel.synthetic(), tmp_path / "camera.yml")
+    finally:
+        os.umask(mask)
+    assert path.stat().st_mode & 0o777 == 0o644
+    assert [p.name for p in tmp_path.iterdir()] == ["camera.yml"]

@@ -5,8 +5,9 @@ import numpy as np
 import pandas as pd
 
 from notchfit import io
-from notchfit.camera import CameraModel, load_board, read_camera, write_camera
+from notchfit.camera import CameraModel
 from notchfit.cli import main
+from notchfit.io import load_board, read_camera, write_camera
 from notchfit.render import camera_for_shapes, render_board, render_manipulator
 
 

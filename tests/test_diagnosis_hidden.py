@@ -51,7 +51,7 @@ def test_hidden_effect_is_named_with_heldout_gain(tmp_path, cause):
     for reg in d["per_regime_rms_mm"].values():
         assert reg["extended"] <= reg["baseline"] * 1.1
     if figures:
-        from notchfit.friction import load_params
+        from notchfit.io import load_params
         out = tmp_path / "out"
         for name in d["figures"]:
             assert (out / name).stat().st_size > 1000

@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from notchfit.geometry import Geometry, load_geometry, notch_layout
+from notchfit.geometry import Geometry, notch_layout
+from notchfit.io import load_geometry
 
 
 def test_default_toml_matches_geometry_md(geom):
@@ -78,3 +79,29 @@ def test_toml_bad_sides_and_other_n(tmp_path):
         load_geometry(_write(tmp_path, text.replace("[1, 1, -1, 1, -1]", "[1, -1]")))
     with pytest.raises(ValueError, match="not valid TOML"):
         load_geometry(_write(tmp_path, "p_mm = = 1"))
+
+
+def test_default_geometry_is_the_shipped_default_file():
+    import dataclasses
+
+    from notchfit.geometry import default_geometry
+
+    shipped, default = load_geometry("default"), default_geometry()
+    for f in dataclasses.fields(Geometry):
+        assert getattr(shipped, f.name) == getattr(default, f.name), f.name
+    assert shipped == default == Geometry()
+
+
+def test_toml_errors_name_the_line(tmp_path):
+    from notchfit.io import TomlError, TomlFileNotFoundError
+
+    text = BASE.read_text()
+    line = 1 + text.splitlines().index(next(s for s in text.splitlines() if s.startswith("r_x_mm")))
+    with pytest.raises(TomlError, match=rf"g\.toml: line {line}: r_x_mm must be positive"):
+        load_geometry(_write(tmp_path, text.replace("r_x_mm = 2.5", "r_x_mm = -2.5")))
+    with pytest.raises(TomlError, match=r"g\.toml: line 2: unknown geometry field\(s\) bogus_mm"):
+        load_geometry(_write(tmp_path, "# a comment\nbogus_mm = 1\n" + text))
+    with pytest.raises(TomlError, match=r"g\.toml: line 1: bad TOML"):
+        load_geometry(_write(tmp_path, "p_mm = = 1"))
+    with pytest.raises(TomlFileNotFoundError, match="geometry file not found"):
+        load_geometry(tmp_path / "none.toml")

@@ -304,8 +304,75 @@ def test_output_run_whole_dirs_leaves_no_stale_files(tmp_path):
 
 
 def test_camera_io_is_re_exported():
-    from notchfit import camera
+    from notchfit.io import camera
 
     assert io.read_camera is camera.read_camera and io.write_camera is camera.write_camera
     with pytest.raises(AttributeError):
         io.no_such_reader
+
+
+def test_load_toml_lines_and_errors(tmp_path):
+    f = tmp_path / "x.toml"
+    f.write_text('# head\nname = "a"\n\n[uncertainty]\npoint_mm = 0.02\n"tension_N" = 0.1\n\n'
+                 '[outer.inner]\nk = 1\n[[runs]]\nk = 2\n')
+    doc = io.load_toml(f)
+    assert doc.data["uncertainty"] == {"point_mm": 0.02, "tension_N": 0.1}
+    assert doc.line_of("name") == 2 and doc.line_of("uncertainty") == 4
+    assert doc.line_of("uncertainty", "point_mm") == 5 and doc.line_of("uncertainty", "tension_N") == 6
+    assert doc.line_of("outer", "inner", "k") == 9 and doc.line_of("runs", "k") == 11
+    assert doc.line_of("point_mm") is None and doc.line_of("nothing") is None
+    err = doc.error("point_mm is odd", "uncertainty", "point_mm")
+    assert isinstance(err, io.TomlError) and str(err) == f"{f}: line 5: point_mm is odd"
+    assert str(doc.error("whole file")) == f"{f}: whole file"
+    f.write_text('a = 1\nb = [1, 2\nc = 3\n')
+    with pytest.raises(io.TomlError, match=r"x\.toml: line 3: bad TOML: .* at column \d+; the file is not valid"):
+        io.load_toml(f)
+    with pytest.raises(io.TomlFileNotFoundError, match=r"none\.toml: recipe not found") as ei:
+        io.load_toml(tmp_path / "none.toml", what="recipe")
+    assert isinstance(ei.value, ValueError) and isinstance(ei.value, FileNotFoundError)
+
+
+def test_every_toml_reader_raises_toml_error(tmp_path):
+    from notchfit.synth import load_recipe
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text("x = = 1\n")
+    readers = [io.load_geometry, io.load_params, io.load_fea_reference, io.load_board, load_recipe,
+               io.read_experiment_toml]
+    for reader in readers:
+        with pytest.raises(io.TomlError, match=r"bad\.toml: line 1: bad TOML"):
+            reader(bad)
+
+
+def test_atomic_writers_use_normal_file_modes(tmp_path):
+    mask = os.umask(0o022)
+    try:
+        paths = [io.write_text_atomic("x", tmp_path / "a.txt"),
+                 io.write_json_atomic({"a": 1}, tmp_path / "b.json"),
+                 io.write_table_atomic(pd.DataFrame({"a": [1]}), tmp_path / "c.csv"),
+                 io.save_params(io.load_params(_params_file(tmp_path)), tmp_path / "m.toml")]
+    finally:
+        os.umask(mask)
+    assert [p.stat().st_mode & 0o777 for p in paths] == [0o644] * 4
+    assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
+
+
+def _params_file(tmp_path):
+    f = tmp_path / "in.toml"
+    f.write_text("mu_d = 0.2\n")
+    return f
+
+
+def test_friction_aliases_do_not_import_io_early():
+    import subprocess
+    import sys
+
+    code = ("import sys, notchfit.friction as f, notchfit.geometry, notchfit.statics\n"
+            "assert 'notchfit.io' not in sys.modules, 'physics imported notchfit.io'\n"
+            "import notchfit\n"
+            "assert 'notchfit.io' not in sys.modules, 'import notchfit imported notchfit.io'\n"
+            "from notchfit.friction import load_params, save_params\n"
+            "import notchfit.io as io\n"
+            "assert load_params is io.load_params and save_params is io.save_params\n"
+            "assert notchfit.load_geometry is io.load_geometry\n")
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -6,6 +6,7 @@ from notchfit import cables as C
 from notchfit import kinematics as K
 from notchfit import statics as S
 from notchfit.geometry import Geometry
+from notchfit.io import load_fea_reference
 from notchfit.springs import dual_rate_spring
 
 
@@ -270,7 +271,7 @@ def test_sec3c3_quadratic_cables_change_only_kphiphi(geom):
 
 # ---------------------------------------------------------------- FEA cross-check (Sec. III-D)
 def test_sec3d_fea_reference_file():
-    ref = S.load_fea_reference()
+    ref = load_fea_reference()
     assert ref.n_joints == 4 and ref.E == 60e9 and ref.nu == 0.3
     np.testing.assert_array_equal(ref.theta_moment, [0.129] * 4)
     np.testing.assert_array_equal(ref.theta_transverse, [0.096, 0.074, 0.053, 0.032])
@@ -281,7 +282,7 @@ def test_sec3d_fea_reference_file():
 
 def test_sec3d_fea_moment_equal_angles_and_stiffness():
     """A pure moment loads every joint equally (equal angles, as the FEA); k = 0.1/0.129 = 0.775 N m/rad."""
-    ref = S.load_fea_reference()
+    ref = load_fea_reference()
     k = S.equivalent_stiffness_moment(ref.moment, ref.theta_moment)
     assert k == pytest.approx(0.7752, abs=1e-4)
     g4 = Geometry(n_joints=4)
@@ -303,7 +304,7 @@ def test_sec3d_fea_transverse_ratios_and_lever_arm():
     4.03 : 3.02 : 2.00 : 1; with the FEA's lever arm it gives 3.04 : 2.36 : 1.67 : 1, within
     0.0024 rad of every FEA angle (the rest is the large-deflection shortening of the lever).
     """
-    ref = S.load_fea_reference()
+    ref = load_fea_reference()
     g4 = Geometry(n_joints=4)
     fea = ref.theta_transverse
     steps = -np.diff(fea)

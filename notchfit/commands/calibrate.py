@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..batch import load_image
+from ..io import load_board, load_image, write_camera
 from ._common import EXIT_ITEMS_FAILED, InputError
 
 NAME = "calibrate"
@@ -43,7 +43,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     # slow optional dependency: notchfit.camera imports cv2
-    from ..camera import calibrate_camera, estimate_plane_pose, load_board, write_camera
+    from ..camera import calibrate_camera, estimate_plane_pose
 
     if args.out.exists() and not args.force:
         raise InputError(f"{args.out} exists; use --force to replace it")

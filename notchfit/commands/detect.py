@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from .. import io
-from ..batch import load_image, run_batch
+from ..batch import run_batch
 from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options
 
 NAME = "detect"
@@ -44,9 +44,7 @@ def add_arguments(parser) -> None:
 @functools.lru_cache(maxsize=8)
 def _camera(path: str):
     """The camera file at ``path`` (cached per worker process)."""
-    from ..camera import read_camera  # slow optional dependency: notchfit.camera imports cv2
-
-    return read_camera(path)
+    return io.read_camera(path)
 
 
 def detect_one(item: dict) -> dict:
@@ -57,7 +55,7 @@ def detect_one(item: dict) -> dict:
     from ..detection import detect_notches, detections_table
     from ..figures.detection import detection_overlay
 
-    img = load_image(item["image"])
+    img = io.load_image(item["image"])
     cam = _camera(str(item["calibration"]))
     det = detect_notches(img, cam, item["geometry"], mirror=item["mirror"])
     if item["overlay"] is not None:

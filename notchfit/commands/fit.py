@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 
 from .. import io
-from ..batch import load_image, run_batch
+from ..batch import run_batch
 from ..figures.fitting import experiment_figures, fig12_sample_index
 from ..fitting import failed_fits, fit_experiment, fit_summary, fits_table, pointwise_table
 from ..shapes import get_model
@@ -84,7 +84,7 @@ def _read_overlay_image(result, exp) -> dict:
         if path is None:
             return {}
         camera = io.read_camera(exp.calibration_path)
-        return {"sample": result.samples[s], "image": load_image(path), "to_pixel": camera.plane_to_pixel}
+        return {"sample": result.samples[s], "image": io.load_image(path), "to_pixel": camera.plane_to_pixel}
     except (FileNotFoundError, ValueError, KeyError, IndexError):
         return {}        # the plane-frame overlay is drawn instead
 

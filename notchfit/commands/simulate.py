@@ -11,7 +11,7 @@ from .. import io
 from ..batch import run_batch
 from ..comparison import compare_simulation, comparison_table
 from ..figures.friction import plot_fig18, plot_fig19
-from ..friction import FrictionParams, load_params, simulate, simulation_table
+from ..friction import FrictionParams, simulate, simulation_table
 from ._common import EXIT_ITEMS_FAILED, add_batch_options, add_points_option
 
 NAME = "simulate"
@@ -51,7 +51,7 @@ def add_arguments(parser) -> None:
 
 def parse_params(model_file, overrides):
     """FrictionParams from a model file and ``NAME=VALUE`` overrides (raises ValueError on a bad one)."""
-    params = load_params(model_file) if model_file is not None else FrictionParams()
+    params = io.load_params(model_file) if model_file is not None else FrictionParams()
     fields = {f.name for f in dataclasses.fields(FrictionParams)}
     changes = {}
     for text in overrides:

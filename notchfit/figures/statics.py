@@ -8,6 +8,7 @@ import numpy as np
 
 from .. import kinematics, statics
 from ..geometry import Geometry, default_geometry
+from ..io import load_fea_reference
 from ..springs import PiecewiseLinearSpring, dual_rate_spring
 from ..units import MM
 from . import new_figure, save_png, write_csv
@@ -85,7 +86,7 @@ def fig8(out_dir: Path, geom: Geometry | None = None, f_x: float = 4.0, m_y: flo
 
 def fig_fea(out_dir: Path, **_) -> list[Path]:
     """Sec. III-D / Fig. 10: FEA joint angles vs the rigid-link model (4-joint segment)."""
-    ref = statics.load_fea_reference()
+    ref = load_fea_reference()
     g4 = Geometry(n_joints=ref.n_joints, name="fea4")
     k_m = statics.equivalent_stiffness_moment(ref.moment, ref.theta_moment)
     k_t, z_f = statics.equivalent_stiffness_transverse(ref.transverse_force, ref.theta_transverse, g4.p)

@@ -1,0 +1,513 @@
+"""Experiments and studies on disk: read, validate, write (docs/data-formats.md).
+
+An experiment is a folder with ``experiment.toml``, ``samples.csv`` and
+either ``notch_points.csv`` or one image per sample; a study is a folder of
+experiments. Lengths are mm and tensions N in the files, SI (m, N, s) in
+memory; the conversion happens here. Every reader error names the file, the
+line and the problem.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..geometry import Geometry
+from ..units import MM
+from .models import load_geometry
+from .outputs import find_output, read_detections, write_table_atomic, write_text_atomic
+from .tables import POINT_COLUMNS, SAMPLE_COLUMNS, Problems, check_point_rows, read_csv_table
+from .toml import TomlError, TomlFile, load_toml, toml_dumps
+
+__all__ = [
+    "Experiment",
+    "attach_detections",
+    "is_experiment_dir",
+    "load_detected_points",
+    "points_from_table",
+    "points_table",
+    "read_experiment",
+    "read_experiment_toml",
+    "read_points_table",
+    "read_samples",
+    "read_study",
+    "with_points",
+    "write_experiment",
+]
+
+_TOML_KEYS = {"name", "description", "geometry", "mirror", "calibration", "uncertainty"}
+_UNCERTAINTY_KEYS = {"point_mm": "point_sigma", "tension_N": "tension_sigma"}
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One bend/unbend test as read from its folder (docs/data-formats.md).
+
+    Attributes
+    ----------
+    name, description : str
+    path : Path
+        The experiment folder.
+    geometry : Geometry
+    mirror : bool
+        The view is reflected (plane frame ``P = Rot(φ) diag(-1, 1) (x, z) + t``).
+    calibration_path : Path or None
+        Camera calibration file, resolved relative to the folder.
+    point_sigma, tension_sigma : float or None
+        Measurement uncertainty of a point coordinate [m] and of a tension
+        [N] (``[uncertainty] point_mm, tension_N``).
+    samples : DataFrame
+        ``samples.csv`` as read (file units, one row per sample, time order).
+    points : ndarray, shape (S, m, 2) [m], or None
+        Notch points in the plane frame, NaN where missing; None when the
+        folder has no ``notch_points.csv``.
+    image_paths : tuple of (Path or None), or None
+        The image of each sample; None when ``samples.csv`` has no ``image`` column.
+    """
+
+    name: str
+    path: Path
+    description: str
+    geometry: Geometry
+    mirror: bool
+    calibration_path: Path | None
+    point_sigma: float | None
+    tension_sigma: float | None
+    samples: pd.DataFrame
+    points: np.ndarray | None
+    image_paths: tuple | None
+
+    @property
+    def sample_ids(self) -> np.ndarray:
+        """Sample ids (S,) int."""
+        return self.samples["sample"].to_numpy(dtype=np.int64)
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times (S,) [s]."""
+        return self.samples["time_s"].to_numpy(dtype=float)
+
+    @property
+    def tension_left(self) -> np.ndarray:
+        """Left cable tension at the load cell (S,) [N]."""
+        return self.samples["tension_left_N"].to_numpy(dtype=float)
+
+    @property
+    def tension_right(self) -> np.ndarray:
+        """Right cable tension at the load cell (S,) [N]."""
+        return self.samples["tension_right_N"].to_numpy(dtype=float)
+
+    @property
+    def displacement_left(self) -> np.ndarray:
+        """Left cable displacement (S,) [m], NaN where not measured."""
+        return self.samples["displacement_left_mm"].to_numpy(dtype=float) * MM
+
+    @property
+    def displacement_right(self) -> np.ndarray:
+        """Right cable displacement (S,) [m], NaN where not measured."""
+        return self.samples["displacement_right_mm"].to_numpy(dtype=float) * MM
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples S."""
+        return len(self.samples)
+
+    @property
+    def has_images(self) -> bool:
+        """``samples.csv`` names at least one image."""
+        return self.image_paths is not None and any(p is not None for p in self.image_paths)
+
+
+# ----------------------------------------------------------------------------- experiment.toml
+def _uncertainty(doc: TomlFile, unc, probs: Problems, out: dict) -> None:
+    if not isinstance(unc, dict):
+        probs.add(doc.line_of("uncertainty"), "uncertainty must be a table [uncertainty]")
+        return
+    for k, v in unc.items():
+        where = doc.line_of("uncertainty", k)
+        if k not in _UNCERTAINTY_KEYS:
+            probs.add(where, f"unknown key {k!r} in [uncertainty] (known: {', '.join(_UNCERTAINTY_KEYS)})")
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            probs.add(where, f"[uncertainty] {k} must be a positive number, got {v!r}")
+        else:
+            out[_UNCERTAINTY_KEYS[k]] = float(v) * (MM if k == "point_mm" else 1.0)
+
+
+def read_experiment_toml(path) -> dict:
+    """Read and validate ``experiment.toml``.
+
+    Returns
+    -------
+    dict
+        ``name, description, geometry, mirror, calibration, point_sigma [m],
+        tension_sigma [N]`` (absent optional keys as None; ``name`` defaults
+        to the folder name, ``geometry`` to "default", ``mirror`` to false).
+
+    Raises
+    ------
+    TomlError
+        Every problem of the file, each with its line.
+    """
+    path = Path(path)
+    doc = load_toml(path)
+    data = doc.data
+    probs = Problems(path, error=TomlError)
+    for k in sorted(set(data) - _TOML_KEYS):
+        probs.add(doc.line_of(k), f"unknown key {k!r} (known: {', '.join(sorted(_TOML_KEYS))})")
+    out = {"name": path.parent.name, "description": "", "geometry": "default", "mirror": False,
+           "calibration": None, "point_sigma": None, "tension_sigma": None}
+    for key in ("name", "description", "geometry", "calibration"):
+        if key in data:
+            v = data[key]
+            if not isinstance(v, str) or (key != "description" and not v.strip()):
+                probs.add(doc.line_of(key), f"{key} must be a non-empty string, got {v!r}")
+            else:
+                out[key] = v
+    if "mirror" in data:
+        if not isinstance(data["mirror"], bool):
+            probs.add(doc.line_of("mirror"), f"mirror must be true or false, got {data['mirror']!r}")
+        else:
+            out["mirror"] = data["mirror"]
+    if "uncertainty" in data:
+        _uncertainty(doc, data["uncertainty"], probs, out)
+    probs.raise_if_any()
+    return out
+
+
+# ----------------------------------------------------------------------------- samples and points
+def _image_paths(df: pd.DataFrame, lines, folder: Path, missing_images: str, probs: Problems):
+    out = []
+    for rel, ln in zip(df["image"], lines):
+        if rel == "":
+            out.append(None)
+            continue
+        p = folder / rel
+        if not p.is_file() and missing_images == "error":
+            probs.add(ln, f"image missing: {rel} (looked for {p})")
+        out.append(p)
+    return tuple(out)
+
+
+def read_samples(path, *, folder=None, missing_images: str = "error") -> tuple[pd.DataFrame, tuple | None]:
+    """Read and validate ``samples.csv``.
+
+    Checks: every column of docs/data-formats.md present; integer, unique
+    sample ids; finite numeric times and tensions (displacements may be
+    empty); strictly increasing ``time_s``; every named image exists (unless
+    ``missing_images="keep"``, which keeps the path of a missing image for a
+    batch to report).
+
+    Returns
+    -------
+    samples : DataFrame
+    image_paths : tuple of (Path or None) or None
+    """
+    path = Path(path)
+    folder = Path(folder) if folder is not None else path.parent
+    if missing_images not in ("error", "keep"):
+        raise ValueError(f"missing_images must be 'error' or 'keep', got {missing_images!r}")
+    df, lines = read_csv_table(
+        path, required=SAMPLE_COLUMNS, integer=("sample",),
+        numeric=("time_s", "tension_left_N", "tension_right_N"),
+        optional_numeric=("displacement_left_mm", "displacement_right_mm"), text=("image",))
+    probs = Problems(path)
+    if len(df) == 0:
+        probs.add(None, "no samples (the file has only a header)")
+    first: dict[int, int] = {}
+    for s, ln in zip(df["sample"].to_numpy(), lines):
+        if s in first:
+            probs.add(ln, f"duplicate sample {s} (first on line {first[s]})")
+        else:
+            first[s] = ln
+    t = df["time_s"].to_numpy()
+    for i in range(1, len(t)):
+        if not t[i] > t[i - 1]:
+            probs.add(lines[i], f"time_s {t[i]:g} is not after {t[i - 1]:g} (line {lines[i - 1]}); "
+                                "samples must be in strictly increasing time order")
+    image_paths = None
+    if "image" in df.columns:
+        image_paths = _image_paths(df, lines, folder, missing_images, probs)
+    probs.raise_if_any()
+    return df, image_paths
+
+
+def read_points_table(path, *, n_points: int | None = None, sample_ids=None) -> pd.DataFrame:
+    """Read and validate ``notch_points.csv`` (``sample,point,x_mm,y_mm``).
+
+    Checks: integer sample and point ids, point in ``1..n_points``, the
+    sample present in ``sample_ids`` (when given), no duplicate
+    (sample, point), numeric coordinates (empty or ``nan`` = missing).
+    """
+    path = Path(path)
+    df, lines = read_csv_table(path, required=POINT_COLUMNS, integer=("sample", "point"),
+                               nan_ok=("x_mm", "y_mm"))
+    check_point_rows(path, df, lines, n_points, sample_ids)
+    return df
+
+
+def points_from_table(df: pd.DataFrame, sample_ids, n_points: int) -> np.ndarray:
+    """``(S, m, 2)`` plane-frame points [m] from a ``sample,point,x_mm,y_mm`` frame (NaN = missing)."""
+    ids = np.asarray(sample_ids, dtype=np.int64)
+    pos = {int(s): i for i, s in enumerate(ids)}
+    out = np.full((len(ids), n_points, 2), np.nan)
+    if len(df):
+        rows = np.array([pos.get(int(s), -1) for s in df["sample"].to_numpy()])
+        pts = df["point"].to_numpy(dtype=np.int64) - 1
+        ok = (rows >= 0) & (pts >= 0) & (pts < n_points)
+        out[rows[ok], pts[ok], 0] = df["x_mm"].to_numpy(dtype=float)[ok] * MM
+        out[rows[ok], pts[ok], 1] = df["y_mm"].to_numpy(dtype=float)[ok] * MM
+    return out
+
+
+def points_table(points, sample_ids) -> pd.DataFrame:
+    """The ``notch_points.csv`` layout of ``(S, m, 2)`` plane-frame points [m].
+
+    Points with a NaN coordinate are left out (a missing row = a missing point).
+
+    Returns
+    -------
+    DataFrame with columns ``sample, point, x_mm, y_mm`` (point 1-based).
+    """
+    pts = np.asarray(points, dtype=float)
+    ids = np.asarray(sample_ids, dtype=np.int64)
+    if pts.ndim != 3 or pts.shape[-1] != 2 or pts.shape[0] != len(ids):
+        raise ValueError(f"points must have shape (S, m, 2) with S={len(ids)} samples, got {pts.shape}")
+    S, m, _ = pts.shape
+    sample = np.repeat(ids, m)
+    point = np.tile(np.arange(1, m + 1, dtype=np.int64), S)
+    flat = pts.reshape(-1, 2) / MM
+    keep = np.isfinite(flat).all(axis=1)
+    return pd.DataFrame({"sample": sample[keep], "point": point[keep],
+                         "x_mm": flat[keep, 0], "y_mm": flat[keep, 1]})
+
+
+# ----------------------------------------------------------------------------- folders
+def _experiment_geometry(folder: Path, meta_path: Path, source: str) -> Geometry:
+    if source == "default":
+        return load_geometry("default")
+    try:
+        return load_geometry(folder / source)
+    except ValueError as exc:
+        line = load_toml(meta_path).line_of("geometry")
+        raise TomlError(f"{meta_path}: line {line}: geometry {source!r}: {exc}") from None
+
+
+def _calibration_path(folder: Path, meta_path: Path, meta: dict, has_images: bool) -> Path | None:
+    calib = folder / meta["calibration"] if meta["calibration"] is not None else None
+    if has_images:
+        if calib is None:
+            raise TomlError(f"{meta_path}: samples.csv names images but there is no `calibration` "
+                            "key (a camera file is required with images)")
+        if not calib.is_file():
+            line = load_toml(meta_path).line_of("calibration")
+            raise TomlError(f"{meta_path}: line {line}: calibration file not found: {meta['calibration']} "
+                            f"(looked for {calib})")
+    return calib
+
+
+def read_experiment(path, *, missing_images: str = "error") -> Experiment:
+    """Read and validate one experiment folder.
+
+    Parameters
+    ----------
+    path : path
+        The folder holding ``experiment.toml`` (or the toml file itself).
+    missing_images : {"error", "keep"}
+        A sample whose image file is absent is an input error ("error"), or is
+        kept as a path for a batch to report per image ("keep").
+
+    Raises
+    ------
+    FileNotFoundError
+        The folder or a required file is absent.
+    ValueError
+        Naming the file, the line and the problem.
+    """
+    path = Path(path)
+    if path.is_file() and path.name == "experiment.toml":
+        path = path.parent
+    if not path.is_dir():
+        raise FileNotFoundError(f"{path}: experiment folder not found")
+    meta_path = path / "experiment.toml"
+    if not meta_path.is_file():
+        raise FileNotFoundError(f"{path}: not an experiment folder (no experiment.toml)")
+    meta = read_experiment_toml(meta_path)
+    geom = _experiment_geometry(path, meta_path, meta["geometry"])
+    samples, image_paths = read_samples(path / "samples.csv", folder=path, missing_images=missing_images)
+    has_images = image_paths is not None and any(p is not None for p in image_paths)
+    calib = _calibration_path(path, meta_path, meta, has_images)
+    pts_path = path / "notch_points.csv"
+    points = None
+    if pts_path.is_file():
+        df = read_points_table(pts_path, n_points=geom.n_points, sample_ids=samples["sample"])
+        points = points_from_table(df, samples["sample"], geom.n_points)
+    elif not has_images:
+        raise ValueError(f"{path}: no notch_points.csv and no images: an experiment needs measured "
+                         "notch points or one image per sample")
+    return Experiment(name=meta["name"], path=path, description=meta["description"], geometry=geom,
+                      mirror=meta["mirror"], calibration_path=calib, point_sigma=meta["point_sigma"],
+                      tension_sigma=meta["tension_sigma"], samples=samples, points=points,
+                      image_paths=image_paths)
+
+
+def is_experiment_dir(path) -> bool:
+    """The folder holds an ``experiment.toml``."""
+    return (Path(path) / "experiment.toml").is_file()
+
+
+def read_study(path, *, missing_images: str = "error") -> list[Experiment]:
+    """Every experiment of a study folder (sorted by folder name), or ``[one]`` for an experiment folder.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        No such folder; no experiments in it; two experiments with one name.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise FileNotFoundError(f"{path}: folder not found")
+    if is_experiment_dir(path):
+        return [read_experiment(path, missing_images=missing_images)]
+    folders = sorted(p for p in path.iterdir() if p.is_dir() and is_experiment_dir(p))
+    if not folders:
+        raise ValueError(f"{path}: neither an experiment folder (experiment.toml) nor a study "
+                         "(sub-folders with experiment.toml)")
+    exps = [read_experiment(f, missing_images=missing_images) for f in folders]
+    seen: dict[str, Path] = {}
+    for e in exps:
+        if e.name in seen:
+            raise ValueError(f"{path}: two experiments named {e.name!r}: {seen[e.name]} and {e.path}")
+        seen[e.name] = e.path
+    return exps
+
+
+def with_points(exp: Experiment, points) -> Experiment:
+    """A copy of ``exp`` with measured points ``(S, m, 2)`` [m] (e.g. from ``detect``)."""
+    pts = np.asarray(points, dtype=float)
+    if pts.shape != (exp.n_samples, exp.geometry.n_points, 2):
+        raise ValueError(f"points for {exp.name} must have shape "
+                         f"{(exp.n_samples, exp.geometry.n_points, 2)}, got {pts.shape}")
+    return dataclasses.replace(exp, points=pts)
+
+
+def _samples_for_file(samples: pd.DataFrame) -> pd.DataFrame:
+    df = samples.copy()
+    missing = [c for c in SAMPLE_COLUMNS[:4] if c not in df.columns]
+    if missing:
+        raise ValueError(f"samples frame lacks column(s) {', '.join(missing)}")
+    for c in SAMPLE_COLUMNS[4:]:
+        if c not in df.columns:
+            df[c] = np.nan
+    order = list(SAMPLE_COLUMNS) + [c for c in df.columns if c not in SAMPLE_COLUMNS]
+    return df[order]
+
+
+def write_experiment(folder, *, name: str, samples: pd.DataFrame, points=None, mirror: bool = False,
+                     description: str = "", geometry="default", calibration=None,
+                     point_sigma: float | None = None, tension_sigma: float | None = None,
+                     force: bool = False) -> Path:
+    """Write an experiment folder per docs/data-formats.md.
+
+    Parameters
+    ----------
+    folder : path
+        Created; an existing experiment there is replaced only with ``force``.
+    name, description : str
+    samples : DataFrame
+        Columns of ``samples.csv`` in file units (``sample, time_s,
+        tension_left_N, tension_right_N, displacement_left_mm,
+        displacement_right_mm[, image]``); missing displacement columns are
+        written empty.
+    points : array (S, m, 2) [m] or None
+        Plane-frame notch points, NaN = missing (written to notch_points.csv).
+    mirror : bool
+    geometry : str
+        ``"default"`` or a path relative to the folder.
+    calibration : str or None
+        Camera file path relative to the folder.
+    point_sigma : float or None
+        Point uncertainty [m] (written as ``point_mm``).
+    tension_sigma : float or None
+        Tension uncertainty [N].
+    force : bool
+
+    Returns
+    -------
+    Path
+        The folder.
+    """
+    folder = Path(folder)
+    if (folder / "experiment.toml").exists() and not force:
+        raise FileExistsError(f"{folder}: an experiment already exists there (use --force to replace it)")
+    folder.mkdir(parents=True, exist_ok=True)
+    df = _samples_for_file(samples)
+    if points is not None:
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim != 3 or pts.shape[0] != len(df):
+            raise ValueError(f"points must have shape (S={len(df)}, m, 2), got {pts.shape}")
+    meta = {"name": name, "description": description, "geometry": str(geometry), "mirror": bool(mirror),
+            "calibration": None if calibration is None else str(calibration)}
+    unc = {}
+    if point_sigma is not None:
+        unc["point_mm"] = float(point_sigma) / MM
+    if tension_sigma is not None:
+        unc["tension_N"] = float(tension_sigma)
+    if unc:
+        meta["uncertainty"] = unc
+    write_table_atomic(df, folder / "samples.csv")
+    if points is not None:
+        write_table_atomic(points_table(points, df["sample"].to_numpy()), folder / "notch_points.csv")
+    elif (folder / "notch_points.csv").exists():
+        os.remove(folder / "notch_points.csv")
+    # experiment.toml last: a folder without it is not an experiment yet.
+    write_text_atomic(toml_dumps(meta), folder / "experiment.toml")
+    return folder
+
+
+# ----------------------------------------------------------------------------- detections
+def load_detected_points(exp: Experiment, detections, *, ok_status=("ok",)) -> Experiment:
+    """``exp`` with its points taken from a ``detections.csv`` (rows whose status is not ok are missing)."""
+    df = read_detections(detections, n_points=exp.geometry.n_points, sample_ids=exp.sample_ids)
+    df = df[df["status"].str.lower().isin([s.lower() for s in ok_status])]
+    return with_points(exp, points_from_table(df, exp.sample_ids, exp.geometry.n_points))
+
+
+def attach_detections(exps, detections_dir, *, require: bool = True) -> tuple[list, dict]:
+    """Give experiments without ``notch_points.csv`` the points ``detect`` found.
+
+    Looks for ``detections.csv`` of each experiment in ``detections_dir``
+    (``DIR/<name>/detections.csv`` for a study run, ``DIR/detections.csv``
+    for a single experiment).
+
+    Returns
+    -------
+    experiments : list of Experiment
+        Those that have points (measured or detected).
+    problems : dict
+        ``{name: reason}`` for experiments left out.
+    """
+    found = find_output(detections_dir, "detections.csv") if detections_dir is not None else {}
+    out, problems = [], {}
+    for e in exps:
+        if e.points is not None:
+            out.append(e)
+            continue
+        path = found.get(e.name) or (found.get("") if len(exps) == 1 else None)
+        if path is None:
+            problems[e.name] = ("no notch_points.csv and no detections.csv for it"
+                                + (f" in {detections_dir}" if detections_dir is not None else "")
+                                + " (run `notchfit detect` first)")
+            continue
+        try:
+            out.append(load_detected_points(e, path))
+        except (ValueError, FileNotFoundError) as exc:
+            problems[e.name] = str(exc)
+    if require and not out:
+        raise ValueError("no experiment has notch points: " + "; ".join(f"{k}: {v}" for k, v in problems.items()))
+    return out, problems

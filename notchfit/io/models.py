@@ -1,0 +1,130 @@
+"""Model files: geometry TOML files, friction-model parameter files, the FEA reference values.
+
+The physics modules hold the types and the pure mapping <-> object
+conversions; this module reads and writes the files (docs/data-formats.md,
+docs/geometry.md). Every TOML problem is a :class:`~notchfit.io.toml.TomlError`
+naming the file and, where it can be found, the line.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..friction import FrictionParams, params_from_mapping, params_to_mapping
+from ..geometry import Geometry, geometry_from_dict
+from ..statics import FEAReference
+from ..units import MM
+from .outputs import write_text_atomic
+from .resources import datasets_dir
+from .toml import TomlError, load_toml, toml_dumps
+
+__all__ = ["load_fea_reference", "load_geometry", "load_params", "save_params"]
+
+_PARAMS_HEADER = ("# notchfit friction-model parameters (Sec. IV-B), SI units; "
+                  "read by notchfit.friction.load_params\n")
+
+
+def load_geometry(source: str | os.PathLike | None = "default") -> Geometry:
+    """Load a geometry from a TOML file (keys with unit suffixes, mm lengths; docs/geometry.md).
+
+    Parameters
+    ----------
+    source : str or path, optional
+        ``"default"`` (or None) for ``datasets/geometry/default.toml``, or a path.
+
+    Returns
+    -------
+    Geometry
+
+    Raises
+    ------
+    TomlError
+        Naming the file, the key and (where it can be found) the line for a
+        missing, unknown, non-numeric or non-positive field; a missing file
+        is a :class:`~notchfit.io.toml.TomlFileNotFoundError`.
+    """
+    if source is None or str(source) == "default":
+        path = datasets_dir() / "geometry" / "default.toml"
+    else:
+        path = Path(source)
+    doc = load_toml(path, what="geometry file")
+    try:
+        return geometry_from_dict(doc.data, origin=str(path), line_of=doc.line_of)
+    except ValueError as exc:
+        raise TomlError(str(exc)) from None
+
+
+def load_params(path) -> FrictionParams:
+    """Friction parameters from a TOML file (keys with units, :data:`notchfit.friction.PARAM_KEYS`).
+
+    Missing keys take the paper's values; a ``[metadata]`` table is ignored.
+    Plain field names (``k_lin``) are accepted too. ``notchfit.friction.load_params``
+    is the same function (the name the model.toml format documents).
+
+    Raises
+    ------
+    TomlError
+        Naming the file and the key for an unknown key, a non-number or an
+        invalid value; a syntax error with its line; a missing file is a
+        :class:`~notchfit.io.toml.TomlFileNotFoundError`.
+    """
+    doc = load_toml(path, what="friction parameter file")
+    try:
+        return params_from_mapping(doc.data, origin=str(doc.path))
+    except ValueError as exc:
+        raise TomlError(str(exc)) from None
+
+
+def save_params(params: FrictionParams, path, **metadata) -> Path:
+    """Write ``params`` as TOML (SI keys with units) plus a ``[metadata]`` table.
+
+    Floats are written with ``repr`` (exact round trip through :func:`load_params`).
+    Metadata values: numbers (NaN allowed), strings, booleans, lists of those, or
+    nested dicts (written as ``[metadata.name]`` tables). The file is written
+    atomically: an old file is either kept whole or replaced whole.
+
+    Returns
+    -------
+    Path
+    """
+    data = params_to_mapping(params)
+    if metadata:
+        data["metadata"] = metadata
+    return write_text_atomic(_PARAMS_HEADER + toml_dumps(data), Path(path))
+
+
+def load_fea_reference(path: str | os.PathLike | None = None) -> FEAReference:
+    """The paper's FEA of a 4-joint segment (Sec. III-D, Fig. 10), SI units.
+
+    Parameters
+    ----------
+    path : str or path, optional
+        Default: ``datasets/reference/fea_sec3d.toml``.
+
+    Raises
+    ------
+    TomlError
+        A missing key, or joint-angle lists whose length is not ``n_joints``.
+    """
+    path = Path(path) if path is not None else datasets_dir() / "reference" / "fea_sec3d.toml"
+    doc = load_toml(path, what="FEA reference file")
+    d = doc.data
+    try:
+        out = FEAReference(
+            n_joints=int(d["n_joints"]), E=float(d["E_Pa"]), nu=float(d["poisson_ratio"]),
+            moment=float(d["moment"]["moment_Nm"]),
+            theta_moment=np.asarray(d["moment"]["theta_rad"], dtype=float),
+            transverse_force=float(d["transverse"]["force_N"]),
+            theta_transverse=np.asarray(d["transverse"]["theta_rad"], dtype=float),
+            axial_force=float(d["axial"]["force_N"]),
+            axial_max_displacement=float(d["axial"]["max_displacement_mm"]) * MM,
+            source=str(d.get("source", "")))
+    except KeyError as exc:
+        raise doc.error(f"missing key {exc}") from None
+    for table, a in (("moment", out.theta_moment), ("transverse", out.theta_transverse)):
+        if a.shape != (out.n_joints,):
+            raise doc.error(f"joint-angle lists must have n_joints={out.n_joints} entries", table, "theta_rad")
+    return out

@@ -1,0 +1,194 @@
+"""The package's structure: no import cycles, layers that point one way, short functions.
+
+These are the rules of docs/architecture.md, checked on the source: every
+``import`` statement (module level and inside functions) of every module of
+``notchfit`` is an edge of the import graph.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "notchfit"
+
+#: physics: pure models over numpy arrays; they read and write no files.
+PHYSICS = ("geometry", "kinematics", "notches", "cables", "springs", "statics", "friction",
+           "_friction_kernels", "shapes", "units", "validation", "paper", "polygon")
+#: analysis: returns objects, writes nothing.
+ANALYSIS = ("fitting", "diagnosis")
+#: modules whose functions may exceed the length limit: numba kernels (one loop
+#: each, kept whole for the compiler) and the detector (split into stages by its
+#: own work item, docs/robustness.md).
+LONG_FUNCTIONS_ALLOWED = ("_friction_kernels", "detection")
+MAX_FUNCTION_LINES = 100
+#: Deferred imports that are part of a documented interface, never run at import time:
+#: the model-file format names ``notchfit.friction.load_params`` / ``save_params`` as its
+#: reader and writer; friction forwards them to notchfit.io.models on first use
+#: (a module ``__getattr__``), so friction itself loads no file I/O.
+INTERFACE_ALIASES = {("notchfit.friction", "notchfit.io.models"), ("notchfit.friction", "notchfit.io")}
+
+
+def module_name(path: Path) -> str:
+    rel = path.relative_to(PACKAGE.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def all_modules() -> dict[str, Path]:
+    return {module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    """notchfit modules imported anywhere in ``path`` (resolved to module names)."""
+    is_pkg = path.name == "__init__.py"
+    here = name if is_pkg else name.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        targets = []
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = here.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            targets = [f"{mod}.{a.name}" for a in node.names] + [mod]
+        for t in targets:
+            # the longest prefix that is a module of the package
+            parts = t.split(".")
+            for k in range(len(parts), 0, -1):
+                cand = ".".join(parts[:k])
+                if cand in modules:
+                    # a module's own package (and its parents) is imported before it anyway
+                    if cand != name and not name.startswith(cand + "."):
+                        out.add(cand)
+                    break
+    return out
+
+
+def import_graph() -> dict[str, set[str]]:
+    modules = all_modules()
+    graph = {name: imports_of(name, path, modules) for name, path in modules.items()}
+    for src, dst in INTERFACE_ALIASES:
+        graph[src].discard(dst)
+    return graph
+
+
+def test_interface_aliases_do_not_load_io_at_import():
+    """friction's model-file aliases resolve lazily: importing friction loads no notchfit.io."""
+    import subprocess
+    import sys
+
+    code = ("import sys, notchfit.friction as f; assert 'notchfit.io' not in sys.modules; "
+            "assert callable(f.load_params) and 'notchfit.io' in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One import cycle (a list of modules, first == last), or None.
+
+    A package importing its own submodules (``notchfit.io`` -> ``notchfit.io.tables``)
+    is not a cycle unless a submodule imports the package's __init__ back.
+    """
+    WHITE, GREY, BLACK = 0, 1, 2
+    colour = {m: WHITE for m in graph}
+    stack: list[str] = []
+
+    def visit(m):
+        colour[m] = GREY
+        stack.append(m)
+        for n in sorted(graph[m]):
+            if colour[n] == GREY:
+                return stack[stack.index(n):] + [n]
+            if colour[n] == WHITE:
+                c = visit(n)
+                if c:
+                    return c
+        stack.pop()
+        colour[m] = BLACK
+        return None
+
+    for m in sorted(graph):
+        if colour[m] == WHITE:
+            c = visit(m)
+            if c:
+                return c
+    return None
+
+
+def test_cycle_finder_finds_a_cycle():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set(), "c": {"a", "b"}}) is None
+
+
+def test_import_resolution_of_relative_imports():
+    modules = all_modules()
+    graph = import_graph()
+    assert "notchfit.geometry" in graph["notchfit.kinematics"]
+    assert set(graph) == set(modules)
+
+
+def test_no_import_cycle():
+    cycle = find_cycle(import_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def _layer_members(names):
+    graph = import_graph()
+    return {m: deps for m, deps in graph.items()
+            if any(m == f"notchfit.{n}" or m.startswith(f"notchfit.{n}.") for n in names)}
+
+
+@pytest.mark.parametrize("module", PHYSICS)
+def test_physics_imports_no_file_io_and_nothing_above_it(module):
+    graph = import_graph()
+    deps = graph[f"notchfit.{module}"]
+    above = ("notchfit.io", "notchfit.commands", "notchfit.cli", "notchfit.figures", "notchfit.report",
+             "notchfit.diagnosis", "notchfit.fitting", "notchfit.synth", "notchfit.batch")
+    bad = sorted(d for d in deps if any(d == a or d.startswith(a + ".") for a in above))
+    assert not bad, f"notchfit.{module} (physics) imports {bad}"
+
+
+def test_analysis_writes_nothing():
+    """fitting and diagnosis import no I/O, figures, commands or CLI module."""
+    above = ("notchfit.io", "notchfit.commands", "notchfit.cli", "notchfit.figures", "notchfit.report")
+    for m, deps in _layer_members(ANALYSIS).items():
+        bad = sorted(d for d in deps if any(d == a or d.startswith(a + ".") for a in above))
+        assert not bad, f"{m} (analysis) imports {bad}"
+
+
+def test_commands_do_not_import_the_cli():
+    for m, deps in import_graph().items():
+        if m.startswith("notchfit.commands"):
+            assert "notchfit.cli" not in deps, f"{m} imports notchfit.cli (the CLI imports the commands)"
+
+
+def test_no_function_longer_than_the_limit():
+    long = []
+    for name, path in all_modules().items():
+        if name.rpartition(".")[2] in LONG_FUNCTIONS_ALLOWED:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    long.append(f"{name}.{node.name}: {n} lines")
+    assert not long, "functions over the limit: " + "; ".join(long)
+
+
+def test_nothing_points_outside_the_repository():
+    """The package stands alone: no reference to a folder beside the repository."""
+    root = PACKAGE.parent
+    hits = []
+    for path in [*PACKAGE.rglob("*.py"), root / "README.md", root / "CONVENTIONS.md", root / "pyproject.toml"]:
+        text = path.read_text(encoding="utf-8")
+        if "../shared" in text or "shared/spec" in text:
+            hits.append(str(path.relative_to(root)))
+    assert not hits, f"references to ../shared in {hits}"
