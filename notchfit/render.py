@@ -33,13 +33,17 @@ Every function returns the exact ground truth beside the image.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
 
+from .batch import run_batch
 from .camera import Board, CameraModel
 from .geometry import Geometry
+from .io import write_camera
 from .notches import notch_points, to_plane
 from .units import MM
 
@@ -672,12 +676,6 @@ def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_p
         The camera file's path relative to an experiment folder
         (``../calibration/camera.yml`` for the synth layout).
     """
-    import os
-    from pathlib import Path
-
-    from .batch import run_batch
-    from .io import write_camera
-
     geom = study.geometry
     thetas, planes, keys = [], [], []
     for e in study.experiments:

@@ -29,6 +29,7 @@ import base64
 import datetime as _dt
 import html
 import io as _pyio
+import json
 from pathlib import Path
 
 import numpy as np
@@ -88,7 +89,7 @@ def _png(path: Path, root: Path) -> str:
 
 
 def _fig_html(fig, caption: str) -> str:
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # slow optional dependency: only when the report draws
 
     buf = _pyio.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
@@ -211,6 +212,7 @@ def _calibration_section(out_dir: Path, exps) -> str:
 
 # ----------------------------------------------------------------------------- detection
 def _overlay(exp, det: pd.DataFrame, sample: int) -> str | None:
+    # slow optional dependency: matplotlib loads only when the report draws
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -405,8 +407,6 @@ def _diagnosis_section(out_dir: Path) -> str:
 
 
 def _json_short(obj, limit: int = 20000) -> str:
-    import json
-
     s = json.dumps(obj, indent=1, default=str)
     return s if len(s) <= limit else s[:limit] + "\n..."
 

@@ -29,8 +29,8 @@ and print where the report is and a three-line summary: the shape-fit errors, th
 diagnosis names, and the gain of the extended model on held-out experiments. The hidden
 truth (OUT/study/truth.json) is read only to print it after the summary.
 
-The full demo (6 experiments, 162 rendered images) takes about 3 minutes on 2 cores;
---small (4 experiments, notch points without images) well under a minute.
+The full demo has 6 experiments and 162 rendered images; --small has 4 experiments and
+notch points without images (much faster; docs/history.md has measured run times).
 
 Outputs: OUT/study/ (the synthetic study) and OUT/results/ (fits, simulation, diagnosis,
 report.html).

@@ -18,9 +18,10 @@ NAME = "simulate"
 ORDER = 50
 HELP = "simulate an experiment or a study from its measured tensions (friction model)"
 DESCRIPTION = """Run the cable-friction simulator (Sec. IV-B) on the measured tension history of
-each experiment: the manipulator is at rest at every sample, tensions ramp linearly in
-between. Parameters are the paper's values, or those of a model file (--model: a TOML file
-written by notchfit.friction.save_params, e.g. the extended model that `notchfit diagnose`
+each experiment: after each sample the tensions step to the next sample's values and the
+manipulator comes to rest before that sample is taken. Parameters are the paper's values, or
+those of a model file (--model: a TOML file written by notchfit.io.save_params, e.g. the
+extended model that `notchfit diagnose`
 saves), then any --param overrides (SI units: k_lin N m/rad, mu_d, b N m s/rad, ...).
 
 Writes simulation.csv (sample, regime, a, b, theta_1..theta_n, base tensions, predicted
