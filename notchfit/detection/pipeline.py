@@ -1,0 +1,186 @@
+"""The detector's stages run in order for one image at one scale (see the package docstring)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.ndimage import maximum_filter1d
+
+from ..geometry import notch_layout
+from .base import find_base
+from .corners import base_specs, slot_specs, tip_specs
+from .dims import slot_depths, slot_widths
+from .lines import unit
+from .numbering import number_slots, orient_corner_pair
+from .outline import bridge_slots, slot_mouths, turn_angles, turn_peaks
+from .plane import finish
+from .refine import CornerSpecs, refine_pass
+from .result import empty_detection
+
+__all__ = ["locate", "refine_corners", "run_at_scale"]
+
+
+def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base):
+    """Stages 2-4 on the downsampled copy: outline, base end, numbering, first corner estimates.
+
+    Returns
+    -------
+    specs : list of corner specs (point, xy low-res, d_in, d_out, L_in m, L_out m, face_in, face_out)
+    context : dict (contour_px, status, messages, base side, full() mapping) or a Detection (failure)
+    """
+    lay = notch_layout(geom)
+    m = lay.n_points
+    low_m = f / px_per_m
+    R = geom.outer_radius
+    R_lo = R / low_m
+    w_max = float(slot_widths(geom).max())
+    slot_area = float(np.median(slot_widths(geom) * slot_depths(geom))) / low_m ** 2
+    keep = (opts.slot_area_range[0] * slot_area, opts.slot_area_range[1] * slot_area)
+    r_close = int(math.ceil(opts.close_slot_factor * w_max / low_m)) + 1
+    ol = bridge_slots(region, box, small_shape, r_close=r_close, slot_area=slot_area,
+                      slot_area_range=opts.slot_area_range, sgn=sgn, keep_holes=keep)
+    if ol is None:
+        return None, empty_detection(m, "no_manipulator", "no manipulator outline")
+    X0, Y0 = ol.offset
+    full = lambda p: (np.asarray(p, float) + [X0, Y0]) * f + (f - 1) / 2.0     # low-res box -> px
+    cnt = ol.contour
+    contour_px = full(cnt)
+    plane_px = camera.pixel_to_plane(contour_px) / low_m
+    dist = lambda i, j: float(np.linalg.norm(plane_px[i] - plane_px[j]))
+    be, why = find_base(ol, R_lo=R_lo, dist=dist, sgn=sgn, holder_width_factor=opts.holder_width_factor,
+                        min_tube_run_R=opts.min_tube_run_R,
+                        min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
+                        pair_tol=opts.pair_tol, base=base)
+    if be is None:
+        return None, empty_detection(m, "partial", why, contour_px)
+    mouths = slot_mouths(ol)
+    if be.kind == "corners":
+        be = orient_corner_pair(be, mouths, cnt)
+    k = max(3, 2 * r_close)
+    near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
+    convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
+    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, lay, dist=dist, two_R=2 * R_lo,
+                       pair_tol=opts.pair_tol, base_at_border=be.kind == "border" and not be.corners)
+    if num.mirror_conflict:
+        n_r = sum(1 for s in geom.slot_sides if s > 0)
+        return None, empty_detection(
+            m, "partial", f"the slot counts fit the opposite mirror flag ({n_r} right-side slots expected): "
+                          "check `mirror` in experiment.toml", contour_px, status="ambiguous")
+    if num.unnumbered:
+        return None, empty_detection(m, "partial", "; ".join(["base outside the image"] + num.messages), contour_px)
+    index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
+    specs = []
+    if be.corners:
+        face_len = min(geom.mount_half_width - R, R)
+        specs += base_specs(cnt, ol.raw_contour, be.i_right, be.i_left, r_close=r_close, sgn=sgn, index=index,
+                            geom=geom, low_m=low_m, face_len=face_len)
+    else:
+        num.messages.insert(0, "base corners hidden: the tube enters from the " +
+                            ("image border" if be.kind == "border" else "holder without a corner at the base edge"))
+    if num.tip is not None:
+        specs += tip_specs(cnt, num.tip, index=index, geom=geom, low_m=low_m)
+    specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
+                        geom=geom, low_m=low_m)
+    return specs, {"contour_px": contour_px, "status": num.status, "messages": num.messages,
+                   "side": be.side, "full": full, "tube_px": contour_px[(np.arange(len(cnt)) - be.i_right)
+                                                                     % len(cnt) <= (be.i_left - be.i_right) % len(cnt)]}
+
+
+def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
+    """A region of the full image holding every corner's edges (and ``extra`` points) plus ``margin``."""
+    H, W = gray.shape
+    pts = np.concatenate([C, C - Din * Lin[:, None], C + Dout * Lout[:, None], extra])
+    pts = pts[np.isfinite(pts).all(1)]
+    u0 = max(int(pts[:, 0].min() - margin), 0)
+    v0 = max(int(pts[:, 1].min() - margin), 0)
+    u1 = min(int(pts[:, 0].max() + margin) + 1, W)
+    v1 = min(int(pts[:, 1].max() + margin) + 1, H)
+    return np.ascontiguousarray(gray[v0:v1, u0:u1], dtype=np.float32), np.array([u0, v0], float)
+
+
+def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opts, extra_px=None):
+    """Stage 5 for all corners: first pass with long profiles, then passes sized by the measured blur.
+
+    Returns
+    -------
+    dict with pidx (K,), C (K,2) raw px, Xi (K,2) ideal px, cov (K,2,2), ok (K,), shift (K,),
+    blur [px], sig_px (K,), the CornerSpecs and the ROI (img, off).
+    """
+    kf = max(1.0, f / 2.0)
+    pidx = np.array([s[0] for s in specs])
+    sp = CornerSpecs(full(np.array([s[1] for s in specs])), unit(np.array([s[2] for s in specs])),
+                     unit(np.array([s[3] for s in specs])), np.array([s[4] for s in specs]) * px_per_m,
+                     np.array([s[5] for s in specs]) * px_per_m,
+                     np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool))
+    C0 = sp.C.copy()
+    margin = 2 * max(opts.stage1_half_px, opts.stage1_face_px) * kf + 10
+    extra = np.zeros((0, 2)) if extra_px is None else extra_px
+    img, off = _roi(gray, sp.C, sp.Din, sp.Dout, sp.Lin, sp.Lout, extra, margin)
+    bl, ok, Xi, Ci = 1.0, np.zeros(len(specs), bool), None, None
+    for it in range(1 + opts.iterations):
+        if it == 0:
+            s0, s_end, h, lim = 5.0 * kf, 3.0, opts.stage1_half_px * kf, 0.25
+            h_face = opts.stage1_face_px * kf
+        else:
+            s0, s_end, h, lim = max(3.0, 3.0 * bl + 1.0), max(2.0, 2.5 * bl + 1.0), max(3.0, 3.0 * bl + 2.0), 0.1
+            h_face = h
+        Cn, Xi, Ci, ok, bl_new, Din, Dout = refine_pass(
+            img, off, camera, sp, sgn, s0=s0, s_end=s_end, h=h, step=opts.profile_step_px, lim=lim,
+            min_points=opts.min_edge_points, contrast=contrast, h_face=h_face,
+            blur_prior=bl if it > 0 else math.nan)
+        if np.isfinite(bl_new):
+            bl = bl_new
+        sp.C = np.where(np.isfinite(Cn).all(1)[:, None], Cn, sp.C)
+        sp.Din, sp.Dout = Din, Dout
+    shift = np.linalg.norm(sp.C - C0, axis=1)
+    sig_px = np.sqrt(np.maximum(np.trace(Ci, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
+    return {"pidx": pidx, "C": sp.C, "Xi": Xi, "cov": Ci, "ok": ok, "shift": shift, "blur": bl,
+            "sig_px": sig_px, "specs": sp, "img": img, "off": off, "kf": kf}
+
+
+def statuses(ref, m, status, shape, opts):
+    """Per-point status, raw px, ideal px and covariance from the refinement."""
+    H, W = shape
+    pts_px = np.full((m, 2), np.nan)
+    ideal = np.full((m, 2), np.nan)
+    cov = np.full((m, 2, 2), np.nan)
+    C = ref["C"]
+    inimg = np.all((C >= 0) & (C <= np.array([W - 1.0, H - 1.0])), axis=1)
+    for q, i in enumerate(ref["pidx"]):
+        if not ref["ok"][q] or not inimg[q]:
+            status[i] = "occluded"
+        elif ref["shift"][q] > opts.max_shift_px * ref["kf"] or not ref["sig_px"][q] <= opts.max_sigma_px:
+            status[i] = "ambiguous"
+            pts_px[i] = C[q]
+        else:
+            status[i] = "ok"
+            pts_px[i] = C[q]
+            ideal[i] = ref["Xi"][q]
+            cov[i] = ref["cov"][q] * opts.sigma_inflation ** 2
+    return status, pts_px, ideal, cov
+
+
+def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base,
+                 extra=None, stations=None):
+    """Stages 2-6 at a given scale. Returns (Detection, refinement dict or None)."""
+    lay = notch_layout(geom)
+    m = lay.n_points
+    specs, ctx = locate(region, box, small_shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base)
+    if specs is None:
+        return ctx, None
+    extra = extra or {}
+    status, msg = list(ctx["status"]), list(ctx["messages"])
+    ref = None
+    pts_px, ideal, cov = np.full((m, 2), np.nan), np.full((m, 2), np.nan), np.full((m, 2, 2), np.nan)
+    blur = math.nan
+    if specs:
+        far = ctx["tube_px"] if stations else None
+        ref = refine_corners(gray, specs, camera, full=ctx["full"], px_per_m=px_per_m, sgn=sgn,
+                             contrast=seg.contrast, f=f, opts=opts, extra_px=far)
+        status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
+        blur = ref["blur"]
+    det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx["contour_px"],
+                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"], **extra)
+    return det, ref
+

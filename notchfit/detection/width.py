@@ -1,0 +1,112 @@
+"""The image scale from the tube's known outer diameter (photos without a calibration).
+
+A fronto-parallel view is assumed: the tube's width in pixels, measured
+across straight stretches of its outer edges, is ``2R``. First a rough
+width from the downsampled silhouette (slots bridged by a closing; the
+thinnest long band of the silhouette is the tube), then the precise one
+from full-resolution intensity profiles across the tube (50 % crossings of
+both outer edges, stations on the straight edge next to every refined
+corner).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+__all__ = ["measure_diameter", "rough_radius"]
+
+
+def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3) -> float:
+    """Tube radius in pixels of a downsampled silhouette (NaN if not found).
+
+    The silhouette closed by a disk of ``close_px`` (the slots bridged) has a
+    distance-transform ridge along the tube at the tube's radius; a holder's
+    ridge lies higher. The radius is the smallest ridge value whose
+    histogram count is at least ``peak_fraction`` of the largest count.
+    """
+    r = max(int(close_px), 1)
+    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    pad = r + 2
+    big = cv2.copyMakeBorder(region, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+    closed = cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)
+    dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)[pad:-pad, pad:-pad]
+    ridge = (dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6) & (dt >= min_radius_px)
+    v = dt[ridge]
+    if len(v) < 10:
+        return math.nan
+    hi = int(math.ceil(v.max())) + 2
+    h, edges = np.histogram(v, bins=np.arange(0, hi + 1, 1.0))
+    h = np.convolve(h, [0.25, 0.5, 0.25], mode="same")
+    peaks = [i for i in range(1, len(h) - 1) if h[i] >= h[i - 1] and h[i] >= h[i + 1] and h[i] > 0]
+    if not peaks:
+        return math.nan
+    top = max(h[i] for i in peaks)
+    i0 = min(i for i in peaks if h[i] >= peak_fraction * top)
+    sel = (v >= edges[max(i0 - 1, 0)]) & (v < edges[min(i0 + 2, len(edges) - 1)])
+    return float(np.median(v[sel])) + 0.5
+
+
+def _crossing(t, p, level, t0, sign):
+    """Interpolated crossing of ``level`` nearest ``t0`` where ``sign * (p - level)`` goes from < 0 to >= 0."""
+    q = sign * (p - level)
+    idx = np.nonzero((q[:-1] < 0) & (q[1:] >= 0))[0]
+    if not len(idx):
+        return math.nan
+    i = idx[np.argmin(np.abs(t[idx] - t0))]
+    return float(t[i] + (0 - q[i]) / (q[i + 1] - q[i]) * (t[i + 1] - t[i]))
+
+
+def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur_px: float, *,
+                     step: float = 0.5, window=(0.7, 1.35)):
+    """Tube width across the outer edges [px] at a set of stations.
+
+    Parameters
+    ----------
+    img : ndarray (h, w) float32
+        Image region; ``off`` = its (u0, v0) [px].
+    stations : ndarray (S, 4)
+        Station point on an outer edge (u, v) [px] and the unit normal into
+        the tube (nu, nv).
+    width0_px : float
+        Rough width; the far edge is searched in ``window`` times it.
+    contrast : float
+        Object minus background level (its sign is the polarity).
+    blur_px : float
+        Edge blur σ [px] (plateaus are taken beyond 2σ + 2 px of an edge).
+
+    Returns
+    -------
+    widths : ndarray (S,) [px], NaN where an edge was not found.
+    """
+    b = blur_px if np.isfinite(blur_px) else 1.5
+    a = 4 * b + 4
+    t = np.arange(-a - 2, window[1] * width0_px + a + 2, step)
+    P, nrm = stations[:, :2] - off, stations[:, 2:]
+    mapx = (P[:, 0, None] + t[None] * nrm[:, 0, None]).astype(np.float32)
+    mapy = (P[:, 1, None] + t[None] * nrm[:, 1, None]).astype(np.float32)
+    prof = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=float("nan")).astype(float)
+    sgn = 1.0 if contrast > 0 else -1.0           # object above the background: + 1
+    out = np.full(len(stations), np.nan)
+    for k, p in enumerate(prof):
+        if not np.isfinite(p[t <= window[0] * width0_px]).all():
+            continue
+        bg_n = np.median(p[(t >= -a) & (t <= -2 * b - 2)])
+        ob_n = np.median(p[(t >= 2 * b + 2) & (t <= a)])
+        tn = _crossing(t, p, 0.5 * (bg_n + ob_n), 0.0, sgn)
+        srch = (t >= window[0] * width0_px) & (t <= window[1] * width0_px)
+        g = -sgn * np.gradient(p)                  # object -> background: a fall of sgn * p
+        if not np.isfinite(tn) or not srch.any():
+            continue
+        gs = np.nan_to_num(g[srch], nan=-np.inf)
+        tf0 = float(t[srch][np.argmax(gs)])
+        ob_f = np.nanmedian(p[(t >= tf0 - a) & (t <= tf0 - 2 * b - 2)])
+        bg_f = np.nanmedian(p[(t >= tf0 + 2 * b + 2) & (t <= tf0 + a)])
+        if not sgn * (ob_f - bg_f) > 0.5 * abs(contrast):
+            continue
+        tf = _crossing(t, p, 0.5 * (ob_f + bg_f), tf0, -sgn)
+        out[k] = tf - tn
+    return out
