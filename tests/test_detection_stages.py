@@ -9,7 +9,7 @@ import pytest
 from notchfit.detection import DetectorOptions, detect_notches
 from notchfit.detection.base import find_base, holder_mask, image_side
 from notchfit.detection.lines import intersect, robust_group_lines
-from notchfit.detection.outline import bridge_slots, slot_mouths
+from notchfit.detection.outline import bridge_slots, crop_region, slot_mouths
 from notchfit.detection.refine import CornerSpecs, refine_pass
 from notchfit.detection.segment import fill_holes, largest_region, segment
 from notchfit.detection.view import DiameterScale
@@ -83,7 +83,8 @@ def test_bridge_slots_finds_every_slot_and_its_mouth():
     img = _image([poly], (100, 260), blur=0.0)
     mask = (img < 120).astype(np.uint8)
     reg, box = largest_region(mask)
-    ol = bridge_slots(reg, box, mask.shape, r_close=5, slot_area=6 * 16, slot_area_range=(0.15, 4.0), sgn=1.0)
+    roi, off = crop_region(reg, box, mask.shape, 7)
+    ol = bridge_slots(roi, off, mask.shape, r_close=5, slot_area=6 * 16, slot_area_range=(0.15, 4.0), sgn=1.0)
     assert len(ol.slot_ids) == 4
     mouths = slot_mouths(ol)
     firsts = sorted(ol.contour[v[0]][0] + ol.offset[0] for v in mouths.values())
@@ -107,9 +108,10 @@ def test_base_end_found_in_every_orientation(side):
     cov = polygon_coverage(pts[:1], (H, W), supersample=8) + polygon_coverage(pts[1:], (H, W), supersample=8)
     mask = (cov > 0.5).astype(np.uint8)
     reg, box = largest_region(mask)
-    ol = bridge_slots(reg, box, mask.shape, r_close=3, slot_area=20.0, slot_area_range=(0.15, 4.0), sgn=1.0)
+    roi, off = crop_region(reg, box, mask.shape, 5)
+    ol = bridge_slots(roi, off, mask.shape, r_close=3, slot_area=20.0, slot_area_range=(0.15, 4.0), sgn=1.0)
     dist = lambda i, j: float(np.linalg.norm(ol.contour[i] - ol.contour[j]))
-    be, why = find_base(ol, R_lo=15.0, dist=dist, sgn=1.0, holder_width_factor=1.15, min_tube_run_R=2.0,
+    be, why = find_base(ol, (holder_mask(ol.region, 17.25), holder_mask(ol.region, 17.25, regrow=False)), R_lo=15.0, dist=dist, sgn=1.0, min_tube_run_R=2.0,
                         min_base_run_R=2.0, corner_turn_deg=50.0, pair_tol=0.3)
     assert be is not None, why
     assert be.side == side and be.kind == "holder" and be.corners

@@ -1,9 +1,10 @@
 """Stage 3: separate the tube from its holder and find the base end.
 
-The tube, with its slots bridged, is a band ``2R`` wide; a holder (mount,
-chuck, collet, clamp, a hand) is wider. An opening of the bridged
-silhouette with a disk of radius ``holder_width_factor * R`` keeps the
-holder and removes the tube. Outline points on the holder or on the image
+The tube is at most ``2R`` wide; a holder (mount, chuck, collet, clamp, a
+hand) is wider. An opening of the silhouette (slots not bridged, so the
+bridging fillets at the tube's junction with the holder do not thicken it)
+with a disk of radius ``holder_width_factor * R`` keeps the holder and
+removes the tube. Outline points on the holder or on the image
 border are *base* points; the tube is the rest. The outline is traversed
 anticlockwise in the manipulator frame, so after the base run comes the
 tube's right side (``+x``), then the tip, then its left side: the first and
@@ -21,9 +22,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .outline import Outline, turn_angles, turn_peaks
+from .outline import Outline, corner_window, turn_angles, turn_peaks
 
-__all__ = ["BaseEnd", "base_runs", "find_base", "holder_mask", "image_side"]
+__all__ = ["BaseEnd", "base_runs", "find_base", "holder_mask", "image_side", "raw_base_corners"]
 
 SIDES = ("top", "bottom", "left", "right")
 
@@ -53,24 +54,25 @@ class BaseEnd:
     side: str
 
 
-def holder_mask(closed, radius_px: float) -> np.ndarray:
-    """The parts of a bridged silhouette wider than ``2 radius_px`` (uint8).
+def holder_mask(region, radius_px: float, *, regrow: bool = True) -> np.ndarray:
+    """The parts of a silhouette wider than ``2 radius_px`` (uint8).
 
-    An opening by a disk of ``radius_px``, grown back by ``(√2 - 1) radius_px``
-    inside the silhouette: the opening rounds a holder's convex corners off
-    by that much. The image border is replicated, so a holder cut by the
-    border stays wide.
+    An opening by a disk of ``radius_px``; with ``regrow``, grown back by
+    ``(√2 - 1) radius_px`` inside the silhouette (the opening rounds a
+    holder's convex corners off by that much; the growth also climbs the
+    tube a little, see :func:`find_base`). The image border is replicated,
+    so a holder cut by the border stays wide.
     """
     r = float(max(radius_px, 1.0))
-    g = (math.sqrt(2) - 1) * r + 2
+    g = (math.sqrt(2) - 1) * r + 2 if regrow else 0.0
     pad = int(math.ceil(r)) + 1
-    big = cv2.copyMakeBorder(closed, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+    big = cv2.copyMakeBorder(region, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
     # erosion by the disk = the points at least r inside; a dilation by r, then by g, is one by r + g
     core = (cv2.distanceTransform(big, cv2.DIST_L2, cv2.DIST_MASK_5) >= r).astype(np.uint8)
     if not core.any():
-        return np.zeros_like(closed)
+        return np.zeros_like(region)
     near = cv2.distanceTransform(1 - core, cv2.DIST_L2, cv2.DIST_MASK_5) <= r + g
-    return (near[pad:-pad, pad:-pad] & (closed > 0)).astype(np.uint8)
+    return (near[pad:-pad, pad:-pad] & (region > 0)).astype(np.uint8)
 
 
 def _runs(flag) -> list:
@@ -145,7 +147,23 @@ def _near_corner_pair(cnt, concave, i_r, i_l, window, R_lo, pair_tol, dist):
     return (best[1], best[2]) if best is not None and best[0] <= pair_tol else None
 
 
-def find_base(ol: Outline, *, R_lo: float, dist, sgn: float, holder_width_factor: float, min_tube_run_R: float,
+def _trim_run(ol: Outline, strict, s: int, L: int, tol: float = 2.0):
+    """Shrink a base run's ends to the outline points within ``tol`` of the strict opening or the border."""
+    N = len(ol.contour)
+    if strict is None or not strict.any():
+        return s, L
+    d = cv2.distanceTransform(1 - strict, cv2.DIST_L2, cv2.DIST_MASK_5)
+    ci = ol.contour.astype(np.intp)
+    base = (d[ci[:, 1], ci[:, 0]] <= tol) | ol.on_border
+    idx = (s + np.arange(L)) % N
+    inside = np.nonzero(base[idx])[0]
+    if not len(inside):
+        return s, L
+    a, b = int(inside[0]), int(inside[-1])
+    return (s + a) % N, b - a + 1
+
+
+def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, min_tube_run_R: float,
               min_base_run_R: float,
               corner_turn_deg: float, pair_tol: float, base: str | None = None):
     """Find where the tube leaves its base.
@@ -153,6 +171,8 @@ def find_base(ol: Outline, *, R_lo: float, dist, sgn: float, holder_width_factor
     Parameters
     ----------
     ol : Outline
+    holder : (ndarray, ndarray) uint8
+        :func:`holder_mask` of the outline's region, regrown and strict.
     R_lo : float
         Tube radius [low-res px].
     dist : callable (i, j) -> float
@@ -171,9 +191,9 @@ def find_base(ol: Outline, *, R_lo: float, dist, sgn: float, holder_width_factor
         raise ValueError(f"base must be one of {SIDES}, got {base!r}")
     cnt = ol.contour
     N = len(cnt)
-    holder = holder_mask(ol.closed, holder_width_factor * R_lo)
+    holder, strict = holder
     runs = base_runs(ol, holder, int(min_tube_run_R * R_lo), int(min_base_run_R * R_lo))
-    k = max(3, 2 * ol.r_close)
+    k = corner_window(ol.r_close, R_lo)
     turn = turn_angles(cnt, k, sgn)
     thr = math.radians(corner_turn_deg)
     if runs and not (len(runs) == 1 and runs[0][1] >= N):
@@ -181,6 +201,7 @@ def find_base(ol: Outline, *, R_lo: float, dist, sgn: float, holder_width_factor
         if run is None:
             return None, msg
         s, L, has_h = run
+        s, L = _trim_run(ol, strict, s, L)
         i_r, i_l = (s + L) % N, (s - 1) % N
         concave = turn_peaks(turn, k, thr, -1.0)
         pair = _near_corner_pair(cnt, concave, i_r, i_l, int(2 * R_lo) + k, R_lo, pair_tol, dist)
@@ -208,3 +229,34 @@ def find_base(ol: Outline, *, R_lo: float, dist, sgn: float, holder_width_factor
     if base is not None and side and side != base and kind != "corners":
         return None, f"the base found in the image is at the {side}, but base = {base!r} was stated"
     return BaseEnd(int(i_r), int(i_l), kind, pair is not None, side), ""
+
+
+def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float, dist, pair_tol: float, R_lo: float):
+    """The concave ~90° corners of the unbridged outline nearest two points, if they are 2R apart.
+
+    Parameters
+    ----------
+    mcnt : ndarray (M, 2)
+        Unbridged outline (anticlockwise in the manipulator frame).
+    P_right, P_left : ndarray (2,)
+        Where the tube leaves the base on the bridged outline.
+    search : float
+        Search radius around each point [low-res px].
+    k : int
+        Turn window [outline points].
+    dist : callable (xy_a, xy_b) -> plane distance [low-res px]
+
+    Returns
+    -------
+    (int, int) or None : indices into ``mcnt`` (right, left).
+    """
+    turn = turn_angles(mcnt, k, sgn)
+    out = []
+    for P in (P_right, P_left):
+        near = np.nonzero((np.sum((mcnt - P) ** 2, axis=1) < search ** 2) & (turn < -math.radians(60)))[0]
+        if not len(near):
+            return None
+        out.append(int(near[np.argmin(np.abs(turn[near] + math.pi / 2) + 0.01 * np.hypot(*(mcnt[near] - P).T))]))
+    if abs(dist(mcnt[out[0]], mcnt[out[1]]) / (2 * R_lo) - 1) > pair_tol:
+        return None
+    return out[0], out[1]

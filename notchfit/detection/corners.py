@@ -15,7 +15,6 @@ from scipy.spatial import cKDTree
 
 from .dims import joint_z, slot_depths, slot_widths
 from .lines import intersect, pca_line, unit
-from .outline import turn_angles
 
 __all__ = ["base_specs", "edge_room", "outline_directions", "slot_specs", "tip_specs"]
 
@@ -59,23 +58,13 @@ def outline_directions(mcnt, P, rough, a2, a1=2.0, cone_deg=35.0):
     return np.where((n >= 4)[:, None], dv, rough)
 
 
-def base_specs(cnt, mcnt, i_right, i_left, *, r_close, sgn, index, geom, low_m, face_len):
-    """Base corners (points 2 and 1) from the unbridged outline near the bridged outline's concave corners."""
-    N, M_ = len(cnt), len(mcnt)
-    R = geom.outer_radius
-    mturn = turn_angles(mcnt, 3, sgn)
-    outward = lambda dv: sgn * np.array([dv[1], -dv[0]])
+def base_specs(mcnt, mi_right, mi_left, *, sgn, index, geom, low_m, face_len):
+    """Base corners (points 2 and 1) at corners of the unbridged outline (the closing rounds concave corners)."""
+    M_ = len(mcnt)
     lp = lambda length_m: max(2, int(round(length_m / low_m)))
     up_len = edge_room(geom, geom.base_edge_z, True)
     out = []
-    for bi, side in ((i_right, +1), (i_left, -1)):
-        # the closing's fillet lies 0.41 r_close outside the true corner (a 90° corner)
-        tan = unit(cnt[(bi + 3) % N] - cnt[(bi - 3) % N])
-        expect = cnt[bi] - (math.sqrt(2) - 1) * r_close * outward(tan)
-        near = np.nonzero(np.sum((mcnt - expect) ** 2, axis=1) < (0.5 * r_close + 2.0) ** 2)[0]
-        if not len(near):
-            continue
-        mi = int(near[np.argmin(np.abs(mturn[near] + math.pi / 2))])   # the 90° concave corner
+    for mi, side in ((mi_right, +1), (mi_left, -1)):
         a2_side = max(3, min(lp(0.8 * up_len), 10))
         a2_face = max(3, min(lp(0.8 * face_len), 10))
         sel_in = [(mi - t_) % M_ for t_ in range(1, (a2_face if side > 0 else a2_side) + 1)]

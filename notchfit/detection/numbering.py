@@ -135,7 +135,7 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *
     L_tube = apos(i_bl, i_br)
     pos = lambda i: apos(i, i_br)
     tube_border = [pos(i) for i in np.nonzero(on_border)[0] if 0 < pos(i) < L_tube]
-    slots = sorted((pos(v[0]), s) for s, v in mouths.items() if 0 < pos(v[0]) < L_tube)
+    slots = sorted((pos(v[0]), s) for s, v in mouths.items() if 0 <= pos(v[0]) < L_tube)
     msg = []
     tip = None
     if not tube_border:

@@ -19,7 +19,7 @@ from ..polygon import polygon_area
 from .lines import pca_line
 from .segment import fill_holes
 
-__all__ = ["Outline", "bridge_slots", "oriented_contour", "slot_mouths", "turn_angles", "turn_peaks"]
+__all__ = ["Outline", "bridge_slots", "crop_region", "corner_window", "oriented_contour", "slot_mouths", "turn_angles", "turn_peaks"]
 
 
 @dataclass(frozen=True)
@@ -73,17 +73,30 @@ def oriented_contour(mask, sgn: float) -> np.ndarray:
     return cnt
 
 
-def bridge_slots(region, box, image_shape, *, r_close: int, slot_area: float, slot_area_range, sgn: float,
-                 keep_holes=(0.0, 0.0)):
+def crop_region(region, box, image_shape, pad: int, keep_holes=(0.0, 0.0)):
+    """The region's box plus ``pad`` (clipped to the image), holes filled except slot-sized ones.
+
+    Returns the crop (uint8) and its offset (x0, y0) in the downsampled image.
+    """
+    hs, ws = image_shape
+    x0, y0, bw, bh = box
+    X0, Y0 = max(x0 - pad, 0), max(y0 - pad, 0)
+    X1, Y1 = min(x0 + bw + pad, ws), min(y0 + bh + pad, hs)
+    return fill_holes(np.ascontiguousarray(region[Y0:Y1, X0:X1]), keep_area=keep_holes), (X0, Y0)
+
+
+def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, slot_area_range, sgn: float,
+                 holder=None):
     """Bridge the slot mouths of a region and find the slot-sized gaps.
 
     Parameters
     ----------
-    region : ndarray (hs, ws) uint8
-        The silhouette in the downsampled image.
-    box : (x, y, w, h)
-        Its bounding box.
+    roi : ndarray (h, w) uint8
+        The silhouette around its box (:func:`crop_region`).
+    offset : (x0, y0)
+        The crop's position in the downsampled image.
     image_shape : (hs, ws)
+        The downsampled image's size.
     r_close : int
         Radius of the closing disk [low-res px].
     slot_area : float
@@ -92,24 +105,20 @@ def bridge_slots(region, box, image_shape, *, r_close: int, slot_area: float, sl
         Accepted gap area relative to ``slot_area``.
     sgn : float
         Orientation sign (see :func:`~notchfit.detection.view.view_orientation`).
-    keep_holes : (float, float)
-        Holes of the region with an area in this range [low-res px²] stay
-        open (nearly closed slots); the others are filled (shading, a
-        specular streak).
+    holder : ndarray (h, w) uint8, optional
+        The holder: left out of the closing, so that the corners where the
+        tube meets it are not filled (their fillets would reach the first slot).
 
     Returns
     -------
     Outline or None (no outline)
     """
     hs, ws = image_shape
-    x0, y0, bw, bh = box
-    pad = r_close + 2
-    X0, Y0 = max(x0 - pad, 0), max(y0 - pad, 0)
-    X1, Y1 = min(x0 + bw + pad, ws), min(y0 + bh + pad, hs)
-    roi = fill_holes(np.ascontiguousarray(region[Y0:Y1, X0:X1]), keep_area=keep_holes)
+    X0, Y0 = offset
     ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_close + 1, 2 * r_close + 1))
     pz = r_close + 2                         # zero padding: the closing never reaches the image border
-    closed = cv2.morphologyEx(cv2.copyMakeBorder(roi, pz, pz, pz, pz, cv2.BORDER_CONSTANT, value=0),
+    src = roi if holder is None else (roi & (1 - cv2.dilate(holder, np.ones((3, 3), np.uint8))))
+    closed = cv2.morphologyEx(cv2.copyMakeBorder(src, pz, pz, pz, pz, cv2.BORDER_CONSTANT, value=0),
                               cv2.MORPH_CLOSE, ker)[pz:-pz, pz:-pz] | roi
     gaps = (closed & (1 - roi)).astype(np.uint8)
     ng, glab, gst, gcen = cv2.connectedComponentsWithStats(gaps, connectivity=8)
@@ -178,7 +187,13 @@ def slot_mouths(ol: Outline) -> dict:
     return mouths
 
 
-def corner_window(r_close: int) -> int:
-    """Outline points each way over which a base or tip corner's turn is measured."""
-    return max(3, 2 * r_close)
+def corner_window(r_close: int, R_lo: float) -> int:
+    """Outline points each way over which a base or tip corner's turn is measured.
+
+    Twice the bridging radius (the bridged fillets must not count as
+    corners), but at most ``0.6 R`` so that the tip face (``2R``) holds two
+    windows.
+    """
+    return max(3, min(2 * r_close, int(0.6 * R_lo)))
+
 

@@ -8,12 +8,12 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d
 
 from ..geometry import notch_layout
-from .base import find_base
+from .base import find_base, holder_mask, raw_base_corners
 from .corners import base_specs, slot_specs, tip_specs
 from .dims import slot_depths, slot_widths
 from .lines import unit
 from .numbering import number_slots, orient_corner_pair
-from .outline import bridge_slots, slot_mouths, turn_angles, turn_peaks
+from .outline import bridge_slots, corner_window, crop_region, slot_mouths, turn_angles, turn_peaks
 from .plane import finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
@@ -21,8 +21,60 @@ from .result import empty_detection
 __all__ = ["locate", "refine_corners", "run_at_scale"]
 
 
+def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
+           exclude_holder):
+    """Bridge, base end, slot numbering on one cropped silhouette. Returns a dict, or (None, Detection)."""
+    lay = notch_layout(geom)
+    m = lay.n_points
+    R_lo = geom.outer_radius / low_m
+    holder, strict = holders
+    ol = bridge_slots(roi, offset, small_shape, r_close=r_close, slot_area=slot_area,
+                      slot_area_range=opts.slot_area_range, sgn=sgn, holder=strict if exclude_holder else None)
+    if ol is None:
+        return None, empty_detection(m, "no_manipulator", "no manipulator outline")
+    X0, Y0 = ol.offset
+    full = lambda p: (np.asarray(p, float) + [X0, Y0]) * f + (f - 1) / 2.0     # low-res box -> px
+    cnt = ol.contour
+    contour_px = full(cnt)
+    plane_px = camera.pixel_to_plane(contour_px) / low_m
+    dist = lambda i, j: float(np.linalg.norm(plane_px[i] - plane_px[j]))
+    be, why = find_base(ol, (holder, strict), R_lo=R_lo, dist=dist, sgn=sgn, min_tube_run_R=opts.min_tube_run_R,
+                        min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
+                        pair_tol=opts.pair_tol, base=base)
+    if be is None:
+        return None, empty_detection(m, "partial", why, contour_px)
+    mouths = slot_mouths(ol)
+    if be.kind == "corners":
+        be = orient_corner_pair(be, mouths, cnt)
+    raw = None
+    if be.kind != "border":
+        pdist = lambda a, b: float(np.linalg.norm(np.diff(camera.pixel_to_plane(full(np.array([a, b]))),
+                                                          axis=0))) / low_m
+        raw = raw_base_corners(ol.raw_contour, cnt[be.i_right], cnt[be.i_left], search=1.5 * r_close + 3,
+                               k=max(3, int(0.15 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol, R_lo=R_lo)
+    k = corner_window(r_close, R_lo)
+    near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
+    convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
+    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, lay, dist=dist, two_R=2 * R_lo,
+                       pair_tol=opts.pair_tol, base_at_border=be.kind == "border")
+    if num.mirror_conflict:
+        n_r = sum(1 for s in geom.slot_sides if s > 0)
+        return None, empty_detection(
+            m, "partial", f"the slot counts fit the opposite mirror flag ({n_r} right-side slots expected): "
+                          "check `mirror` in experiment.toml", contour_px, status="ambiguous")
+    if num.unnumbered:
+        return None, empty_detection(m, "partial", "; ".join(["base outside the image"] + num.messages), contour_px)
+    return {"ol": ol, "be": be, "num": num, "mouths": mouths, "raw": raw, "full": full,
+            "contour_px": contour_px}, None
+
+
 def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base):
     """Stages 2-4 on the downsampled copy: outline, base end, numbering, first corner estimates.
+
+    The slots are bridged with the holder left out of the closing (its
+    fillets would reach a slot near the holder); where that numbers fewer
+    slots (a holder barely wider than the tube, whose opening bites into
+    the tube's base), with the holder in.
 
     Returns
     -------
@@ -38,43 +90,32 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     slot_area = float(np.median(slot_widths(geom) * slot_depths(geom))) / low_m ** 2
     keep = (opts.slot_area_range[0] * slot_area, opts.slot_area_range[1] * slot_area)
     r_close = int(math.ceil(opts.close_slot_factor * w_max / low_m)) + 1
-    ol = bridge_slots(region, box, small_shape, r_close=r_close, slot_area=slot_area,
-                      slot_area_range=opts.slot_area_range, sgn=sgn, keep_holes=keep)
-    if ol is None:
-        return None, empty_detection(m, "no_manipulator", "no manipulator outline")
-    X0, Y0 = ol.offset
-    full = lambda p: (np.asarray(p, float) + [X0, Y0]) * f + (f - 1) / 2.0     # low-res box -> px
+    roi, offset = crop_region(region, box, small_shape, r_close + 2, keep_holes=keep)
+    holders = (holder_mask(roi, opts.holder_width_factor * R_lo),
+               holder_mask(roi, opts.holder_width_factor * R_lo, regrow=False))
+    kw = dict(f=f, low_m=low_m, sgn=sgn, base=base, r_close=r_close, slot_area=slot_area, holders=holders)
+    best = None
+    for exclude in ((True, False) if holders[1].any() else (False,)):
+        res, fail = _parse(roi, offset, small_shape, camera, geom, opts, exclude_holder=exclude, **kw)
+        if res is None:
+            best = best or (None, fail)
+            continue
+        n_found = len(res["num"].right) + len(res["num"].left) + (res["num"].tip is not None)
+        if best is None or best[0] is None or n_found > best[1]:
+            best = (res, n_found)
+        if n_found == geom.n_joints + 1:
+            break
+    res = best[0]
+    if res is None:
+        return None, best[1]
+    ol, be, num, mouths, raw, full = (res[k] for k in ("ol", "be", "num", "mouths", "raw", "full"))
     cnt = ol.contour
-    contour_px = full(cnt)
-    plane_px = camera.pixel_to_plane(contour_px) / low_m
-    dist = lambda i, j: float(np.linalg.norm(plane_px[i] - plane_px[j]))
-    be, why = find_base(ol, R_lo=R_lo, dist=dist, sgn=sgn, holder_width_factor=opts.holder_width_factor,
-                        min_tube_run_R=opts.min_tube_run_R,
-                        min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
-                        pair_tol=opts.pair_tol, base=base)
-    if be is None:
-        return None, empty_detection(m, "partial", why, contour_px)
-    mouths = slot_mouths(ol)
-    if be.kind == "corners":
-        be = orient_corner_pair(be, mouths, cnt)
-    k = max(3, 2 * r_close)
-    near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
-    convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
-    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, lay, dist=dist, two_R=2 * R_lo,
-                       pair_tol=opts.pair_tol, base_at_border=be.kind == "border" and not be.corners)
-    if num.mirror_conflict:
-        n_r = sum(1 for s in geom.slot_sides if s > 0)
-        return None, empty_detection(
-            m, "partial", f"the slot counts fit the opposite mirror flag ({n_r} right-side slots expected): "
-                          "check `mirror` in experiment.toml", contour_px, status="ambiguous")
-    if num.unnumbered:
-        return None, empty_detection(m, "partial", "; ".join(["base outside the image"] + num.messages), contour_px)
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
     specs = []
-    if be.corners:
+    if raw is not None:
         face_len = min(geom.mount_half_width - R, R)
-        specs += base_specs(cnt, ol.raw_contour, be.i_right, be.i_left, r_close=r_close, sgn=sgn, index=index,
-                            geom=geom, low_m=low_m, face_len=face_len)
+        specs += base_specs(ol.raw_contour, raw[0], raw[1], sgn=sgn, index=index, geom=geom, low_m=low_m,
+                            face_len=face_len)
     else:
         num.messages.insert(0, "base corners hidden: the tube enters from the " +
                             ("image border" if be.kind == "border" else "holder without a corner at the base edge"))
@@ -82,9 +123,9 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
         specs += tip_specs(cnt, num.tip, index=index, geom=geom, low_m=low_m)
     specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
                         geom=geom, low_m=low_m)
-    return specs, {"contour_px": contour_px, "status": num.status, "messages": num.messages,
-                   "side": be.side, "full": full, "tube_px": contour_px[(np.arange(len(cnt)) - be.i_right)
-                                                                     % len(cnt) <= (be.i_left - be.i_right) % len(cnt)]}
+    tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
+    return specs, {"contour_px": res["contour_px"], "status": num.status, "messages": num.messages,
+                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube]}
 
 
 def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):

@@ -38,10 +38,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .camera import Board, CameraModel
-from .geometry import Geometry
-from .notches import notch_points, to_plane
-from .units import MM
+from ..camera import Board, CameraModel
+from ..geometry import Geometry
+from ..notches import notch_points, to_plane
+from ..units import MM
 
 __all__ = [
     "RenderedBoard",
@@ -675,8 +675,8 @@ def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_p
     import os
     from pathlib import Path
 
-    from .batch import run_batch
-    from .camera import write_camera
+    from ..batch import run_batch
+    from ..camera import write_camera
 
     geom = study.geometry
     thetas, planes, keys = [], [], []
