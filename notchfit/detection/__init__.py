@@ -47,7 +47,7 @@ from .pipeline import run_at_scale
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .segment import downsample, fill_holes, largest_region, segment
 from .view import DiameterScale, view_orientation
-from .width import measure_diameter, rough_radius
+from .width import measure_diameter, rough_tube_radius
 
 __all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detections_table", "draw_overlay",
            "overlay_with_crop"]
@@ -104,7 +104,7 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
         f = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
     else:
         f = max(1, int(round(max(H, W) / opts.lowres_long_side_px)))
-        sgn = -1.0 if mirror else 1.0
+        sgn = view_orientation(DiameterScale(1.0, (W, H)), (H, W), mirror)[1]
     if H // f < 16 or W // f < 16:
         raise ValueError(f"image too small: {W}x{H} px")
     small = downsample(gray, f)
@@ -149,8 +149,7 @@ def _uncalibrated(gray, seg, region, box, small_shape, geom, opts, *, f, sgn, ba
     m = geom.n_points
     H, W = gray.shape
     R = geom.outer_radius
-    r_g = max(2, int(round(opts.uncal_close_frac * max(small_shape))))
-    R_lo = rough_radius(fill_holes(region), r_g)
+    R_lo = rough_tube_radius(fill_holes(region), max_close_px=int(opts.uncal_close_frac * max(small_shape)))
     if not np.isfinite(R_lo):
         return empty_detection(m, "no_manipulator", "no tube found: no band of constant width in the silhouette")
     px_per_m = R_lo * f / R

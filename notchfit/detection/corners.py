@@ -105,8 +105,16 @@ def tip_specs(cnt, tip, *, index, geom, low_m):
     return out
 
 
-def slot_specs(cnt, mcnt, pairs_by_side, mouths, *, sgn, index, geom, low_m):
-    """Slot corners: proximal and distal corner of every numbered slot."""
+def slot_specs(cnt, mcnt, pairs_by_side, mouths, *, sgn, index, geom, low_m, raw_corners=None):
+    """Slot corners: proximal and distal corner of every numbered slot.
+
+    ``raw_corners`` (label -> indices into ``mcnt``, from
+    :func:`~notchfit.detection.outline.raw_mouth_corners`) gives the corners
+    and the outer edges' rough directions where known; otherwise they come
+    from the bridged outline at the mouth.
+    """
+    raw_corners = raw_corners or {}
+    M = len(mcnt)
     N = len(cnt)
     zj, w, d = joint_z(geom), slot_widths(geom), slot_depths(geom)
     lp = lambda length_m: max(2, int(round(length_m / low_m)))
@@ -122,7 +130,12 @@ def slot_specs(cnt, mcnt, pairs_by_side, mouths, *, sgn, index, geom, low_m):
             a_f, a_s = lp(min(0.5e-3, 0.8 * first_len)), lp(min(0.5e-3, 0.8 * second_len))
             d_in = chord(i_first - 2 - a_f, i_first - 2)
             d_out = chord(i_last + 2, i_last + 2 + a_s)
-            if bridged:
+            if s in raw_corners:
+                ia, ib = raw_corners[s]
+                Pa, Pb = mcnt[ia], mcnt[ib]
+                d_in = unit(mcnt[ia] - mcnt[(ia - 2 - a_f) % M])
+                d_out = unit(mcnt[(ib + 2 + a_s) % M] - mcnt[ib])
+            elif bridged:
                 Pa, Pb = cnt[(i_first - 1) % N], cnt[(i_last + 1) % N]
             else:
                 Pa, Pb = cnt[i_first] - 0.25 * d_in, cnt[i_first] + 0.25 * d_out

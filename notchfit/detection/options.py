@@ -76,10 +76,9 @@ class DetectorOptions:
         Profiles across the tube per straight link edge when the scale comes
         from the tube's diameter (no calibration).
     uncal_close_frac : float
-        Without a calibration: radius of the closing that bridges the slots
-        for the first scale estimate, as a fraction of the downsampled
-        image's long side (the slots must be narrower than twice this, the
-        tube wider).
+        Without a calibration: the largest closing tried to bridge the
+        slots for the first scale estimate, as a fraction of the downsampled
+        image's long side.
     """
 
     lowres_mm: float = 0.06
@@ -104,7 +103,7 @@ class DetectorOptions:
     iterations: int = 1
     sigma_inflation: float = 1.45
     width_stations: int = 5
-    uncal_close_frac: float = 1.0 / 60.0
+    uncal_close_frac: float = 0.1
 
     def replace(self, **changes) -> "DetectorOptions":
         """A copy with some options changed."""

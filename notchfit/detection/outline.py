@@ -19,7 +19,7 @@ from ..polygon import polygon_area
 from .lines import pca_line
 from .segment import fill_holes
 
-__all__ = ["Outline", "bridge_slots", "crop_region", "corner_window", "oriented_contour", "slot_mouths", "turn_angles", "turn_peaks"]
+__all__ = ["Outline", "bridge_slots", "crop_region", "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
 
 
 @dataclass(frozen=True)
@@ -197,3 +197,38 @@ def corner_window(r_close: int, R_lo: float) -> int:
     return max(3, min(2 * r_close, int(0.6 * R_lo)))
 
 
+
+
+def raw_mouth_corners(ol: Outline, mouths: dict, *, k: int, sgn: float, thr_deg: float = 50.0) -> dict:
+    """The outer corners of each bridged slot on the unbridged outline: label -> (first, last) index.
+
+    Along the unbridged outline, the points next to a slot's gap run from
+    one outer edge down the slot's faces and back; its outer corners are the
+    first and last convex corners of that run (the bridged outline's mouth
+    can start early where the closing also fills beside a short stub of tube).
+    """
+    mcnt = ol.raw_contour
+    M = len(mcnt)
+    if M < 3:
+        return {}
+    mi = np.clip(np.rint(mcnt).astype(np.intp), 0, [ol.gap_labels.shape[1] - 1, ol.gap_labels.shape[0] - 1])
+    lab = cv2.dilate(ol.gap_labels.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.intp)
+    on = lab[mi[:, 1], mi[:, 0]]
+    turn = turn_angles(mcnt, k, sgn)
+    out = {}
+    for s, (_, _, bridged) in mouths.items():
+        if not bridged:
+            continue
+        idx = np.nonzero(on == s)[0]
+        if len(idx) < 3:
+            continue
+        gaps = np.diff(np.concatenate([idx, [idx[0] + M]]))   # cyclic gaps; the run starts after the largest
+        g = int(np.argmax(gaps))
+        run = np.concatenate([idx[g + 1:], idx[:g + 1]]) % M
+        peaks = [i for i in turn_peaks(turn, k, np.radians(thr_deg), +1.0) if i in set(run.tolist())]
+        if len(peaks) < 2:
+            continue
+        pos = {int(v): q for q, v in enumerate(run)}
+        peaks.sort(key=lambda i: pos[i])
+        out[s] = (peaks[0], peaks[-1])
+    return out

@@ -13,7 +13,7 @@ from .corners import base_specs, slot_specs, tip_specs
 from .dims import slot_depths, slot_widths
 from .lines import unit
 from .numbering import number_slots, orient_corner_pair
-from .outline import bridge_slots, corner_window, crop_region, slot_mouths, turn_angles, turn_peaks
+from .outline import bridge_slots, corner_window, crop_region, raw_mouth_corners, slot_mouths, turn_angles, turn_peaks
 from .plane import finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
@@ -121,8 +121,9 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
                             ("image border" if be.kind == "border" else "holder without a corner at the base edge"))
     if num.tip is not None:
         specs += tip_specs(cnt, num.tip, index=index, geom=geom, low_m=low_m)
+    rawc = raw_mouth_corners(ol, mouths, k=max(2, int(0.1 * R_lo)), sgn=sgn)
     specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
-                        geom=geom, low_m=low_m)
+                        geom=geom, low_m=low_m, raw_corners=rawc)
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
     return specs, {"contour_px": res["contour_px"], "status": num.status, "messages": num.messages,
                    "side": be.side, "full": full, "tube_px": res["contour_px"][tube]}

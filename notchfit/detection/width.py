@@ -16,7 +16,7 @@ import math
 import cv2
 import numpy as np
 
-__all__ = ["measure_diameter", "rough_radius"]
+__all__ = ["measure_diameter", "rough_radius", "rough_tube_radius"]
 
 
 def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3) -> float:
@@ -28,10 +28,11 @@ def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_frac
     histogram count is at least ``peak_fraction`` of the largest count.
     """
     r = max(int(close_px), 1)
-    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
     pad = r + 2
     big = cv2.copyMakeBorder(region, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
-    closed = cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)
+    # a closing by a disk from two distance transforms: dilate (distance to the set <= r), then erode
+    dil = (cv2.distanceTransform(1 - big, cv2.DIST_L2, 5) <= r).astype(np.uint8)
+    closed = (cv2.distanceTransform(dil, cv2.DIST_L2, 5) > r).astype(np.uint8) | big
     dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)[pad:-pad, pad:-pad]
     ridge = (dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6) & (dt >= min_radius_px)
     v = dt[ridge]
@@ -47,6 +48,26 @@ def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_frac
     i0 = min(i for i in peaks if h[i] >= peak_fraction * top)
     sel = (v >= edges[max(i0 - 1, 0)]) & (v < edges[min(i0 + 2, len(edges) - 1)])
     return float(np.median(v[sel])) + 0.5
+
+
+def rough_tube_radius(region, *, max_close_px: int, margin: float = 1.3) -> float:
+    """Tube radius of a silhouette [px] without knowing the scale.
+
+    :func:`rough_radius` for closing radii 2, 3, 4, 6, ... px up to
+    ``max_close_px``: the largest closing that stays ``margin`` times inside
+    the radius it finds. Small closings leave the slots open (the estimate
+    is then a link's or the backbone's half width); a closing wider than the
+    slots gives the tube's radius; one as wide as the tube merges other
+    parts. Needs slots narrower than about ``2 R / margin``.
+    """
+    best = math.nan
+    r = 2.0
+    while r <= max_close_px:
+        est = rough_radius(region, int(round(r)))
+        if np.isfinite(est) and est >= margin * round(r):
+            best = est
+        r *= 1.4
+    return best
 
 
 def _crossing(t, p, level, t0, sign):

@@ -167,16 +167,21 @@ def scene_camera(theta, geom: Geometry, *, image_size=(1200, 900), mm_per_px: fl
         Where the base edge lands: this fraction of the way along the
         direction from the image's entry side.
     **synthetic_kw
-        Passed to :meth:`CameraModel.synthetic` (default: no distortion, no tilt).
+        ``focal_px`` (default 4000) and ``dist`` (default none) of the pinhole
+        camera, which looks at the plane's front: a view that is not mirrored.
 
     Returns
     -------
     camera : CameraModel, plane : (tx, ty, phi, mirror)
     """
     W, H = image_size
-    kw = dict(dist=(0.0, 0.0, 0.0, 0.0, 0.0), tilt_deg=(0.0, 0.0), plane_center_mm=(0.0, 0.0))
-    kw.update(synthetic_kw)
-    cam = CameraModel.synthetic(W, H, mm_per_px=mm_per_px, **kw)
+    f = float(synthetic_kw.get("focal_px", 4000.0))
+    K = np.array([[f, 0.0, (W - 1) / 2.0], [0.0, f, (H - 1) / 2.0], [0.0, 0.0, 1.0]])
+    # looking at the plane's front (+z toward the camera): plane x along +u, plane y up the image
+    Rm = np.diag([1.0, -1.0, -1.0])
+    tvec = np.array([0.0, 0.0, f * mm_per_px * 1e-3])
+    cam = CameraModel(K, np.asarray(synthetic_kw.get("dist", np.zeros(5)), float), (W, H),
+                      cv2.Rodrigues(Rm)[0].ravel(), tvec)
     a = math.radians(angle_deg)
     d_img = np.array([math.cos(a), math.sin(a)])
     # the plane direction that maps to d_img (the camera maps plane -> image by a similarity)
