@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from ..geometry import Geometry, notch_layout
@@ -45,7 +46,9 @@ from .options import DetectorOptions
 from .overlay import draw_overlay, overlay_with_crop
 from .pipeline import run_at_scale
 from .result import STATUSES, Detection, detections_table, empty_detection
-from .segment import downsample, fill_holes, largest_region, segment
+from .base import holder_mask
+from .dims import slot_depths, slot_widths
+from .segment import downsample, fill_holes, fill_thin_lines, largest_region, segment
 from .view import DiameterScale, view_orientation
 from .width import measure_diameter, rough_tube_radius
 
@@ -92,38 +95,74 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
         plane pose, the image is too small, or ``base`` is not a side.
     """
     opts = _options(options, overrides)
-    lay = notch_layout(geom)
-    m = lay.n_points
     gray = to_gray(image)
     H, W = gray.shape
-    if camera is not None:
-        camera.check_image(gray)
-        if not camera.has_plane:
-            raise ValueError("the camera model has no plane pose: calibrate with --plane-image")
-        px_per_m, sgn = view_orientation(camera, (H, W), mirror)
-        f = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
-    else:
-        f = max(1, int(round(max(H, W) / opts.lowres_long_side_px)))
-        sgn = view_orientation(DiameterScale(1.0, (W, H)), (H, W), mirror)[1]
+    if base is not None and base not in ("top", "bottom", "left", "right"):
+        raise ValueError(f"base must be top, bottom, left or right, got {base!r}")
+    if camera is None:
+        return _uncalibrated(gray, geom, opts, mirror=mirror, base=base)
+    camera.check_image(gray)
+    if not camera.has_plane:
+        raise ValueError("the camera model has no plane pose: calibrate with --plane-image")
+    px_per_m, sgn = view_orientation(camera, (H, W), mirror)
+    f = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
+    extra = {"scale_mm_per_px": 1.0 / (px_per_m * MM), "scale_sigma": 0.0}
+    det, _ = _detect_at(gray, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base, extra=extra)
+    return det
+
+
+def _segmented(gray, f, opts, cache: dict):
+    """Downsampled copy (cached per factor), its segmentation and largest region."""
+    H, W = gray.shape
     if H // f < 16 or W // f < 16:
         raise ValueError(f"image too small: {W}x{H} px")
-    small = downsample(gray, f)
-    seg = segment(small, min_snr=opts.min_snr, noise_scale=f)
+    if f not in cache:
+        small = downsample(gray, f)
+        seg = segment(small, min_snr=opts.min_snr, noise_scale=f)
+        cache[f] = (small.shape, seg)
+    return cache[f]
+
+
+def _fill_streaks(mask, length_px, *, holder_radius):
+    """:func:`fill_thin_lines`, except next to the holder (the corners where the tube meets it stay sharp)."""
+    filled = fill_thin_lines(mask, length_px)
+    region, _ = largest_region(filled)
+    holder = holder_mask(region, holder_radius, regrow=False)
+    if holder.any():
+        near = cv2.dilate(holder, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(length_px) + 5,) * 2))
+        filled = np.where(near > 0, mask, filled).astype(np.uint8)
+    return filled
+
+
+def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stations=False, cache=None):
+    """Stages 1-6 at a known scale; again with thin background lines filled (a specular streak that
+    splits the silhouette) when not every point is ok. Returns (Detection, refinement or None)."""
+    m = geom.n_points
+    shape, seg = _segmented(gray, f, opts, {} if cache is None else cache)
     if seg.mask is None:
-        return empty_detection(m, "no_manipulator", seg.message)
-    region, box = largest_region(seg.mask)
-    if camera is None:
-        return _uncalibrated(gray, seg, region, box, small.shape, geom, opts, f=f, sgn=sgn, base=base)
+        return empty_detection(m, "no_manipulator", seg.message), None
     low_m = f / px_per_m
-    R, w, d = geom.outer_radius, geom.slot_width, geom.slot_depth
-    exp_area = (2 * R * (geom.tip_z - geom.base_edge_z) - geom.n_joints * w * d) / low_m ** 2
-    ratio = float(region.sum()) / exp_area
-    if ratio < opts.area_range[0] or region.mean() > 0.95:
-        return empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is {ratio:.2f} x "
-                                                    "the tube's silhouette area (wrong geometry or camera file?)")
-    det, _ = run_at_scale(gray, seg, region, box, small.shape, camera, geom, opts, f=f, px_per_m=px_per_m,
-                          sgn=sgn, base=base, extra={"scale_mm_per_px": 1.0 / (px_per_m * MM), "scale_sigma": 0.0})
-    return det
+    R = geom.outer_radius
+    exp_area = (2 * R * (geom.tip_z - geom.base_edge_z) - float(np.sum(slot_widths(geom) * slot_depths(geom)))) \
+        / low_m ** 2
+    best = None
+    for fill in (0.0, 0.6 * float(slot_widths(geom).min()) / low_m):
+        mask = seg.mask if not fill else _fill_streaks(seg.mask, fill, holder_radius=opts.holder_width_factor * R
+                                                           / low_m)
+        region, box = largest_region(mask)
+        ratio = float(region.sum()) / exp_area
+        if ratio < opts.area_range[0] or region.mean() > 0.95:
+            det = empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is {ratio:.2f} x "
+                                                       "the tube's silhouette area (wrong geometry or camera file?)")
+            res = (det, None)
+        else:
+            res = run_at_scale(gray, seg, region, box, shape, camera, geom, opts, f=f, px_per_m=px_per_m,
+                               sgn=sgn, base=base, extra=extra, stations=stations)
+        if best is None or res[0].n_ok > best[0].n_ok:
+            best = res
+        if best[0].image_status == "ok":
+            break
+    return best
 
 
 def _stations(ref, n_per_edge):
@@ -144,24 +183,37 @@ def _stations(ref, n_per_edge):
     return np.array(rows).reshape(-1, 4)
 
 
-def _uncalibrated(gray, seg, region, box, small_shape, geom, opts, *, f, sgn, base):
+def _uncalibrated(gray, geom, opts, *, mirror, base):
     """The scale from the tube's diameter: a rough width, a first detection, the measured width, the final one."""
     m = geom.n_points
     H, W = gray.shape
     R = geom.outer_radius
-    R_lo = rough_tube_radius(fill_holes(region), max_close_px=int(opts.uncal_close_frac * max(small_shape)))
+    sgn = view_orientation(DiameterScale(1.0, (W, H)), (H, W), mirror)[1]
+    cache = {}
+    f0 = max(1, int(round(max(H, W) / opts.lowres_long_side_px)))
+    shape0, seg0 = _segmented(gray, f0, opts, cache)
+    if seg0.mask is None:
+        return empty_detection(m, "no_manipulator", seg0.message)
+    # a rough radius; then again with thin background lines filled (a streak may split the silhouette)
+    max_close = int(opts.uncal_close_frac * max(shape0))
+    R_lo = rough_tube_radius(fill_holes(largest_region(seg0.mask)[0]), max_close_px=max_close)
+    if np.isfinite(R_lo):
+        filled = fill_thin_lines(seg0.mask, 0.6 * float(slot_widths(geom).min()) / R * R_lo)
+        R2 = rough_tube_radius(fill_holes(largest_region(filled)[0]), max_close_px=max_close)
+        R_lo = R2 if np.isfinite(R2) else R_lo
     if not np.isfinite(R_lo):
         return empty_detection(m, "no_manipulator", "no tube found: no band of constant width in the silhouette")
-    px_per_m = R_lo * f / R
-    kw = dict(f=f, sgn=sgn, base=base)
-    det, ref = run_at_scale(gray, seg, region, box, small_shape, DiameterScale(1 / px_per_m, (W, H)), geom, opts,
-                            px_per_m=px_per_m, stations=True, **kw)
+    px_per_m = R_lo * f0 / R
+    f = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
+    kw = dict(f=f, sgn=sgn, base=base, cache=cache)
+    det, ref = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts, px_per_m=px_per_m, extra={},
+                          stations=True, **kw)
     if ref is None or not ref["ok"].any():
         return det
     ref["sgn"] = sgn
     st = _stations(ref, opts.width_stations)
-    widths = measure_diameter(ref["img"], ref["off"], st, 2 * R * px_per_m, seg.contrast, ref["blur"]) \
-        if len(st) else np.zeros(0)
+    widths = measure_diameter(ref["img"], ref["off"], st, 2 * R * px_per_m, _segmented(gray, f, opts, cache)[1].contrast,
+                              ref["blur"]) if len(st) else np.zeros(0)
     widths = widths[np.isfinite(widths)]
     if len(widths) >= 3:
         med = float(np.median(widths))
@@ -179,6 +231,5 @@ def _uncalibrated(gray, seg, region, box, small_shape, geom, opts, *, f, sgn, ba
             "profiles; plane frame = image axes (x right, y up); a view tilted by a degrees shrinks one "
             "direction by cos a, and the diameter's tolerance scales every length")
     extra = {"scale_mm_per_px": mm_px, "scale_sigma": mm_px * sw / wpx, "assumption": text}
-    det, _ = run_at_scale(gray, seg, region, box, small_shape, DiameterScale(1 / px_per_m, (W, H)), geom, opts,
-                          px_per_m=px_per_m, extra=extra, **kw)
+    det, _ = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts, px_per_m=px_per_m, extra=extra, **kw)
     return det

@@ -115,14 +115,16 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step):
     lo = group_median(np.where(span_ok, lo_v, np.nan), e_idx, K2)
     hi = group_median(np.where(span_ok, hi_v, np.nan), e_idx, K2)
     partner = np.concatenate([np.arange(K) + K, np.arange(K)])
-    lo = np.where(face, lo[partner], lo)
     hi = np.where(face, hi[partner], hi)
-    span = (hi - lo)[e_idx]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        qa = (prof - lo[e_idx, None]) / span[:, None]
-        q_lo = (lo_v - lo[e_idx]) / span
-        q_hi = (hi_v - lo[e_idx]) / span
     fp = face[e_idx]
+    # a slot face's object level is its own (shading across the tube changes it along the face);
+    # its background level is its partner's, whose background is open
+    lo_p = np.where(fp, lo_v, np.where(face, lo[partner], lo)[e_idx])
+    span = hi[e_idx] - lo_p
+    with np.errstate(invalid="ignore", divide="ignore"):
+        qa = (prof - lo_p[:, None]) / span[:, None]
+        q_lo = (lo_v - lo_p) / span
+        q_hi = (hi_v - lo_p) / span
     sel_ = span_ok & ~fp & np.isfinite(q_lo)
     sq = 1.4826 * float(np.median(np.abs(q_lo[sel_]))) if sel_.sum() >= 10 else 0.0
     lim = max(lim, 4.0 * sq)

@@ -18,7 +18,7 @@ import numpy as np
 
 from .lines import otsu, poly2
 
-__all__ = ["Segmentation", "downsample", "fill_holes", "largest_region", "segment"]
+__all__ = ["Segmentation", "downsample", "fill_holes", "fill_thin_lines", "largest_region", "segment"]
 
 
 @dataclass(frozen=True)
@@ -141,3 +141,27 @@ def fill_holes(region, *, keep_area=(0.0, 0.0)) -> np.ndarray:
     out = region.copy()
     cv2.drawContours(out, holes, -1, 1, thickness=-1)
     return out
+
+
+def fill_thin_lines(mask, length_px: float, n_dirs: int = 8) -> np.ndarray:
+    """The mask with background lines thinner than ``length_px`` filled, in any direction (uint8).
+
+    A union of closings by line segments of ``length_px`` at ``n_dirs``
+    orientations. A specular streak along a dark tube, cut by deep slots into
+    pieces that join the slots, disconnects the tube's halves; it is
+    narrower than a slot, so a segment shorter than the slot width fills it
+    and no slot.
+    """
+    L = int(max(3, round(length_px)))
+    L += 1 - L % 2
+    pad = L
+    big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+    out = big.copy()
+    c = L // 2
+    for k in range(n_dirs):
+        a = np.pi * k / n_dirs
+        ker = np.zeros((L, L), np.uint8)
+        d = np.array([np.cos(a), np.sin(a)]) * (L // 2)
+        cv2.line(ker, (int(round(c - d[0])), int(round(c - d[1]))), (int(round(c + d[0])), int(round(c + d[1]))), 1)
+        out |= cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)
+    return out[pad:-pad, pad:-pad]
