@@ -48,7 +48,8 @@ from .pipeline import run_at_scale
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
 from .dims import slot_depths, slot_widths
-from .segment import downsample, fill_holes, fill_thin_lines, largest_region, segment
+from .segment import downsample, fill_holes, fill_thin_lines, largest_region
+from .segment import segment as _segment
 from .view import DiameterScale, view_orientation
 from .width import measure_diameter, rough_tube_radius
 
@@ -118,7 +119,7 @@ def _segmented(gray, f, opts, cache: dict):
         raise ValueError(f"image too small: {W}x{H} px")
     if f not in cache:
         small = downsample(gray, f)
-        seg = segment(small, min_snr=opts.min_snr, noise_scale=f)
+        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f)
         cache[f] = (small.shape, seg)
     return cache[f]
 

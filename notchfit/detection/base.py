@@ -251,12 +251,15 @@ def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float
     (int, int) or None : indices into ``mcnt`` (right, left).
     """
     turn = turn_angles(mcnt, k, sgn)
+    peaks = np.array(turn_peaks(turn, k, math.radians(60), -1.0), dtype=np.intp)
     out = []
     for P in (P_right, P_left):
-        near = np.nonzero((np.sum((mcnt - P) ** 2, axis=1) < search ** 2) & (turn < -math.radians(60)))[0]
-        if not len(near):
+        if not len(peaks):
             return None
-        out.append(int(near[np.argmin(np.abs(turn[near] + math.pi / 2) + 0.01 * np.hypot(*(mcnt[near] - P).T))]))
+        d2 = np.sum((mcnt[peaks] - P) ** 2, axis=1)
+        if d2.min() > search ** 2:
+            return None
+        out.append(int(peaks[np.argmin(d2)]))
     if abs(dist(mcnt[out[0]], mcnt[out[1]]) / (2 * R_lo) - 1) > pair_tol:
         return None
     return out[0], out[1]

@@ -205,7 +205,9 @@ def raw_mouth_corners(ol: Outline, mouths: dict, *, k: int, sgn: float, thr_deg:
     Along the unbridged outline, the points next to a slot's gap run from
     one outer edge down the slot's faces and back; its outer corners are the
     first and last convex corners of that run (the bridged outline's mouth
-    can start early where the closing also fills beside a short stub of tube).
+    can start early where the closing also fills beside a short stub of tube):
+    of the convex corners along that run, the ones nearest the bridged mouth's
+    two ends (a streak cut by the slot adds corners deeper inside).
     """
     mcnt = ol.raw_contour
     M = len(mcnt)
@@ -228,7 +230,12 @@ def raw_mouth_corners(ol: Outline, mouths: dict, *, k: int, sgn: float, thr_deg:
         peaks = [i for i in turn_peaks(turn, k, np.radians(thr_deg), +1.0) if i in set(run.tolist())]
         if len(peaks) < 2:
             continue
+        cnt = ol.contour
+        ends = (cnt[(mouths[s][0] - 1) % len(cnt)], cnt[(mouths[s][1] + 1) % len(cnt)])
+        pk = np.array(peaks)
+        ia = int(pk[np.argmin(np.sum((mcnt[pk] - ends[0]) ** 2, axis=1))])
+        ib = int(pk[np.argmin(np.sum((mcnt[pk] - ends[1]) ** 2, axis=1))])
         pos = {int(v): q for q, v in enumerate(run)}
-        peaks.sort(key=lambda i: pos[i])
-        out[s] = (peaks[0], peaks[-1])
+        if ia != ib and pos[ia] < pos[ib]:
+            out[s] = (ia, ib)
     return out

@@ -51,7 +51,7 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
         pdist = lambda a, b: float(np.linalg.norm(np.diff(camera.pixel_to_plane(full(np.array([a, b]))),
                                                           axis=0))) / low_m
         raw = raw_base_corners(ol.raw_contour, cnt[be.i_right], cnt[be.i_left], search=1.5 * r_close + 3,
-                               k=max(3, int(0.15 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol, R_lo=R_lo)
+                               k=max(4, int(0.25 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol, R_lo=R_lo)
     k = corner_window(r_close, R_lo)
     near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
     convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
@@ -109,6 +109,7 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     if res is None:
         return None, best[1]
     ol, be, num, mouths, raw, full = (res[k] for k in ("ol", "be", "num", "mouths", "raw", "full"))
+    w_lo = float(slot_widths(geom).min()) / low_m
     cnt = ol.contour
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
     specs = []
@@ -121,7 +122,7 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
                             ("image border" if be.kind == "border" else "holder without a corner at the base edge"))
     if num.tip is not None:
         specs += tip_specs(cnt, num.tip, index=index, geom=geom, low_m=low_m)
-    rawc = raw_mouth_corners(ol, mouths, k=max(2, int(0.1 * R_lo)), sgn=sgn)
+    rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
     specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
                         geom=geom, low_m=low_m, raw_corners=rawc)
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)

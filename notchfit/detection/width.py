@@ -50,21 +50,21 @@ def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_frac
     return float(np.median(v[sel])) + 0.5
 
 
-def rough_tube_radius(region, *, max_close_px: int, margin: float = 1.3) -> float:
+def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5) -> float:
     """Tube radius of a silhouette [px] without knowing the scale.
 
     :func:`rough_radius` for closing radii 2, 3, 4, 6, ... px up to
-    ``max_close_px``: the largest closing that stays ``margin`` times inside
-    the radius it finds. Small closings leave the slots open (the estimate
-    is then a link's or the backbone's half width); a closing wider than the
-    slots gives the tube's radius; one as wide as the tube merges other
-    parts. Needs slots narrower than about ``2 R / margin``.
+    ``max_close_px``; the largest estimate whose closing was at most
+    ``1 / min_ratio`` times it. Small closings leave the slots open (the
+    estimate is then a link's or the backbone's half width); closings wider
+    than half a slot give the tube's radius, and stay there for a while
+    (a straight band does not thicken under a closing).
     """
     best = math.nan
     r = 2.0
     while r <= max_close_px:
         est = rough_radius(region, int(round(r)))
-        if np.isfinite(est) and est >= margin * round(r):
+        if np.isfinite(est) and est >= min_ratio * round(r) and not est <= best:
             best = est
         r *= 1.4
     return best
@@ -112,22 +112,41 @@ def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur
                      borderValue=float("nan")).astype(float)
     sgn = 1.0 if contrast > 0 else -1.0           # object above the background: + 1
     out = np.full(len(stations), np.nan)
+    near_obj, near_bg = (2 * b + 2, a), (-a, -2 * b - 2)
     for k, p in enumerate(prof):
         if not np.isfinite(p[t <= window[0] * width0_px]).all():
             continue
-        bg_n = np.median(p[(t >= -a) & (t <= -2 * b - 2)])
-        ob_n = np.median(p[(t >= 2 * b + 2) & (t <= a)])
-        tn = _crossing(t, p, 0.5 * (bg_n + ob_n), 0.0, sgn)
+        tn = _edge(t, p, 0.0, near_obj, near_bg, sgn)
         srch = (t >= window[0] * width0_px) & (t <= window[1] * width0_px)
         g = -sgn * np.gradient(p)                  # object -> background: a fall of sgn * p
         if not np.isfinite(tn) or not srch.any():
             continue
-        gs = np.nan_to_num(g[srch], nan=-np.inf)
-        tf0 = float(t[srch][np.argmax(gs)])
+        tf0 = float(t[srch][np.nanargmax(np.nan_to_num(g[srch], nan=-np.inf))])
         ob_f = np.nanmedian(p[(t >= tf0 - a) & (t <= tf0 - 2 * b - 2)])
         bg_f = np.nanmedian(p[(t >= tf0 + 2 * b + 2) & (t <= tf0 + a)])
         if not sgn * (ob_f - bg_f) > 0.5 * abs(contrast):
             continue
-        tf = _crossing(t, p, 0.5 * (ob_f + bg_f), tf0, -sgn)
+        tf = _edge(t, p, tf0, (-a, -2 * b - 2), (2 * b + 2, a), sgn, rising=False)
         out[k] = tf - tn
     return out
+
+
+def _edge(t, p, t0, obj_win, bg_win, sgn, rising=True):
+    """Sub-sample 50 % crossing near ``t0`` between the object and background levels, each a straight
+    line fitted on its side (``obj_win``, ``bg_win`` offsets from ``t0``) and taken at the crossing:
+    shading across the tube makes the object level slope toward the edge."""
+    def level(win):
+        sel = (t >= t0 + win[0]) & (t <= t0 + win[1]) & np.isfinite(p)
+        if sel.sum() < 3:
+            return None
+        return np.polyfit(t[sel] - t0, p[sel], 1)
+    lo, hi = level(obj_win), level(bg_win)
+    if lo is None or hi is None:
+        return math.nan
+    tc = t0
+    for _ in range(3):
+        mid = 0.5 * (np.polyval(lo, tc - t0) + np.polyval(hi, tc - t0))
+        tc = _crossing(t, p, mid, t0, sgn if rising else -sgn)
+        if not np.isfinite(tc):
+            return math.nan
+    return tc

@@ -147,10 +147,10 @@ def holder_outline(scene: Scene, geom: Geometry, face_z: float, length: float = 
         nose, taper = 1.8 * R, 2.5 * R
         return np.array([[-Hh, zb], [Hh, zb], [Hh, face_z - taper], [nose, face_z], [-nose, face_z],
                          [-Hh, face_z - taper]])
-    # clamp: a block below the face and an arm leaving to +x
-    blk, arm = 2.5 * R, 1.2 * R
-    return np.array([[-Hh, face_z - blk], [Hh, face_z - blk], [Hh, face_z - blk + arm], [length, face_z - blk + arm],
-                     [length, face_z], [-Hh, face_z]])
+    # clamp: a block below the face and a bar leaving to +x from its lower part
+    blk, bar = 4.5 * R, 3.0 * R
+    return np.array([[-Hh, face_z - blk], [length, face_z - blk], [length, face_z - blk + bar],
+                     [Hh, face_z - blk + bar], [Hh, face_z], [-Hh, face_z]])
 
 
 def scene_camera(theta, geom: Geometry, *, image_size=(1200, 900), mm_per_px: float = 1 / 130,
