@@ -91,7 +91,7 @@ def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, ste
     return Profiles(np.where(win, prof, np.nan), base, nrm, e_idx, t, kp, n_t)
 
 
-def edge_crossings(pr: Profiles, face, contrast, *, lim, step):
+def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True):
     """50 % crossings of the profiles between per-edge object and background levels.
 
     Returns
@@ -114,15 +114,33 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step):
     span_ok = (lo_v - hi_v) * (1.0 / contrast) > 0.5
     lo = group_median(np.where(span_ok, lo_v, np.nan), e_idx, K2)
     hi = group_median(np.where(span_ok, hi_v, np.nan), e_idx, K2)
+    if extrapolate:
+        # the object level's slope toward the edge (shading across a cylinder), from 2 px further in,
+        # carried to the edge: the 50 % level is halfway between the levels *at* the edge
+        step = t[1] - t[0]
+        i2 = np.minimum(n_t - kp + int(round(2.0 / step)), n_t - 1)
+        lo_w = 0.5 * (prof[rows, i2] + prof[rows, i2 + 1])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            slope = (lo_w - lo_v) / ((i2 - (n_t - kp)) * step)
+        use = span_ok & np.isfinite(slope)
+        med = group_median(np.where(use, slope, np.nan), e_idx, K2)
+        # only a slope the profiles agree on (3 standard errors of the median): flat levels stay exact
+        mad = 1.4826 * group_median(np.where(use, np.abs(slope - med[e_idx]), np.nan), e_idx, K2)
+        n_use = np.bincount(e_idx, use.astype(float), K2)
+        sig = np.abs(med) > 3 * 1.2533 * mad / np.sqrt(np.maximum(n_use, 1))
+        lo_edge = lo + np.where(sig, np.nan_to_num(med), 0.0) * group_median((kp * step).astype(float), e_idx, K2)
+    else:
+        lo_edge = lo
     partner = np.concatenate([np.arange(K) + K, np.arange(K)])
     hi = np.where(face, hi[partner], hi)
     fp = face[e_idx]
     # a slot face's object level is its own (shading across the tube changes it along the face);
     # its background level is its partner's, whose background is open
-    lo_p = np.where(fp, lo_v, np.where(face, lo[partner], lo)[e_idx])
+    lo_p = np.where(fp, lo_v, np.where(face, lo[partner], lo)[e_idx])          # plateau: validity
+    lo_c = np.where(fp, lo_v, np.where(face, lo_edge[partner], lo_edge)[e_idx])  # at the edge: crossing
     span = hi[e_idx] - lo_p
     with np.errstate(invalid="ignore", divide="ignore"):
-        qa = (prof - lo_p[:, None]) / span[:, None]
+        qa = (prof - lo_c[:, None]) / (hi[e_idx] - lo_c)[:, None]
         q_lo = (lo_v - lo_p) / span
         q_hi = (hi_v - lo_p) / span
     sel_ = span_ok & ~fp & np.isfinite(q_lo)
@@ -245,6 +263,10 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     sgn : float
         Orientation sign (object on the left of the traversal when +1 ...).
     s0, s_end, h, h_face, step, lim : profile layout [px] and plateau tolerance.
+    blur_prior : float
+        Edge blur from a previous pass [px]; when given, the noise floor of
+        the crossings follows from it and the object level is carried to the
+        edge along its slope (shading).
 
     Returns
     -------
@@ -257,7 +279,8 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     nan = np.full((K, 2), np.nan)
     if pr is None:
         return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout
-    tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step)
+    tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step,
+                                         extrapolate=bool(np.isfinite(blur_prior)))
     fp = sp.face[pr.edge]
     blur = edge_blur(qa, valid & ~fp, pr.t, step)
     raw = pr.base[valid] + tc[valid, None] * pr.normal[valid] + off
