@@ -45,6 +45,7 @@ from ..units import MM
 from .options import DetectorOptions
 from .overlay import draw_overlay, overlay_with_crop
 from .pipeline import run_at_scale
+from .plane import finish
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
 from .dims import slot_depths, slot_widths
@@ -191,24 +192,27 @@ def _uncalibrated(gray, geom, opts, *, mirror, base):
     R = geom.outer_radius
     sgn = view_orientation(DiameterScale(1.0, (W, H)), (H, W), mirror)[1]
     cache = {}
-    f0 = max(1, int(round(max(H, W) / opts.lowres_long_side_px)))
-    shape0, seg0 = _segmented(gray, f0, opts, cache)
-    if seg0.mask is None:
-        return empty_detection(m, "no_manipulator", seg0.message)
-    # a rough radius; then again with thin background lines filled (a streak may split the silhouette)
-    max_close = int(opts.uncal_close_frac * max(shape0))
-    R_lo = rough_tube_radius(fill_holes(largest_region(seg0.mask)[0]), max_close_px=max_close)
+    # a rough radius on a coarse copy; then again with thin background lines filled (a streak may
+    # split the silhouette)
+    fc = max(1, int(round(max(H, W) / (opts.lowres_long_side_px / 2.5))))
+    shape_c, seg_c = _segmented(gray, fc, opts, cache)
+    if seg_c.mask is None:
+        return empty_detection(m, "no_manipulator", seg_c.message)
+    max_close = int(opts.uncal_close_frac * max(shape_c))
+    R_lo = rough_tube_radius(fill_holes(largest_region(seg_c.mask)[0]), max_close_px=max_close)
     if np.isfinite(R_lo):
-        filled = fill_thin_lines(seg0.mask, 0.6 * float(slot_widths(geom).min()) / R * R_lo)
+        filled = fill_thin_lines(seg_c.mask, 0.6 * float(slot_widths(geom).min()) / R * R_lo)
         R2 = rough_tube_radius(fill_holes(largest_region(filled)[0]), max_close_px=max_close)
         R_lo = R2 if np.isfinite(R2) else R_lo
+    f0 = fc
     if not np.isfinite(R_lo):
         return empty_detection(m, "no_manipulator", "no tube found: no band of constant width in the silhouette")
     px_per_m = R_lo * f0 / R
     f = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
     kw = dict(f=f, sgn=sgn, base=base, cache=cache)
-    det, ref = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts, px_per_m=px_per_m, extra={},
-                          stations=True, **kw)
+    # the rough scale can be a few % off: no scale or base-edge check before the measured scale
+    det, ref = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts.replace(scale_tol=math.inf,
+                          base_edge_tol=math.inf), px_per_m=px_per_m, extra={}, stations=True, **kw)
     if ref is None or not ref["ok"].any():
         return det
     ref["sgn"] = sgn
@@ -226,11 +230,19 @@ def _uncalibrated(gray, geom, opts, *, mirror, base):
     wpx = float(np.mean(widths))
     sw = float(np.std(widths, ddof=1) / math.sqrt(len(widths)))
     mm_px = 2 * R / MM / wpx
-    px_per_m = wpx / (2 * R)
     text = (f"no calibration: fronto-parallel view assumed; scale {mm_px:.6f} mm/px from the tube's outer "
             f"diameter {2 * R / MM:.3f} mm (geometry) measured as {wpx:.2f} ± {sw:.2f} px over {len(widths)} "
             "profiles; plane frame = image axes (x right, y up); a view tilted by a degrees shrinks one "
             "direction by cos a, and the diameter's tolerance scales every length")
     extra = {"scale_mm_per_px": mm_px, "scale_sigma": mm_px * sw / wpx, "assumption": text}
-    det, _ = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts, px_per_m=px_per_m, extra=extra, **kw)
+    rough = px_per_m
+    px_per_m = wpx / (2 * R)
+    cam = DiameterScale(1 / px_per_m, (W, H))
+    if abs(px_per_m / rough - 1) <= opts.rescale_tol and "finish_args" in ref:
+        # the corners in pixels do not depend on the scale beyond the profile lengths: map them again
+        pts_px, ideal, cov, status, msg, blur, contour, side = ref["finish_args"]
+        return finish(cam, geom, pts_px, ideal, cov, status, msg, blur, contour, scale_tol=opts.scale_tol,
+                      base_edge_tol=opts.base_edge_tol, base_side=side, **extra)
+    kw["f"] = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
+    det, _ = _detect_at(gray, cam, geom, opts, px_per_m=px_per_m, extra=extra, **kw)
     return det

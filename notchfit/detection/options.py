@@ -75,6 +75,10 @@ class DetectorOptions:
     width_stations : int
         Profiles across the tube per straight link edge when the scale comes
         from the tube's diameter (no calibration).
+    rescale_tol : float
+        Without a calibration: when the measured scale is within this
+        relative distance of the rough one, the corners found at the rough
+        scale are mapped again instead of being searched for again.
     uncal_close_frac : float
         Without a calibration: the largest closing tried to bridge the
         slots for the first scale estimate, as a fraction of the downsampled
@@ -103,6 +107,7 @@ class DetectorOptions:
     iterations: int = 1
     sigma_inflation: float = 1.45
     width_stations: int = 5
+    rescale_tol: float = 0.05
     uncal_close_frac: float = 0.1
 
     def replace(self, **changes) -> "DetectorOptions":

@@ -223,6 +223,8 @@ def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, 
                              contrast=seg.contrast, f=f, opts=opts, extra_px=far)
         status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
         blur = ref["blur"]
+        ref["finish_args"] = (pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
+                              ctx["contour_px"], ctx["side"])
     det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx["contour_px"],
                  scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"], **extra)
     return det, ref
