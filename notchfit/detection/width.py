@@ -70,14 +70,51 @@ def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5) -> f
     return best
 
 
-def _crossing(t, p, level, t0, sign):
-    """Interpolated crossing of ``level`` nearest ``t0`` where ``sign * (p - level)`` goes from < 0 to >= 0."""
-    q = sign * (p - level)
-    idx = np.nonzero((q[:-1] < 0) & (q[1:] >= 0))[0]
-    if not len(idx):
-        return math.nan
-    i = idx[np.argmin(np.abs(t[idx] - t0))]
-    return float(t[i] + (0 - q[i]) / (q[i + 1] - q[i]) * (t[i + 1] - t[i]))
+def _crossings(t, P, level, t0, sign):
+    """Per row: interpolated crossing of ``level`` (rows,) nearest ``t0`` (rows,) where ``sign * (P - level)``
+    goes from < 0 to >= 0; NaN where there is none."""
+    q = sign * (P - level[:, None])
+    with np.errstate(invalid="ignore"):
+        cr = (q[:, :-1] < 0) & (q[:, 1:] >= 0)
+    d = np.where(cr, np.abs(t[None, :-1] - t0[:, None]), np.inf)
+    j = np.argmin(d, axis=1)
+    rows = np.arange(len(P))
+    q0, q1 = q[rows, j], q[rows, j + 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tc = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
+    return np.where(np.isfinite(d[rows, j]), tc, np.nan)
+
+
+def _line_levels(t, P, t0, win):
+    """Per row: straight line (offset at t0, slope) fitted to the samples with t - t0 in ``win``."""
+    x = t[None, :] - t0[:, None]
+    m = (x >= win[0]) & (x <= win[1]) & np.isfinite(P)
+    n = m.sum(1)
+    Pz = np.where(m, P, 0.0)
+    xz = np.where(m, x, 0.0)
+    sx, sy = xz.sum(1), Pz.sum(1)
+    sxx, sxy = (xz * xz).sum(1), (xz * Pz).sum(1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        den = n * sxx - sx * sx
+        b = np.where(np.abs(den) > 1e-12, (n * sxy - sx * sy) / den, 0.0)
+        a0 = (sy - b * sx) / n
+    return np.where(n >= 3, a0, np.nan), b
+
+
+def _edges(t, P, t0, obj_win, bg_win, sign, rising=True):
+    """Per row: 50 % crossing near ``t0`` between the object and background levels, each a straight line
+    fitted on its side (``obj_win``, ``bg_win`` offsets from ``t0``) and taken at the crossing: shading
+    across the tube makes the object level slope toward the edge."""
+    a_o, b_o = _line_levels(t, P, t0, obj_win)
+    a_b, b_b = _line_levels(t, P, t0, bg_win)
+    tc = t0.astype(float)
+    s = sign if rising else -sign
+    for _ in range(3):
+        mid = 0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0))
+        tc = _crossings(t, P, np.nan_to_num(mid, nan=np.inf), t0, s)
+        tc = np.where(np.isfinite(tc), tc, t0)
+    final = _crossings(t, P, np.nan_to_num(0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0)), nan=np.inf), t0, s)
+    return final
 
 
 def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur_px: float, *,
@@ -105,48 +142,21 @@ def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur
     b = blur_px if np.isfinite(blur_px) else 1.5
     a = 4 * b + 4
     t = np.arange(-a - 2, window[1] * width0_px + a + 2, step)
-    P, nrm = stations[:, :2] - off, stations[:, 2:]
-    mapx = (P[:, 0, None] + t[None] * nrm[:, 0, None]).astype(np.float32)
-    mapy = (P[:, 1, None] + t[None] * nrm[:, 1, None]).astype(np.float32)
-    prof = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=float("nan")).astype(float)
+    P0, nrm = stations[:, :2] - off, stations[:, 2:]
+    mapx = (P0[:, 0, None] + t[None] * nrm[:, 0, None]).astype(np.float32)
+    mapy = (P0[:, 1, None] + t[None] * nrm[:, 1, None]).astype(np.float32)
+    P = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                  borderValue=float("nan")).astype(float)
     sgn = 1.0 if contrast > 0 else -1.0           # object above the background: + 1
-    out = np.full(len(stations), np.nan)
-    near_obj, near_bg = (2 * b + 2, a), (-a, -2 * b - 2)
-    for k, p in enumerate(prof):
-        if not np.isfinite(p[t <= window[0] * width0_px]).all():
-            continue
-        tn = _edge(t, p, 0.0, near_obj, near_bg, sgn)
-        srch = (t >= window[0] * width0_px) & (t <= window[1] * width0_px)
-        g = -sgn * np.gradient(p)                  # object -> background: a fall of sgn * p
-        if not np.isfinite(tn) or not srch.any():
-            continue
-        tf0 = float(t[srch][np.nanargmax(np.nan_to_num(g[srch], nan=-np.inf))])
-        ob_f = np.nanmedian(p[(t >= tf0 - a) & (t <= tf0 - 2 * b - 2)])
-        bg_f = np.nanmedian(p[(t >= tf0 + 2 * b + 2) & (t <= tf0 + a)])
-        if not sgn * (ob_f - bg_f) > 0.5 * abs(contrast):
-            continue
-        tf = _edge(t, p, tf0, (-a, -2 * b - 2), (2 * b + 2, a), sgn, rising=False)
-        out[k] = tf - tn
-    return out
-
-
-def _edge(t, p, t0, obj_win, bg_win, sgn, rising=True):
-    """Sub-sample 50 % crossing near ``t0`` between the object and background levels, each a straight
-    line fitted on its side (``obj_win``, ``bg_win`` offsets from ``t0``) and taken at the crossing:
-    shading across the tube makes the object level slope toward the edge."""
-    def level(win):
-        sel = (t >= t0 + win[0]) & (t <= t0 + win[1]) & np.isfinite(p)
-        if sel.sum() < 3:
-            return None
-        return np.polyfit(t[sel] - t0, p[sel], 1)
-    lo, hi = level(obj_win), level(bg_win)
-    if lo is None or hi is None:
-        return math.nan
-    tc = t0
-    for _ in range(3):
-        mid = 0.5 * (np.polyval(lo, tc - t0) + np.polyval(hi, tc - t0))
-        tc = _crossing(t, p, mid, t0, sgn if rising else -sgn)
-        if not np.isfinite(tc):
-            return math.nan
-    return tc
+    S = len(P)
+    zero = np.zeros(S)
+    tn = _edges(t, P, zero, (2 * b + 2, a), (-a, -2 * b - 2), sgn)
+    srch = (t >= window[0] * width0_px) & (t <= window[1] * width0_px)
+    g = -sgn * np.gradient(P, axis=1)              # object -> background: a fall of sgn * p
+    gs = np.where(srch[None, :] & np.isfinite(g), g, -np.inf)
+    tf0 = t[np.argmax(gs, axis=1)]
+    a_o, _ = _line_levels(t, P, tf0, (-a, -2 * b - 2))
+    a_b, _ = _line_levels(t, P, tf0, (2 * b + 2, a))
+    good = np.isfinite(tn) & (sgn * (a_o - a_b) > 0.5 * abs(contrast)) & np.isfinite(P[:, t <= window[0] * width0_px]).all(1)
+    tf = _edges(t, P, tf0, (-a, -2 * b - 2), (2 * b + 2, a), sgn, rising=False)
+    return np.where(good, tf - tn, np.nan)
