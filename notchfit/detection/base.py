@@ -24,7 +24,7 @@ import numpy as np
 
 from .outline import Outline, corner_window, turn_angles, turn_peaks
 
-__all__ = ["BaseEnd", "base_runs", "find_base", "holder_mask", "image_side", "raw_base_corners"]
+__all__ = ["BaseEnd", "base_runs", "find_base", "holder_mask", "holder_masks", "image_side", "raw_base_corners"]
 
 SIDES = ("top", "bottom", "left", "right")
 
@@ -63,16 +63,24 @@ def holder_mask(region, radius_px: float, *, regrow: bool = True) -> np.ndarray:
     tube a little, see :func:`find_base`). The image border is replicated,
     so a holder cut by the border stays wide.
     """
+    strict, grown = holder_masks(region, radius_px)
+    return grown if regrow else strict
+
+
+def holder_masks(region, radius_px: float):
+    """:func:`holder_mask` without and with the regrowth, from one pair of distance transforms."""
     r = float(max(radius_px, 1.0))
-    g = (math.sqrt(2) - 1) * r + 2 if regrow else 0.0
+    g = (math.sqrt(2) - 1) * r + 2
     pad = int(math.ceil(r)) + 1
     big = cv2.copyMakeBorder(region, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
     # erosion by the disk = the points at least r inside; a dilation by r, then by g, is one by r + g
     core = (cv2.distanceTransform(big, cv2.DIST_L2, cv2.DIST_MASK_5) >= r).astype(np.uint8)
     if not core.any():
-        return np.zeros_like(region)
-    near = cv2.distanceTransform(1 - core, cv2.DIST_L2, cv2.DIST_MASK_5) <= r + g
-    return (near[pad:-pad, pad:-pad] & (region > 0)).astype(np.uint8)
+        z = np.zeros_like(region)
+        return z, z.copy()
+    d = cv2.distanceTransform(1 - core, cv2.DIST_L2, cv2.DIST_MASK_5)[pad:-pad, pad:-pad]
+    inside = region > 0
+    return ((d <= r) & inside).astype(np.uint8), ((d <= r + g) & inside).astype(np.uint8)
 
 
 def _runs(flag) -> list:

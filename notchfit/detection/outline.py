@@ -217,6 +217,9 @@ def raw_mouth_corners(ol: Outline, mouths: dict, *, k: int, sgn: float, thr_deg:
     lab = cv2.dilate(ol.gap_labels.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.intp)
     on = lab[mi[:, 1], mi[:, 0]]
     turn = turn_angles(mcnt, k, sgn)
+    all_peaks = np.array(turn_peaks(turn, k, np.radians(thr_deg), +1.0), dtype=np.intp)
+    is_peak = np.zeros(M, bool)
+    is_peak[all_peaks] = True
     out = {}
     for s, (_, _, bridged) in mouths.items():
         if not bridged:
@@ -227,7 +230,7 @@ def raw_mouth_corners(ol: Outline, mouths: dict, *, k: int, sgn: float, thr_deg:
         gaps = np.diff(np.concatenate([idx, [idx[0] + M]]))   # cyclic gaps; the run starts after the largest
         g = int(np.argmax(gaps))
         run = np.concatenate([idx[g + 1:], idx[:g + 1]]) % M
-        peaks = [i for i in turn_peaks(turn, k, np.radians(thr_deg), +1.0) if i in set(run.tolist())]
+        peaks = run[is_peak[run]].tolist()
         if len(peaks) < 2:
             continue
         cnt = ol.contour

@@ -8,7 +8,7 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d
 
 from ..geometry import notch_layout
-from .base import find_base, holder_mask, raw_base_corners
+from .base import find_base, holder_masks, raw_base_corners
 from .corners import base_specs, slot_specs, tip_specs
 from .dims import slot_depths, slot_widths
 from .lines import unit
@@ -91,8 +91,8 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     keep = (opts.slot_area_range[0] * slot_area, opts.slot_area_range[1] * slot_area)
     r_close = int(math.ceil(opts.close_slot_factor * w_max / low_m)) + 1
     roi, offset = crop_region(region, box, small_shape, r_close + 2, keep_holes=keep)
-    holders = (holder_mask(roi, opts.holder_width_factor * R_lo),
-               holder_mask(roi, opts.holder_width_factor * R_lo, regrow=False))
+    strict, grown = holder_masks(roi, opts.holder_width_factor * R_lo)
+    holders = (grown, strict)
     kw = dict(f=f, low_m=low_m, sgn=sgn, base=base, r_close=r_close, slot_area=slot_area, holders=holders)
     best = None
     for exclude in ((True, False) if holders[1].any() else (False,)):
