@@ -45,6 +45,9 @@ class BaseEnd:
         ``i_right``, ``i_left`` are concave corners 2R apart (candidate base corners).
     side : str
         Image side the base points to (``top``/``bottom``/``left``/``right``).
+    i_right_wide, i_left_wide : int
+        The same ends before they were trimmed to the holder's strict
+        opening (which may not reach a slim holder's face).
     """
 
     i_right: int
@@ -52,6 +55,8 @@ class BaseEnd:
     kind: str
     corners: bool
     side: str
+    i_right_wide: int = -1
+    i_left_wide: int = -1
 
 
 def holder_mask(region, radius_px: float, *, regrow: bool = True) -> np.ndarray:
@@ -209,6 +214,7 @@ def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, min_tube_ru
         if run is None:
             return None, msg
         s, L, has_h = run
+        wide = ((s + L) % N, (s - 1) % N)
         s, L = _trim_run(ol, strict, s, L)
         i_r, i_l = (s + L) % N, (s - 1) % N
         concave = turn_peaks(turn, k, thr, -1.0)
@@ -231,12 +237,13 @@ def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, min_tube_ru
         pair = (best[1], best[2])
         i_r, i_l = pair           # which is right is decided from the slots (orient_corner_pair)
         kind = "corners"
+        wide = (i_r, i_l)
     tube = (np.arange(N) - i_r) % N <= (i_l - i_r) % N
     mid_base = 0.5 * (cnt[i_r] + cnt[i_l])
     side = image_side(mid_base - cnt[tube].mean(0)) if tube.any() else ""
     if base is not None and side and side != base and kind != "corners":
         return None, f"the base found in the image is at the {side}, but base = {base!r} was stated"
-    return BaseEnd(int(i_r), int(i_l), kind, pair is not None, side), ""
+    return BaseEnd(int(i_r), int(i_l), kind, pair is not None, side, int(wide[0]), int(wide[1])), ""
 
 
 def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float, dist, pair_tol: float, R_lo: float):

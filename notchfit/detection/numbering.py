@@ -61,7 +61,7 @@ def orient_corner_pair(be: BaseEnd, mouths: dict, cnt) -> BaseEnd:
         ia, ib = ib, ia
     tube = (np.arange(N) - ia) % N <= (ib - ia) % N
     side = image_side(0.5 * (cnt[ia] + cnt[ib]) - cnt[tube].mean(0)) if tube.any() else ""
-    return dataclasses.replace(be, i_right=int(ia), i_left=int(ib), side=side)
+    return dataclasses.replace(be, i_right=int(ia), i_left=int(ib), side=side, i_right_wide=int(ia), i_left_wide=int(ib))
 
 
 def _tip(cnt, convex, slots, pos, L_tube, dist, two_R, pair_tol):

@@ -50,8 +50,14 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     if be.kind != "border":
         pdist = lambda a, b: float(np.linalg.norm(np.diff(camera.pixel_to_plane(full(np.array([a, b]))),
                                                           axis=0))) / low_m
-        raw = raw_base_corners(ol.raw_contour, cnt[be.i_right], cnt[be.i_left], search=1.5 * r_close + 3,
-                               k=max(4, int(0.25 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol, R_lo=R_lo)
+        grow = (math.sqrt(2) - 1) * opts.holder_width_factor * R_lo + 2       # the holder mask's regrowth
+        for ends, search in (((be.i_right, be.i_left), 1.5 * r_close + 3),
+                             ((be.i_right_wide, be.i_left_wide), 1.5 * r_close + 3 + grow)):
+            raw = raw_base_corners(ol.raw_contour, cnt[ends[0]], cnt[ends[1]], search=search,
+                                   k=max(4, int(0.25 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol,
+                                   R_lo=R_lo)
+            if raw is not None:
+                break
     k = corner_window(r_close, R_lo)
     near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
     convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
