@@ -68,10 +68,24 @@ def finish(camera, geom, pts_px, ideal, cov, status, msg, blur, contour_px, *, s
                     pts_px[i] = np.nan
             ok = np.array([s == "ok" for s in status])
     pair = {(lay.kind[i], int(lay.side[i])): i for i in range(m) if lay.kind[i] in ("base", "tip")}
-    widths = [np.linalg.norm(plane[pair[(kd, -1)]] - plane[pair[(kd, 1)]])
-              for kd in ("base", "tip") if ok[pair[(kd, -1)]] and ok[pair[(kd, 1)]]]
-    if widths and np.max(np.abs(np.array(widths) / (2 * geom.outer_radius) - 1)) > scale_tol:
-        msg = [*msg, (f"scale check failed: the tube measures {np.mean(widths) * 1e3:.3f} mm across, the "
+    widths = {kd: np.linalg.norm(plane[pair[(kd, -1)]] - plane[pair[(kd, 1)]])
+              for kd in ("base", "tip") if ok[pair[(kd, -1)]] and ok[pair[(kd, 1)]]}
+    off = {kd: abs(v / (2 * geom.outer_radius) - 1) for kd, v in widths.items()}
+    bad = [kd for kd, e in off.items() if e > scale_tol]
+    if bad and len(bad) < len(widths):
+        # one rigid pair agrees with the scale, the other not: that pair is wrong (a tip cut by the
+        # border, a glue droplet), not the camera
+        for kd in bad:
+            msg = [*msg, f"the {kd} corners are {widths[kd] * 1e3:.3f} mm apart, not "
+                         f"{2 * geom.outer_radius * 1e3:.3f} mm: not used"]
+            for s in (-1, 1):
+                i = pair[(kd, s)]
+                status[i] = "ambiguous"
+                plane[i] = np.nan
+                sigma[i] = np.nan
+    elif bad:
+        mean_w = np.mean(list(widths.values()))
+        msg = [*msg, (f"scale check failed: the tube measures {mean_w * 1e3:.3f} mm across, the "
                       f"geometry says {2 * geom.outer_radius * 1e3:.3f} mm (wrong calibration file, plane "
                       "pose or geometry?)")]
         status = ["ambiguous" if s == "ok" else s for s in status]
