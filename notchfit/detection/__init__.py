@@ -39,7 +39,7 @@ import math
 import cv2
 import numpy as np
 
-from ..geometry import Geometry, notch_layout
+from ..geometry import Geometry
 from ..imaging import to_gray
 from ..units import MM
 from .options import DetectorOptions

@@ -71,6 +71,7 @@ class Detection:
 
     @property
     def n_ok(self) -> int:
+        """Number of points with status ``ok``."""
         return sum(s == "ok" for s in self.status)
 
 

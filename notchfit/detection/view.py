@@ -30,30 +30,37 @@ class DiameterScale:
         self.image_size = (int(image_size[0]), int(image_size[1]))
 
     def check_image(self, image) -> None:
+        """Any image size fits (the scale is the image's own)."""
         return None
 
     def undistort_pixels(self, uv, **kw):
+        """No lens model: pixels unchanged (..., 2)."""
         return np.array(uv, float, copy=True)
 
     def distort_pixels(self, uv):
+        """No lens model: pixels unchanged (..., 2)."""
         return np.array(uv, float, copy=True)
 
     def ideal_to_plane(self, uv):
+        """Pixels (..., 2) -> plane (u, -v) * scale [m]."""
         uv = np.asarray(uv, float)
         return np.stack([uv[..., 0], -uv[..., 1]], -1) * self.m_per_px
 
     pixel_to_plane = ideal_to_plane
 
     def plane_to_pixel(self, xy):
+        """Plane [m] (..., 2) -> pixels."""
         xy = np.asarray(xy, float) / self.m_per_px
         return np.stack([xy[..., 0], -xy[..., 1]], -1)
 
     def ideal_to_plane_jacobian(self, uv):
+        """``diag(s, -s)`` at every pixel, shape (..., 2, 2)."""
         uv = np.asarray(uv, float)
         J = np.array([[self.m_per_px, 0.0], [0.0, -self.m_per_px]])
         return np.broadcast_to(J, uv.shape[:-1] + (2, 2)).copy()
 
     def plane_scale(self, xy=None) -> float:
+        """Scale [px per m]."""
         return 1.0 / self.m_per_px
 
 
