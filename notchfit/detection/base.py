@@ -128,7 +128,36 @@ def image_side(vec) -> str:
     return "right" if du > 0 else "left"
 
 
-def _choose_run(runs, cnt, base: str | None):
+def _slotted_arc(runs, mouth_idx, holder, cnt):
+    """The tube arc holding the slots when both its ends are on one holder: (first, last) index, or None.
+
+    Between consecutive base runs lie arcs of tube-like outline; parts of a
+    holder as thin as the tube (a clamp's bar) make such arcs too, but hold
+    no slot. The arc with most slot mouths is the tube when it leaves and
+    re-enters the same connected holder.
+    """
+    N = len(cnt)
+    if not len(mouth_idx) or len(runs) < 2:
+        return None
+    _, lab = cv2.connectedComponents(holder, connectivity=8)
+    ci = cnt.astype(np.intp)
+    order = sorted(runs, key=lambda r: r[0])
+    best = None
+    for k, (s, L, _) in enumerate(order):
+        a = (s + L) % N
+        s2 = order[(k + 1) % len(order)][0]
+        n = int(np.sum((np.asarray(mouth_idx) - a) % N < (s2 - a) % N))
+        if best is None or n > best[0]:
+            best = (n, k, a, (s2 - 1) % N)
+    n, k, a, e = best
+    if n == 0:
+        return None
+    la = lab[ci[(a - 1) % N, 1], ci[(a - 1) % N, 0]]
+    le = lab[ci[(e + 1) % N, 1], ci[(e + 1) % N, 0]]
+    return (a, e) if la > 0 and la == le else None
+
+
+def _choose_run(runs, cnt, base: str | None, mouth_idx=()):
     """The base run: the stated side's, else the only one on a holder, else the only one."""
     if base is not None:
         want = {"top": (0, -1), "bottom": (0, 1), "left": (-1, 0), "right": (1, 0)}[base]
@@ -177,7 +206,7 @@ def _trim_run(ol: Outline, strict, s: int, L: int, tol: float = 2.0):
 
 
 def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, min_tube_run_R: float,
-              min_base_run_R: float,
+              min_base_run_R: float, mouth_idx=(),
               corner_turn_deg: float, pair_tol: float, base: str | None = None):
     """Find where the tube leaves its base.
 
@@ -195,6 +224,9 @@ def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, min_tube_ru
         Orientation sign.
     base : str, optional
         The stated image side of the base.
+    mouth_idx : sequence of int
+        Outline indices of the slot mouths (to tell the tube from holder
+        parts as thin as it).
 
     Returns
     -------
@@ -211,12 +243,17 @@ def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, min_tube_ru
     thr = math.radians(corner_turn_deg)
     if runs and not (len(runs) == 1 and runs[0][1] >= N):
         run, msg = _choose_run(runs, cnt, base)
-        if run is None:
+        arc = _slotted_arc(runs, mouth_idx, holder, cnt) if run is None else None
+        if run is None and arc is None:
             return None, msg
-        s, L, has_h = run
-        wide = ((s + L) % N, (s - 1) % N)
-        s, L = _trim_run(ol, strict, s, L)
-        i_r, i_l = (s + L) % N, (s - 1) % N
+        if run is not None:
+            s, L, has_h = run
+            wide = ((s + L) % N, (s - 1) % N)
+            s, L = _trim_run(ol, strict, s, L)
+            i_r, i_l = (s + L) % N, (s - 1) % N
+        else:
+            (i_r, i_l), has_h = arc, True
+            wide = (i_r, i_l)
         concave = turn_peaks(turn, k, thr, -1.0)
         pair = _near_corner_pair(cnt, concave, i_r, i_l, int(2 * R_lo) + k, R_lo, pair_tol, dist)
         if pair is not None:

@@ -38,12 +38,12 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     contour_px = full(cnt)
     plane_px = camera.pixel_to_plane(contour_px) / low_m
     dist = lambda i, j: float(np.linalg.norm(plane_px[i] - plane_px[j]))
+    mouths = slot_mouths(ol)
     be, why = find_base(ol, (holder, strict), R_lo=R_lo, dist=dist, sgn=sgn, min_tube_run_R=opts.min_tube_run_R,
                         min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
-                        pair_tol=opts.pair_tol, base=base)
+                        pair_tol=opts.pair_tol, base=base, mouth_idx=[v[0] for v in mouths.values()])
     if be is None:
         return None, empty_detection(m, "partial", why, contour_px)
-    mouths = slot_mouths(ol)
     if be.kind == "corners":
         be = orient_corner_pair(be, mouths, cnt)
     raw = None
