@@ -10,8 +10,14 @@ Reference ("generic"): cv2.goodFeaturesToTrack (Shi-Tomasi, 400 corners) + cv2.c
 each true notch point takes the nearest detected corner (an oracle assignment that the generic
 pipeline cannot do by itself: it favours the reference). Its time excludes the assignment.
 
+Real scenes (--scenes): a one-sided wrist like the lab's (OD 1.62 mm, five notches 0.8 mm high, one
+side) in 4928x3264 renders at 130 px/mm (notchfit.render.scenes: a chuck, collet, clamp or none,
+plain tube, cylinder shading, specular streak, either polarity, defocus, JPEG, any orientation), with
+the calibrated camera and without one (scale from the tube's diameter).
+
 Run:  python benchmarks/bench_detection.py [--images 12] [--repeat 3]
       python benchmarks/bench_detection.py --robustness [--per-row 4]   (the table of docs/robustness.md)
+      python benchmarks/bench_detection.py --scenes [--per-scene 2]     (the real-scene table)
 """
 
 from __future__ import annotations
@@ -87,6 +93,87 @@ def robustness(per_row, seed):
             print(f"| {name} | {v:g} | {100 * frac:.1f} % | {rms:.4f} | {mx:.4f} |", flush=True)
 
 
+WRIST = dict(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
+             slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist")
+SCENES = [  # (name, Scene keywords); blur 2 px (a DSLR at 130 px/mm), chuck 8 mm wide unless said
+    ("chuck, dark tube on grey", dict(holder="chuck")),
+    ("chuck, plain tube 1.5 mm", dict(holder="chuck", plain_length=1.5e-3)),
+    ("collet", dict(holder="collet", plain_length=0.5e-3)),
+    ("clamp", dict(holder="clamp")),
+    ("no holder (from the border)", dict(holder="none")),
+    ("polished tube on dark", dict(holder="chuck", background=30.0, tube_level=190.0, holder_level=160.0)),
+    ("specular streak 0.7", dict(holder="chuck", streak=0.7, highlights=0.3)),
+    ("specular streak 1.2", dict(holder="chuck", streak=1.2, highlights=0.3)),
+    ("JPEG q 85", dict(holder="chuck", jpeg_quality=85)),
+    ("defocus 4 px", dict(holder="chuck", blur_sigma=4.0)),
+]
+
+
+def big_timing(repeat, seed):
+    """ms per 4928x3264 image (the lab's wrist in a chuck at 130 px/mm), with and without the camera."""
+    from notchfit.geometry import Geometry
+    from notchfit.render.scenes import Scene, render_scene, scene_camera
+
+    geom = Geometry(**WRIST)
+    th = np.array([0.2, 0.25, 0.3, 0.3, 0.25])
+    cam, plane = scene_camera(th, geom, image_size=(4928, 3264), mm_per_px=1 / 130, angle_deg=90, base_at=0.05)
+    r = render_scene(th, geom, cam, plane=plane, scene=Scene(holder_half_width=4e-3, blur_sigma=2.0),
+                     rng=np.random.default_rng(seed))
+    for calibrated in (True, False):
+        ts = []
+        for _ in range(max(repeat, 3)):
+            t0 = time.perf_counter()
+            det = detect_notches(r.image, cam if calibrated else None, geom)
+            ts.append(time.perf_counter() - t0)
+        print(f"4928x3264 wrist in a chuck, {'calibrated' if calibrated else 'no calibration'}: "
+              f"{1e3 * min(ts):.0f} ms per image (best of {len(ts)}), {det.n_ok}/{len(det.status)} ok")
+
+
+def scene_rows(per_scene, seed, size=(4928, 3264), px_per_mm=130.0, repeat=2):
+    """Per scene kind: corners ok / real corners, rms and max error [mm], ms per image, with the camera
+    and without it (scale error [%])."""
+    from notchfit.geometry import Geometry
+    from notchfit.render.scenes import Scene, render_scene, scene_camera
+
+    geom = Geometry(**WRIST)
+    rng = np.random.default_rng(seed)
+    print(f"{per_scene} images per kind, {size[0]}x{size[1]}, {px_per_mm:g} px/mm, angles and bends at random")
+    print("| scene | camera | corners ok | rms [mm] | max [mm] | ms / image | scale error |")
+    print("|---|---|---|---|---|---|---|")
+    for name, kw in SCENES:
+        kw = {"blur_sigma": 2.0, "holder_half_width": 4e-3, **kw}
+        res = {True: [0, 0, [], []], False: [0, 0, [], [], []]}
+        for k in range(per_scene):
+            th = rng.uniform(0.05, 0.3) * (1 + 0.1 * rng.normal(size=geom.n_joints)) * rng.choice([-1, 1])
+            angle = rng.uniform(0, 360) if k % 2 else float(rng.choice([90, 0, 180, 270]))
+            cam, plane = scene_camera(th, geom, image_size=size, mm_per_px=1 / px_per_mm, angle_deg=angle,
+                                      base_at=0.15)
+            r = render_scene(th, geom, cam, plane=plane, scene=Scene(**kw), rng=rng)
+            for calibrated in (True, False):
+                best = np.inf
+                for _ in range(repeat):
+                    t0 = time.perf_counter()
+                    det = detect_notches(r.image, cam if calibrated else None, geom)
+                    best = min(best, time.perf_counter() - t0)
+                ok = np.array(det.status) == "ok"
+                row = res[calibrated]
+                row[0] += int((ok & r.visible).sum())
+                row[1] += int(r.visible.sum())
+                row[2].append(np.linalg.norm(det.points_px[ok] - r.points_px[ok], axis=1) / px_per_mm)
+                row[3].append(best)
+                if not calibrated and np.isfinite(det.scale_mm_per_px):
+                    row[4].append(100 * (det.scale_mm_per_px * px_per_mm - 1))
+                if (ok & ~r.visible).any():
+                    print(f"  ({name}: {int((ok & ~r.visible).sum())} points reported that are not corners)")
+        for calibrated in (True, False):
+            n_ok, n_vis, errs, ts = res[calibrated][:4]
+            e = np.concatenate(errs)
+            sc = "" if calibrated else (f"{np.max(np.abs(res[False][4])):.2f} % max" if res[False][4] else "-")
+            print(f"| {name} | {'yes' if calibrated else 'no'} | {n_ok}/{n_vis} | "
+                  f"{np.sqrt(np.mean(e ** 2)) if len(e) else float('nan'):.4f} | "
+                  f"{e.max() if len(e) else float('nan'):.4f} | {1e3 * np.median(ts):.0f} | {sc} |", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--images", type=int, default=12)
@@ -94,9 +181,14 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--robustness", action="store_true", help="print the robustness table instead")
     ap.add_argument("--per-row", type=int, default=4, help="images per robustness row")
+    ap.add_argument("--scenes", action="store_true", help="print the real-scene table instead")
+    ap.add_argument("--per-scene", type=int, default=2, help="images per scene kind")
     a = ap.parse_args(argv)
     if a.robustness:
         robustness(a.per_row, a.seed)
+        return
+    if a.scenes:
+        scene_rows(a.per_scene, a.seed)
         return
     geom = default_geometry()
     cam = CameraModel.synthetic(1920, 1200, mm_per_px=0.03)
@@ -156,6 +248,7 @@ def main(argv=None):
         print("not ok:", line)
     e_max, k_max, p_max, th_max = max(worst)
     print(f"largest error {e_max:.4f} mm: image {k_max}, point {p_max} (max |theta| {th_max:.4f} rad)")
+    big_timing(a.repeat, a.seed)
     z = np.concatenate(zs)
     print(f"reported sigma: rms of |error| / (sqrt(2) sigma) = {np.sqrt(np.mean(z ** 2)):.2f} (1 = calibrated); "
           f"max |theta| over the images {max(np.abs(r.theta).max() for r, _ in cases):.4f} rad")

@@ -19,10 +19,9 @@ PHYSICS = ("geometry", "kinematics", "notches", "cables", "springs", "statics", 
            "_friction_kernels", "shapes", "units", "validation", "paper", "polygon", "section")
 #: analysis: returns objects, writes nothing.
 ANALYSIS = ("fitting", "diagnosis")
-#: modules whose functions may exceed the length limit: numba kernels (one loop
-#: each, kept whole for the compiler) and the detector (split into stages by its
-#: own work item, docs/robustness.md).
-LONG_FUNCTIONS_ALLOWED = ("_friction_kernels", "detection")
+#: modules whose functions may exceed the length limit: the numba kernels (one
+#: time loop each, kept whole for the compiler).
+LONG_FUNCTIONS_ALLOWED = ("_friction_kernels",)
 MAX_FUNCTION_LINES = 100
 #: Deferred imports that are part of a documented interface, never run at import time:
 #: the model-file format names ``notchfit.friction.load_params`` / ``save_params`` as its

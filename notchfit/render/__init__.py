@@ -40,12 +40,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .batch import run_batch
-from .camera import Board, CameraModel
-from .geometry import Geometry
-from .io import write_camera
-from .notches import notch_points, to_plane
-from .units import MM
+from ..batch import run_batch
+from ..camera import Board, CameraModel
+from ..geometry import Geometry
+from ..io import write_camera
+from ..notches import notch_points, to_plane
+from ..units import MM
 
 __all__ = [
     "RenderedBoard",

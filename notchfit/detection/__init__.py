@@ -1,0 +1,248 @@
+"""Notch-corner detector: image -> the numbered notch points in plane mm (geometry.md).
+
+The detector does **not** assume the kinematics (a detector that does looks
+perfect on images made by the same model and degrades on real geometry). It
+uses the silhouette of geometry.md ("What a camera sees") and the
+geometry's dimensions (outer radius ``R``, slot widths and depths, slot
+sides, where along a side the joints are). Stages, one module each:
+
+1. :mod:`.segment` — segment a downsampled copy: polarity (dark on light
+   or light on dark) from the image border, a quadratic background surface,
+   a 50 % threshold, the largest region, holes filled except slot-sized ones
+   (shading and a specular streak inside the tube or holder do not split it).
+2. :mod:`.outline` — bridge the slot mouths (a closing), find the slots.
+3. :mod:`.base` — separate the tube (``2R`` wide) from its holder (wider:
+   an opening) and the image border; the base end is where the tube leaves
+   them, found in any in-plane orientation (or stated: ``base=``); the free
+   end is the tip.
+4. :mod:`.numbering`, :mod:`.corners` — number the slots from the base,
+   find the tip, first corner estimates.
+5. :mod:`.refine` — sub-pixel corners from edge profiles and line fits at
+   full resolution, only near the corners.
+6. :mod:`.plane` — map to the plane; check rigid-link widths and the base edge.
+
+Without a calibration (``camera=None``) the scale comes from the tube's
+outer diameter (:mod:`.width`, a fronto-parallel view is assumed) and is
+reported with its uncertainty in the :class:`Detection`.
+
+Statuses: ``ok``; ``occluded`` (not visible, hidden by the holder, cut off,
+not found: NaN); ``ambiguous`` (found, but its fit or its identity is
+doubtful: NaN plane coordinates, the pixel position kept for the overlay).
+No point is ever interpolated from a model. Every tolerance is a field of
+:class:`DetectorOptions`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from ..geometry import Geometry
+from ..imaging import to_gray
+from ..units import MM
+from .options import DetectorOptions
+from .overlay import draw_overlay, overlay_with_crop
+from .pipeline import run_at_scale
+from .plane import finish
+from .result import STATUSES, Detection, detections_table, empty_detection
+from .base import holder_mask
+from .dims import slot_depths, slot_widths
+from .segment import downsample, fill_holes, fill_thin_lines, largest_region
+from .segment import segment as _segment
+from .view import DiameterScale, view_orientation
+from .width import measure_diameter, rough_tube_radius
+
+__all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detections_table", "draw_overlay",
+           "overlay_with_crop"]
+
+
+def _options(options, overrides) -> DetectorOptions:
+    opts = options if options is not None else DetectorOptions()
+    return opts.replace(**overrides) if overrides else opts
+
+
+def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base: str | None = None,
+                   options: DetectorOptions | None = None, **overrides) -> Detection:
+    """Find the numbered notch corners (geometry.md) in one image.
+
+    Parameters
+    ----------
+    image : ndarray (H, W) or (H, W, 3)
+        Raw camera image (any numeric dtype).
+    camera : CameraModel or None
+        Calibrated camera with the plane pose, matching the image size; or
+        None: the scale then comes from the tube's outer diameter (a
+        fronto-parallel view), see :attr:`Detection.assumption`.
+    geom : Geometry
+        Dimensions and slot layout (the kinematics is not used).
+    mirror : bool
+        The experiment's ``mirror`` flag (a reflected view, geometry.md).
+    base : {"top", "bottom", "left", "right"}, optional
+        The image side the tube's base is at; found automatically when None
+        (the end attached to the holder or the image border).
+    options : DetectorOptions, optional
+    **overrides
+        Single options by name (e.g. ``max_sigma_px=0.2``).
+
+    Returns
+    -------
+    Detection
+
+    Raises
+    ------
+    ValueError
+        The image size differs from the camera file's, the camera has no
+        plane pose, the image is too small, or ``base`` is not a side.
+    """
+    opts = _options(options, overrides)
+    gray = to_gray(image)
+    H, W = gray.shape
+    if base is not None and base not in ("top", "bottom", "left", "right"):
+        raise ValueError(f"base must be top, bottom, left or right, got {base!r}")
+    if camera is None:
+        return _uncalibrated(gray, geom, opts, mirror=mirror, base=base)
+    camera.check_image(gray)
+    if not camera.has_plane:
+        raise ValueError("the camera model has no plane pose: calibrate with --plane-image")
+    px_per_m, sgn = view_orientation(camera, (H, W), mirror)
+    f = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
+    extra = {"scale_mm_per_px": 1.0 / (px_per_m * MM), "scale_sigma": 0.0}
+    det, _ = _detect_at(gray, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base, extra=extra)
+    return det
+
+
+def _segmented(gray, f, opts, cache: dict):
+    """Downsampled copy (cached per factor), its segmentation and largest region."""
+    H, W = gray.shape
+    if H // f < 16 or W // f < 16:
+        raise ValueError(f"image too small: {W}x{H} px")
+    if f not in cache:
+        small = downsample(gray, f)
+        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f)
+        cache[f] = (small.shape, seg)
+    return cache[f]
+
+
+def _fill_streaks(mask, length_px, *, holder_radius):
+    """:func:`fill_thin_lines`, except next to the holder (the corners where the tube meets it stay sharp)."""
+    filled = fill_thin_lines(mask, length_px)
+    region, _ = largest_region(filled)
+    holder = holder_mask(region, holder_radius, regrow=False)
+    if holder.any():
+        near = cv2.dilate(holder, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(length_px) + 5,) * 2))
+        filled = np.where(near > 0, mask, filled).astype(np.uint8)
+    return filled
+
+
+def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stations=False, cache=None):
+    """Stages 1-6 at a known scale; again with thin background lines filled (a specular streak that
+    splits the silhouette) when not every point is ok. Returns (Detection, refinement or None)."""
+    m = geom.n_points
+    shape, seg = _segmented(gray, f, opts, {} if cache is None else cache)
+    if seg.mask is None:
+        return empty_detection(m, "no_manipulator", seg.message), None
+    low_m = f / px_per_m
+    R = geom.outer_radius
+    exp_area = (2 * R * (geom.tip_z - geom.base_edge_z) - float(np.sum(slot_widths(geom) * slot_depths(geom)))) \
+        / low_m ** 2
+    best = None
+    for fill in (0.0, 0.6 * float(slot_widths(geom).min()) / low_m):
+        mask = seg.mask if not fill else _fill_streaks(seg.mask, fill, holder_radius=opts.holder_width_factor * R
+                                                           / low_m)
+        region, box = largest_region(mask)
+        ratio = float(region.sum()) / exp_area
+        if ratio < opts.area_range[0] or region.mean() > 0.95:
+            det = empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is {ratio:.2f} x "
+                                                       "the tube's silhouette area (wrong geometry or camera file?)")
+            res = (det, None)
+        else:
+            res = run_at_scale(gray, seg, region, box, shape, camera, geom, opts, f=f, px_per_m=px_per_m,
+                               sgn=sgn, base=base, extra=extra, stations=stations)
+        if best is None or res[0].n_ok > best[0].n_ok:
+            best = res
+        if best[0].image_status == "ok":
+            break
+    return best
+
+
+def _stations(ref, n_per_edge):
+    """Points on the straight outer edge next to every ok corner, with the unit normal into the tube (S, 4)."""
+    sp = ref["specs"]
+    K = len(sp.C)
+    rows = []
+    for k in np.nonzero(ref["ok"])[0]:
+        for e, (D, L, face) in enumerate(((-sp.Din[k], sp.Lin[k], sp.face[k]), (sp.Dout[k], sp.Lout[k],
+                                                                                 sp.face[K + k]))):
+            if face or not np.isfinite(L) or L < 8:
+                continue
+            trav = sp.Din[k] if e == 0 else sp.Dout[k]
+            inward = -ref["sgn"] * np.array([trav[1], -trav[0]])
+            for s in np.linspace(0.3, 0.7, n_per_edge) * L:
+                P = sp.C[k] + s * D
+                rows.append([P[0], P[1], inward[0], inward[1]])
+    return np.array(rows).reshape(-1, 4)
+
+
+def _uncalibrated(gray, geom, opts, *, mirror, base):
+    """The scale from the tube's diameter: a rough width, a first detection, the measured width, the final one."""
+    m = geom.n_points
+    H, W = gray.shape
+    R = geom.outer_radius
+    sgn = view_orientation(DiameterScale(1.0, (W, H)), (H, W), mirror)[1]
+    cache = {}
+    # a rough radius on a coarse copy; then again with thin background lines filled (a streak may
+    # split the silhouette)
+    fc = max(1, int(round(max(H, W) / (opts.lowres_long_side_px / 2.5))))
+    shape_c, seg_c = _segmented(gray, fc, opts, cache)
+    if seg_c.mask is None:
+        return empty_detection(m, "no_manipulator", seg_c.message)
+    max_close = int(opts.uncal_close_frac * max(shape_c))
+    R_lo = rough_tube_radius(fill_holes(largest_region(seg_c.mask)[0]), max_close_px=max_close)
+    if np.isfinite(R_lo):
+        filled = fill_thin_lines(seg_c.mask, 0.6 * float(slot_widths(geom).min()) / R * R_lo)
+        R2 = rough_tube_radius(fill_holes(largest_region(filled)[0]), max_close_px=max_close)
+        R_lo = R2 if np.isfinite(R2) else R_lo
+    f0 = fc
+    if not np.isfinite(R_lo):
+        return empty_detection(m, "no_manipulator", "no tube found: no band of constant width in the silhouette")
+    px_per_m = R_lo * f0 / R
+    f = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
+    kw = dict(f=f, sgn=sgn, base=base, cache=cache)
+    # the rough scale can be a few % off: no scale or base-edge check before the measured scale
+    det, ref = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts.replace(scale_tol=math.inf,
+                          base_edge_tol=math.inf), px_per_m=px_per_m, extra={}, stations=True, **kw)
+    if ref is None or not ref["ok"].any():
+        return det
+    ref["sgn"] = sgn
+    st = _stations(ref, opts.width_stations)
+    widths = measure_diameter(ref["img"], ref["off"], st, 2 * R * px_per_m, _segmented(gray, f, opts, cache)[1].contrast,
+                              ref["blur"]) if len(st) else np.zeros(0)
+    widths = widths[np.isfinite(widths)]
+    if len(widths) >= 3:
+        med = float(np.median(widths))
+        mad = 1.4826 * float(np.median(np.abs(widths - med)))
+        widths = widths[np.abs(widths - med) <= max(3 * mad, 0.5)]
+    if len(widths) < 3:
+        return empty_detection(m, "partial", "the tube's width could not be measured (no calibration): fewer "
+                                             "than 3 profiles across straight links", det.contour_px)
+    wpx = float(np.mean(widths))
+    sw = float(np.std(widths, ddof=1) / math.sqrt(len(widths)))
+    mm_px = 2 * R / MM / wpx
+    text = (f"no calibration: fronto-parallel view assumed; scale {mm_px:.6f} mm/px from the tube's outer "
+            f"diameter {2 * R / MM:.3f} mm (geometry) measured as {wpx:.2f} ± {sw:.2f} px over {len(widths)} "
+            "profiles; plane frame = image axes (x right, y up); a view tilted by a degrees shrinks one "
+            "direction by cos a, and the diameter's tolerance scales every length")
+    extra = {"scale_mm_per_px": mm_px, "scale_sigma": mm_px * sw / wpx, "assumption": text}
+    rough = px_per_m
+    px_per_m = wpx / (2 * R)
+    cam = DiameterScale(1 / px_per_m, (W, H))
+    if abs(px_per_m / rough - 1) <= opts.rescale_tol and "finish_args" in ref:
+        # the corners in pixels do not depend on the scale beyond the profile lengths: map them again
+        pts_px, ideal, cov, status, msg, blur, contour, side = ref["finish_args"]
+        return finish(cam, geom, pts_px, ideal, cov, status, msg, blur, contour, scale_tol=opts.scale_tol,
+                      base_edge_tol=opts.base_edge_tol, base_side=side, **extra)
+    kw["f"] = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
+    det, _ = _detect_at(gray, cam, geom, opts, px_per_m=px_per_m, extra=extra, **kw)
+    return det

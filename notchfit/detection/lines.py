@@ -1,0 +1,114 @@
+"""Small numeric helpers of the detector: Otsu split, lines, grouped robust line fits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["group_lines", "group_median", "intersect", "otsu", "pca_line", "poly2", "robust_group_lines", "unit"]
+
+
+def otsu(values, bins=256):
+    """Otsu threshold of a 1-D sample (``bins`` histogram bins)."""
+    lo, hi = float(values.min()), float(values.max())
+    if not hi > lo:
+        return lo
+    h, edges = np.histogram(values, bins=bins, range=(lo, hi))
+    c = 0.5 * (edges[1:] + edges[:-1])
+    w0 = np.cumsum(h).astype(float)
+    w1 = w0[-1] - w0
+    m0 = np.cumsum(h * c)
+    mu0 = m0 / np.maximum(w0, 1)
+    mu1 = (m0[-1] - m0) / np.maximum(w1, 1)
+    return float(c[int(np.argmax(w0 * w1 * (mu0 - mu1) ** 2))])
+
+
+def poly2(x, y):
+    """Design matrix (..., 6) of a quadratic surface in (x, y)."""
+    return np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=-1)
+
+
+def unit(v):
+    """Rows of ``v`` (..., 2) scaled to unit length (zero rows unchanged)."""
+    v = np.asarray(v, float)
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def pca_line(pts):
+    """Total-least-squares line of points (K, 2): centroid and unit direction (None, None if K < 2)."""
+    pts = np.asarray(pts, float)
+    if len(pts) < 2:
+        return None, None
+    c = pts.mean(0)
+    d = pts - c
+    sxx, sxy, syy = (d[:, 0] ** 2).sum(), (d[:, 0] * d[:, 1]).sum(), (d[:, 1] ** 2).sum()
+    a = 0.5 * math.atan2(2 * sxy, sxx - syy)
+    return c, np.array([math.cos(a), math.sin(a)])
+
+
+def intersect(c1, d1, c2, d2):
+    """Intersection of the lines ``c1 + s d1`` and ``c2 + t d2`` (None if parallel)."""
+    A = np.array([[d1[0], -d2[0]], [d1[1], -d2[1]]])
+    if abs(np.linalg.det(A)) < 1e-9:
+        return None
+    s = np.linalg.solve(A, c2 - c1)
+    return c1 + s[0] * d1
+
+
+def group_median(values, groups, n_groups):
+    """Median of ``values`` per group (NaN ignored; NaN for empty groups)."""
+    fin = np.isfinite(values)
+    v, g = values[fin], groups[fin]
+    out = np.full(n_groups, np.nan)
+    if not len(v):
+        return out
+    lo, hi = float(v.min()), float(v.max())
+    key = g + (v - lo) * (0.999 / (hi - lo) if hi > lo else 0.0)     # one sort orders groups, then values
+    vs = v[np.argsort(key, kind="stable")]
+    cnt = np.bincount(g, minlength=n_groups)
+    start = np.cumsum(cnt) - cnt
+    has = cnt > 0
+    out[has] = 0.5 * (vs[start[has] + (cnt[has] - 1) // 2] + vs[start[has] + cnt[has] // 2])
+    return out
+
+
+def group_lines(pts, groups, n_groups, keep):
+    """TLS line per group over the kept points: centroid (G,2), direction (G,2), counts (G,)."""
+    wgt = keep.astype(float)
+    n = np.bincount(groups, wgt, n_groups)
+    ns = np.maximum(n, 1)
+    cx = np.bincount(groups, wgt * pts[:, 0], n_groups) / ns
+    cy = np.bincount(groups, wgt * pts[:, 1], n_groups) / ns
+    dx, dy = pts[:, 0] - cx[groups], pts[:, 1] - cy[groups]
+    sxx = np.bincount(groups, wgt * dx * dx, n_groups)
+    sxy = np.bincount(groups, wgt * dx * dy, n_groups)
+    syy = np.bincount(groups, wgt * dy * dy, n_groups)
+    a = 0.5 * np.arctan2(2 * sxy, sxx - syy)
+    return np.stack([cx, cy], 1), np.stack([np.cos(a), np.sin(a)], 1), n
+
+
+def robust_group_lines(pts, groups, n_groups, *, k_mad=3.0, floor=0.15, n_iter=3):
+    """Robust TLS lines: MAD rejection of residuals, ``n_iter`` rounds.
+
+    Returns centroid (G,2), direction (G,2), kept count (G,), residual
+    variance s² (G,) [px²], spread along the line S_tt (G,) [px²], keep mask.
+    """
+    keep = np.ones(len(pts), bool)
+    for it in range(n_iter + 1):
+        c, d, n = group_lines(pts, groups, n_groups, keep)
+        r = (pts[:, 0] - c[groups, 0]) * (-d[groups, 1]) + (pts[:, 1] - c[groups, 1]) * d[groups, 0]
+        if it == n_iter:
+            break
+        mad = 1.4826 * group_median(np.where(keep, np.abs(r), np.nan), groups, n_groups)
+        lim = np.maximum(k_mad * np.nan_to_num(mad, nan=np.inf), floor)
+        new = np.abs(r) <= lim[groups]
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    wgt = keep.astype(float)
+    s2 = np.bincount(groups, wgt * r * r, n_groups) / np.maximum(n - 2, 1)
+    t = (pts[:, 0] - c[groups, 0]) * d[groups, 0] + (pts[:, 1] - c[groups, 1]) * d[groups, 1]
+    stt = np.bincount(groups, wgt * t * t, n_groups)
+    return c, d, n, s2, stt, keep

@@ -1,0 +1,115 @@
+"""Every tolerance of the notch-corner detector, in one frozen dataclass."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+__all__ = ["DetectorOptions"]
+
+
+@dataclass(frozen=True)
+class DetectorOptions:
+    """Tolerances of :func:`notchfit.detection.detect_notches` (defaults are the tested ones).
+
+    Attributes
+    ----------
+    lowres_mm : float
+        Pixel size of the downsampled copy used to segment and parse [mm]
+        (calibrated images).
+    lowres_long_side_px : int
+        Long side of the downsampled copy when there is no calibration (the
+        scale is not known before the tube is found) [px].
+    min_snr : float
+        Smallest object contrast, in units of the background noise.
+    area_range : (float, float)
+        Accepted silhouette area relative to the geometry's tube + mount
+        (calibrated images with the default mount only; a holder of another
+        size makes the check pass by construction).
+    close_slot_factor : float
+        Radius of the disk that bridges slot mouths, in slot widths.
+    slot_area_range : (float, float)
+        Accepted area of one bridged slot, relative to ``w d``.
+    holder_width_factor : float
+        The holder is the part of the silhouette that a disk of radius
+        ``holder_width_factor * R`` fits into (an opening): the tube (``2R``
+        wide, slots bridged) never holds it.
+    min_tube_run_R : float
+        Runs of the outline shorter than this many ``R`` between holder parts
+        belong to the holder (its rounded corners).
+    min_base_run_R : float
+        Holder runs of the outline shorter than this many ``R`` are thick
+        spots of the tube (where it meets a holder too slim to be found).
+    corner_turn_deg : float
+        Turn of the bridged outline that makes a base or tip corner [deg].
+    pair_tol : float
+        Relative tolerance of the ``2R`` spacing used to pair base and tip corners.
+    base_edge_tol : float
+        The tube-holder corners are the base points (1, 2) only where the
+        base edge is: their distance to the first slot on link 0 must match
+        the geometry within this many slot widths.
+    scale_tol : float
+        Relative tolerance of the measured base and tip widths (``2R``) in mm;
+        beyond it the camera file is taken to be wrong.
+    max_shift_px : float
+        A corner that moves further than this during refinement is ambiguous
+        [px]; multiplied by ``factor / 2`` like the profile lengths.
+    max_sigma_px : float
+        A corner whose standard uncertainty exceeds this is ambiguous [px].
+    min_edge_points : int
+        Fewest valid edge crossings per edge line.
+    profile_step_px : float
+        Sample spacing along a profile [px].
+    stage1_half_px, stage1_face_px : float
+        Half length of the first pass's profiles across outer edges and
+        across slot faces (whose first position is the least certain) [px],
+        for a downsampling factor of 2 or less; multiplied by ``factor / 2``
+        above it (the first corner estimates are as coarse as the copy).
+    iterations : int
+        Refinement passes after the first.
+    sigma_inflation : float
+        Factor on the line-fit uncertainty: crossings 1 px apart share pixels
+        (bilinear sampling) and blur, so the residual-based σ is too small;
+        1.45 makes rms(|error| / (√2 σ)) = 1.0 over rendered images
+        (``benchmarks/bench_detection.py``).
+    width_stations : int
+        Profiles across the tube per straight link edge when the scale comes
+        from the tube's diameter (no calibration).
+    rescale_tol : float
+        Without a calibration: when the measured scale is within this
+        relative distance of the rough one, the corners found at the rough
+        scale are mapped again instead of being searched for again.
+    uncal_close_frac : float
+        Without a calibration: the largest closing tried to bridge the
+        slots for the first scale estimate, as a fraction of the downsampled
+        image's long side.
+    """
+
+    lowres_mm: float = 0.06
+    lowres_long_side_px: int = 1000
+    min_snr: float = 4.0
+    area_range: tuple = (0.2, 3.0)
+    close_slot_factor: float = 1.25
+    slot_area_range: tuple = (0.15, 4.0)
+    holder_width_factor: float = 1.15
+    min_tube_run_R: float = 2.0
+    min_base_run_R: float = 2.0
+    corner_turn_deg: float = 50.0
+    pair_tol: float = 0.3
+    base_edge_tol: float = 0.25
+    scale_tol: float = 0.05
+    max_shift_px: float = 10.0
+    max_sigma_px: float = 0.3
+    min_edge_points: int = 5
+    profile_step_px: float = 0.5
+    stage1_half_px: float = 7.0
+    stage1_face_px: float = 12.0
+    iterations: int = 1
+    sigma_inflation: float = 1.45
+    width_stations: int = 5
+    rescale_tol: float = 0.05
+    uncal_close_frac: float = 0.1
+
+    def replace(self, **changes) -> "DetectorOptions":
+        """A copy with some options changed."""
+        return dataclasses.replace(self, **changes)

@@ -1,0 +1,237 @@
+"""The detector's stages run in order for one image at one scale (see the package docstring)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.ndimage import maximum_filter1d
+
+from ..geometry import notch_layout
+from .base import find_base, holder_masks, raw_base_corners
+from .corners import base_specs, slot_specs, tip_specs
+from .dims import slot_depths, slot_widths
+from .lines import unit
+from .numbering import number_slots, orient_corner_pair
+from .outline import bridge_slots, corner_window, crop_region, raw_mouth_corners, slot_mouths, turn_angles, turn_peaks
+from .plane import finish
+from .refine import CornerSpecs, refine_pass
+from .result import empty_detection
+
+__all__ = ["locate", "refine_corners", "run_at_scale"]
+
+
+def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
+           exclude_holder):
+    """Bridge, base end, slot numbering on one cropped silhouette. Returns a dict, or (None, Detection)."""
+    lay = notch_layout(geom)
+    m = lay.n_points
+    R_lo = geom.outer_radius / low_m
+    holder, strict = holders
+    ol = bridge_slots(roi, offset, small_shape, r_close=r_close, slot_area=slot_area,
+                      slot_area_range=opts.slot_area_range, sgn=sgn, holder=strict if exclude_holder else None)
+    if ol is None:
+        return None, empty_detection(m, "no_manipulator", "no manipulator outline")
+    X0, Y0 = ol.offset
+    full = lambda p: (np.asarray(p, float) + [X0, Y0]) * f + (f - 1) / 2.0     # low-res box -> px
+    cnt = ol.contour
+    contour_px = full(cnt)
+    plane_px = camera.pixel_to_plane(contour_px) / low_m
+    dist = lambda i, j: float(np.linalg.norm(plane_px[i] - plane_px[j]))
+    mouths = slot_mouths(ol)
+    be, why = find_base(ol, (holder, strict), R_lo=R_lo, dist=dist, sgn=sgn, min_tube_run_R=opts.min_tube_run_R,
+                        min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
+                        pair_tol=opts.pair_tol, base=base, mouth_idx=[v[0] for v in mouths.values()])
+    if be is None:
+        return None, empty_detection(m, "partial", why, contour_px)
+    if be.kind == "corners":
+        be = orient_corner_pair(be, mouths, cnt)
+    raw = None
+    if be.kind != "border":
+        pdist = lambda a, b: float(np.linalg.norm(np.diff(camera.pixel_to_plane(full(np.array([a, b]))),
+                                                          axis=0))) / low_m
+        grow = (math.sqrt(2) - 1) * opts.holder_width_factor * R_lo + 2       # the holder mask's regrowth
+        for ends, search in (((be.i_right, be.i_left), 1.5 * r_close + 3),
+                             ((be.i_right_wide, be.i_left_wide), 1.5 * r_close + 3 + grow)):
+            raw = raw_base_corners(ol.raw_contour, cnt[ends[0]], cnt[ends[1]], search=search,
+                                   k=max(4, int(0.25 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol,
+                                   R_lo=R_lo)
+            if raw is not None:
+                break
+    k = corner_window(r_close, R_lo)
+    near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
+    convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
+    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, lay, dist=dist, two_R=2 * R_lo,
+                       pair_tol=opts.pair_tol, base_at_border=be.kind == "border")
+    if num.mirror_conflict:
+        n_r = sum(1 for s in geom.slot_sides if s > 0)
+        return None, empty_detection(
+            m, "partial", f"the slot counts fit the opposite mirror flag ({n_r} right-side slots expected): "
+                          "check `mirror` in experiment.toml", contour_px, status="ambiguous")
+    if num.unnumbered:
+        return None, empty_detection(m, "partial", "; ".join(["base outside the image"] + num.messages), contour_px)
+    return {"ol": ol, "be": be, "num": num, "mouths": mouths, "raw": raw, "full": full,
+            "contour_px": contour_px}, None
+
+
+def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base):
+    """Stages 2-4 on the downsampled copy: outline, base end, numbering, first corner estimates.
+
+    The slots are bridged with the holder left out of the closing (its
+    fillets would reach a slot near the holder); where that numbers fewer
+    slots (a holder barely wider than the tube, whose opening bites into
+    the tube's base), with the holder in.
+
+    Returns
+    -------
+    specs : list of corner specs (point, xy low-res, d_in, d_out, L_in m, L_out m, face_in, face_out)
+    context : dict (contour_px, status, messages, base side, full() mapping) or a Detection (failure)
+    """
+    lay = notch_layout(geom)
+    m = lay.n_points
+    low_m = f / px_per_m
+    R = geom.outer_radius
+    R_lo = R / low_m
+    w_max = float(slot_widths(geom).max())
+    slot_area = float(np.median(slot_widths(geom) * slot_depths(geom))) / low_m ** 2
+    keep = (opts.slot_area_range[0] * slot_area, opts.slot_area_range[1] * slot_area)
+    r_close = int(math.ceil(opts.close_slot_factor * w_max / low_m)) + 1
+    roi, offset = crop_region(region, box, small_shape, r_close + 2, keep_holes=keep)
+    strict, grown = holder_masks(roi, opts.holder_width_factor * R_lo)
+    holders = (grown, strict)
+    kw = dict(f=f, low_m=low_m, sgn=sgn, base=base, r_close=r_close, slot_area=slot_area, holders=holders)
+    best = None
+    for exclude in ((True, False) if holders[1].any() else (False,)):
+        res, fail = _parse(roi, offset, small_shape, camera, geom, opts, exclude_holder=exclude, **kw)
+        if res is None:
+            best = best or (None, fail)
+            continue
+        n_found = len(res["num"].right) + len(res["num"].left) + (res["num"].tip is not None)
+        if best is None or best[0] is None or n_found > best[1]:
+            best = (res, n_found)
+        if n_found == geom.n_joints + 1:
+            break
+    res = best[0]
+    if res is None:
+        return None, best[1]
+    ol, be, num, mouths, raw, full = (res[k] for k in ("ol", "be", "num", "mouths", "raw", "full"))
+    w_lo = float(slot_widths(geom).min()) / low_m
+    cnt = ol.contour
+    index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
+    specs = []
+    if raw is not None:
+        face_len = min(geom.mount_half_width - R, R)
+        specs += base_specs(ol.raw_contour, raw[0], raw[1], sgn=sgn, index=index, geom=geom, low_m=low_m,
+                            face_len=face_len)
+    else:
+        num.messages.insert(0, "base corners hidden: the tube enters from the " +
+                            ("image border" if be.kind == "border" else "holder without a corner at the base edge"))
+    if num.tip is not None:
+        specs += tip_specs(cnt, num.tip, index=index, geom=geom, low_m=low_m)
+    rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
+    specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
+                        geom=geom, low_m=low_m, raw_corners=rawc)
+    tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
+    return specs, {"contour_px": res["contour_px"], "status": num.status, "messages": num.messages,
+                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube]}
+
+
+def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
+    """A region of the full image holding every corner's edges (and ``extra`` points) plus ``margin``."""
+    H, W = gray.shape
+    pts = np.concatenate([C, C - Din * Lin[:, None], C + Dout * Lout[:, None], extra])
+    pts = pts[np.isfinite(pts).all(1)]
+    u0 = max(int(pts[:, 0].min() - margin), 0)
+    v0 = max(int(pts[:, 1].min() - margin), 0)
+    u1 = min(int(pts[:, 0].max() + margin) + 1, W)
+    v1 = min(int(pts[:, 1].max() + margin) + 1, H)
+    return np.ascontiguousarray(gray[v0:v1, u0:u1], dtype=np.float32), np.array([u0, v0], float)
+
+
+def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opts, extra_px=None):
+    """Stage 5 for all corners: first pass with long profiles, then passes sized by the measured blur.
+
+    Returns
+    -------
+    dict with pidx (K,), C (K,2) raw px, Xi (K,2) ideal px, cov (K,2,2), ok (K,), shift (K,),
+    blur [px], sig_px (K,), the CornerSpecs and the ROI (img, off).
+    """
+    kf = max(1.0, f / 2.0)
+    pidx = np.array([s[0] for s in specs])
+    sp = CornerSpecs(full(np.array([s[1] for s in specs])), unit(np.array([s[2] for s in specs])),
+                     unit(np.array([s[3] for s in specs])), np.array([s[4] for s in specs]) * px_per_m,
+                     np.array([s[5] for s in specs]) * px_per_m,
+                     np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool))
+    C0 = sp.C.copy()
+    margin = 2 * max(opts.stage1_half_px, opts.stage1_face_px) * kf + 10
+    extra = np.zeros((0, 2)) if extra_px is None else extra_px
+    img, off = _roi(gray, sp.C, sp.Din, sp.Dout, sp.Lin, sp.Lout, extra, margin)
+    bl, ok, Xi, Ci = 1.0, np.zeros(len(specs), bool), None, None
+    for it in range(1 + opts.iterations):
+        if it == 0:
+            s0, s_end, h, lim = 5.0 * kf, 3.0, opts.stage1_half_px * kf, 0.25
+            h_face = opts.stage1_face_px * kf
+        else:
+            s0, s_end, h, lim = max(3.0, 3.0 * bl + 1.0), max(2.0, 2.5 * bl + 1.0), max(3.0, 3.0 * bl + 2.0), 0.1
+            h_face = h
+        Cn, Xi, Ci, ok, bl_new, Din, Dout = refine_pass(
+            img, off, camera, sp, sgn, s0=s0, s_end=s_end, h=h, step=opts.profile_step_px, lim=lim,
+            min_points=opts.min_edge_points, contrast=contrast, h_face=h_face,
+            blur_prior=bl if it > 0 else math.nan)
+        if np.isfinite(bl_new):
+            bl = bl_new
+        sp.C = np.where(np.isfinite(Cn).all(1)[:, None], Cn, sp.C)
+        sp.Din, sp.Dout = Din, Dout
+    shift = np.linalg.norm(sp.C - C0, axis=1)
+    sig_px = np.sqrt(np.maximum(np.trace(Ci, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
+    return {"pidx": pidx, "C": sp.C, "Xi": Xi, "cov": Ci, "ok": ok, "shift": shift, "blur": bl,
+            "sig_px": sig_px, "specs": sp, "img": img, "off": off, "kf": kf}
+
+
+def statuses(ref, m, status, shape, opts):
+    """Per-point status, raw px, ideal px and covariance from the refinement."""
+    H, W = shape
+    pts_px = np.full((m, 2), np.nan)
+    ideal = np.full((m, 2), np.nan)
+    cov = np.full((m, 2, 2), np.nan)
+    C = ref["C"]
+    inimg = np.all((C >= 0) & (C <= np.array([W - 1.0, H - 1.0])), axis=1)
+    for q, i in enumerate(ref["pidx"]):
+        if not ref["ok"][q] or not inimg[q]:
+            status[i] = "occluded"
+        elif ref["shift"][q] > opts.max_shift_px * ref["kf"] or not ref["sig_px"][q] <= opts.max_sigma_px:
+            status[i] = "ambiguous"
+            pts_px[i] = C[q]
+        else:
+            status[i] = "ok"
+            pts_px[i] = C[q]
+            ideal[i] = ref["Xi"][q]
+            cov[i] = ref["cov"][q] * opts.sigma_inflation ** 2
+    return status, pts_px, ideal, cov
+
+
+def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base,
+                 extra=None, stations=None):
+    """Stages 2-6 at a given scale. Returns (Detection, refinement dict or None)."""
+    lay = notch_layout(geom)
+    m = lay.n_points
+    specs, ctx = locate(region, box, small_shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base)
+    if specs is None:
+        return ctx, None
+    extra = extra or {}
+    status, msg = list(ctx["status"]), list(ctx["messages"])
+    ref = None
+    pts_px, ideal, cov = np.full((m, 2), np.nan), np.full((m, 2), np.nan), np.full((m, 2, 2), np.nan)
+    blur = math.nan
+    if specs:
+        far = ctx["tube_px"] if stations else None
+        ref = refine_corners(gray, specs, camera, full=ctx["full"], px_per_m=px_per_m, sgn=sgn,
+                             contrast=seg.contrast, f=f, opts=opts, extra_px=far)
+        status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
+        blur = ref["blur"]
+        ref["finish_args"] = (pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
+                              ctx["contour_px"], ctx["side"])
+    det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx["contour_px"],
+                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"], **extra)
+    return det, ref
+

@@ -1,0 +1,79 @@
+"""How image pixels map to the plane: a calibrated camera, or a scale from the tube's diameter."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["DiameterScale", "view_orientation"]
+
+
+class DiameterScale:
+    """A fronto-parallel view at a known scale, with the interface of :class:`~notchfit.camera.CameraModel`
+    that the detector uses.
+
+    Plane coordinates are ``(u, -v) * m_per_px`` (image up is plane +y, a
+    proper frame); there is no lens distortion.
+
+    Parameters
+    ----------
+    m_per_px : float
+        Scale [m/px].
+    image_size : (width, height)
+    """
+
+    has_plane = True
+
+    def __init__(self, m_per_px: float, image_size):
+        self.m_per_px = float(m_per_px)
+        self.image_size = (int(image_size[0]), int(image_size[1]))
+
+    def check_image(self, image) -> None:
+        """Any image size fits (the scale is the image's own)."""
+        return None
+
+    def undistort_pixels(self, uv, **kw):
+        """No lens model: pixels unchanged (..., 2)."""
+        return np.array(uv, float, copy=True)
+
+    def distort_pixels(self, uv):
+        """No lens model: pixels unchanged (..., 2)."""
+        return np.array(uv, float, copy=True)
+
+    def ideal_to_plane(self, uv):
+        """Pixels (..., 2) -> plane (u, -v) * scale [m]."""
+        uv = np.asarray(uv, float)
+        return np.stack([uv[..., 0], -uv[..., 1]], -1) * self.m_per_px
+
+    pixel_to_plane = ideal_to_plane
+
+    def plane_to_pixel(self, xy):
+        """Plane [m] (..., 2) -> pixels."""
+        xy = np.asarray(xy, float) / self.m_per_px
+        return np.stack([xy[..., 0], -xy[..., 1]], -1)
+
+    def ideal_to_plane_jacobian(self, uv):
+        """``diag(s, -s)`` at every pixel, shape (..., 2, 2)."""
+        uv = np.asarray(uv, float)
+        J = np.array([[self.m_per_px, 0.0], [0.0, -self.m_per_px]])
+        return np.broadcast_to(J, uv.shape[:-1] + (2, 2)).copy()
+
+    def plane_scale(self, xy=None) -> float:
+        """Scale [px per m]."""
+        return 1.0 / self.m_per_px
+
+
+def view_orientation(camera, shape, mirror: bool) -> tuple[float, float]:
+    """Scale at the image centre [px/m] and the orientation sign of pixel -> manipulator frame.
+
+    The sign is +1 when an anticlockwise traversal in the image (u right,
+    v down) is anticlockwise in the manipulator frame: the sign of the
+    pixel -> plane Jacobian times -1 for a mirrored view.
+    """
+    H, W = shape
+    c_img = np.array([(W - 1) / 2, (H - 1) / 2])
+    px_per_m = camera.plane_scale(camera.pixel_to_plane(c_img))
+    det_j = np.linalg.det(camera.ideal_to_plane_jacobian(camera.undistort_pixels(c_img)))
+    sgn = float(np.sign(det_j)) * (-1.0 if mirror else 1.0)
+    return float(px_per_m), sgn if math.isfinite(sgn) else 1.0
