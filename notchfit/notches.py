@@ -6,6 +6,13 @@ analytic Jacobian ``∂Q̃/∂θ``. :func:`to_plane` maps manipulator-frame poin
 into the measured plane frame by a proper rigid 2-D transform, optionally
 after a mirror (a view from ``-y``).
 
+Real tubes: joints sit at the geometry's per-joint ``z_j`` and bend about
+its neutral axes ``x_na,j`` (:func:`notchfit.kinematics.chain`); ``model="pivot"``
+(default, revolute joints at mid-notch on the neutral axis) or ``"arc"``
+(each notch a circular arc of its neutral axis, docs/models.md "Real tubes:
+kinematics"). One-sided tubes number their ``4 + 2 n`` points by the same rule
+(docs/geometry.md).
+
 Shapes: joint angles ``(..., n)``; points ``(..., m, 2)`` as (x, z) in the
 manipulator frame or (x, y) in the plane frame; the Jacobian
 ``(..., m, 2, n)``, which ``.reshape(..., 2 m, n)`` turns into the paper's
@@ -20,7 +27,7 @@ import numba
 import numpy as np
 
 from .geometry import Geometry, notch_layout
-from .validation import as_joint_angles
+from .kinematics import _check_model, chain, link_origins
 
 __all__ = [
     "from_plane",
@@ -34,112 +41,152 @@ __all__ = [
 
 @functools.lru_cache(maxsize=32)
 def _tables(geom: Geometry):
+    """Link of each point, its link-local (x, z) from the link's pivot, and the chain's steps and heights."""
     lay = notch_layout(geom)
-    return lay.link, lay.local[:, 0].copy(), lay.local[:, 1].copy()
+    ch = chain(geom)
+    lx = lay.local[:, 0] - np.where(lay.link > 0, ch.axis_offset[np.maximum(lay.link - 1, 0)], 0.0)
+    per_joint = np.ascontiguousarray(np.stack([ch.steps[:, 0], ch.steps[:, 1], ch.heights]))
+    return lay.link, lx, lay.local[:, 1].copy(), per_joint
 
 
-def _frames(theta, geom: Geometry):
-    th = as_joint_angles(theta, geom.n_joints)
-    lead = th.shape[:-1]
-    n = geom.n_joints
-    phi = np.zeros(lead + (n + 1,))
-    np.cumsum(th, axis=-1, out=phi[..., 1:])           # phi[l] = orientation of link l
-    s, c = np.sin(phi), np.cos(phi)
-    q = np.zeros(lead + (n + 1, 2))                     # q[k] = joint k+1 (q[n] = tip)
-    np.cumsum(geom.p * s[..., 1:], axis=-1, out=q[..., 1:, 0])
-    np.cumsum(geom.p * c[..., 1:], axis=-1, out=q[..., 1:, 1])
-    return s, c, q
-
-
-def _points(s, c, q, geom):
-    link, lx, lz = _tables(geom)
-    # link l >= 1 has its origin at joint l (q[l-1]); link 0 at the origin (= q[0])
-    org = q[..., np.maximum(link - 1, 0), :]
-    sl, cl = s[..., link], c[..., link]
+def _points(phi, O, geom):
+    link, lx, lz = _tables(geom)[:3]
+    org = O[..., link, :]
+    sl, cl = np.sin(phi)[..., link], np.cos(phi)[..., link]
     x = org[..., 0] + cl * lx + sl * lz
     z = org[..., 1] - sl * lx + cl * lz
     return np.stack([x, z], axis=-1)
 
 
-def notch_points(theta, geom: Geometry) -> np.ndarray:
+def notch_points(theta, geom: Geometry, model: str = "pivot") -> np.ndarray:
     """Virtual notch points ``Q̃(θ)`` in the manipulator frame (Sec. IV-A).
+
+    A point on link ``l`` with link-local ``(x, z)`` (from the link's pivot
+    ``a_l``) is at ``O_l + R(φ_l)(x, z)`` (:func:`notchfit.kinematics.link_origins`).
 
     Parameters
     ----------
     theta : array_like, shape (..., n)
         Joint angles [rad].
     geom : Geometry
+    model : {"pivot", "arc"}
+        Mid-notch revolute joints on the neutral axis, or circular-arc notches.
 
     Returns
     -------
     ndarray, shape (..., m, 2)
-        (x, z) of each point [m], m = 58 for the default manipulator.
+        (x, z) of each point [m], m = 4 + 2 n (58 for the default manipulator).
     """
-    s, c, q = _frames(theta, geom)
-    return _points(s, c, q, geom)
+    phi, O = link_origins(theta, geom, model)
+    return _points(phi, O, geom)
 
 
-def notch_points_and_jacobian(theta, geom: Geometry):
+def notch_points_and_jacobian(theta, geom: Geometry, model: str = "pivot", *,
+                              series_below: float = 1e-3):
     """Notch points and their analytic Jacobian ``∂Q̃/∂θ``.
 
-    A joint ``k`` rotates every point on links ``l ≥ k`` about ``q_k``:
-    ``∂Q̃_i/∂θ_k = (z_i - z_{q_k}, -(x_i - x_{q_k}))`` if ``k ≤ link(i)``, else 0.
-    Computed by a compiled (numba) kernel that writes both outputs in one pass
-    over the configurations; see ``benchmarks/bench_kinematics.py``.
+    A joint ``k`` rotates every point on links ``l ≥ k`` about ``O_k`` (the
+    image of its pivot, :func:`notchfit.kinematics.link_origins`) and, for
+    the arc model, translates them by ``R(φ_{k-1}) dδ_k/dθ_k``
+    (:func:`notchfit.kinematics.arc_translation`):
+    ``∂Q̃_i/∂θ_k = (z_i - O_kz, -(x_i - O_kx)) + R(φ_{k-1}) dδ_k/dθ_k`` if
+    ``k ≤ link(i)``, else 0. Computed by a compiled (numba) kernel that writes
+    both outputs in one pass over the configurations; see
+    ``benchmarks/bench_kinematics.py``.
 
     Parameters
     ----------
     theta : array_like, shape (..., n)
+    geom : Geometry
+    model : {"pivot", "arc"}
+    series_below : float
+        ``|θ/2|`` below which the arc model uses the series of ``sinc``.
 
     Returns
     -------
     points : ndarray, shape (..., m, 2) [m]
     jac : ndarray, shape (..., m, 2, n) [m/rad]
     """
+    _check_model(model)
     th = np.asarray(theta, dtype=float)
     n = geom.n_joints
     if th.ndim == 0 or th.shape[-1] != n:
         raise ValueError(f"joint angles must have shape (..., {n}), got {np.shape(theta)}")
     if not np.isfinite(th).all():
         raise ValueError("joint angles contain NaN or inf")
-    link, lx, lz = _tables(geom)
+    link, lx, lz, per_joint = _tables(geom)
     lead = th.shape[:-1]
     m = link.shape[0]
     flat = np.ascontiguousarray(th).reshape(-1, n)
     pts = np.empty((flat.shape[0], m, 2))
     jac = np.empty((flat.shape[0], m, 2, n))
-    _points_jac_kernel(flat, geom.p, link, lx, lz, pts, jac)
+    _points_jac_kernel(flat, per_joint, model == "arc", series_below, link, lx, lz, pts, jac)
     return pts.reshape(lead + (m, 2)), jac.reshape(lead + (m, 2, n))
 
 
 @numba.njit(cache=True, nogil=True)
-def _points_jac_kernel(th, p, link, lx, lz, pts, jac):  # pragma: no cover - compiled
+def _arc_kernel(t, h, series_below):  # pragma: no cover - compiled
+    """δ(θ) and dδ/dθ of one notch (the scalar twin of kinematics.arc_translation)."""
+    u = 0.5 * t
+    su, cu = np.sin(u), np.cos(u)
+    if abs(u) < series_below:
+        sc = 1.0 - u * u / 6.0 + u ** 4 / 120.0
+        dsc = -u / 3.0 + u ** 3 / 30.0
+    else:
+        sc = su / u
+        dsc = (cu - sc) / u
+    f = sc - cu
+    df = dsc + su
+    return h * f * su, h * f * cu, 0.5 * h * (df * su + f * cu), 0.5 * h * (df * cu - f * su)
+
+
+@numba.njit(cache=True, nogil=True)
+def _chain_kernel(th, per_joint, arc, series_below, s, c, ox, oz, ddx, ddz):  # pragma: no cover
+    """Link orientations (s, c), origins (ox, oz) and arc shifts (ddx, ddz) of one configuration.
+
+    ``per_joint`` (3, n): the pivot steps ``a_k - a_{k-1}`` (x, z) and the notch heights.
+    """
+    n = th.shape[0]
+    dx, dz, h = per_joint[0], per_joint[1], per_joint[2]
+    phi = 0.0
+    s[0], c[0], ox[0], oz[0] = 0.0, 1.0, 0.0, 0.0
+    for k in range(n):
+        ex, ez = dx[k], dz[k]
+        if arc:
+            d0, d1, e0, e1 = _arc_kernel(th[k], h[k], series_below)
+            ex += d0
+            ez += d1
+            ddx[k] = c[k] * e0 + s[k] * e1
+            ddz[k] = -s[k] * e0 + c[k] * e1
+        ox[k + 1] = ox[k] + (c[k] * ex + s[k] * ez)
+        oz[k + 1] = oz[k] + (-s[k] * ex + c[k] * ez)
+        phi += th[k]
+        s[k + 1] = np.sin(phi)
+        c[k + 1] = np.cos(phi)
+
+
+@numba.njit(cache=True, nogil=True)
+def _points_jac_kernel(th, per_joint, arc, series_below, link, lx, lz, pts, jac):  # pragma: no cover
     nb, n = th.shape
     m = link.shape[0]
     s = np.empty(n + 1)
     c = np.empty(n + 1)
-    qx = np.empty(n + 1)
-    qz = np.empty(n + 1)
+    ox = np.empty(n + 1)
+    oz = np.empty(n + 1)
+    ddx = np.zeros(n)
+    ddz = np.zeros(n)
     for b in range(nb):
-        phi = 0.0
-        s[0], c[0], qx[0], qz[0] = 0.0, 1.0, 0.0, 0.0
-        for k in range(n):
-            phi += th[b, k]
-            s[k + 1] = np.sin(phi)
-            c[k + 1] = np.cos(phi)
-            qx[k + 1] = qx[k] + p * s[k + 1]
-            qz[k + 1] = qz[k] + p * c[k + 1]
+        _chain_kernel(th[b], per_joint, arc, series_below, s, c, ox, oz, ddx, ddz)
         for i in range(m):
             L = link[i]
-            o = L - 1 if L > 0 else 0
-            x = qx[o] + c[L] * lx[i] + s[L] * lz[i]
-            z = qz[o] - s[L] * lx[i] + c[L] * lz[i]
+            x = ox[L] + c[L] * lx[i] + s[L] * lz[i]
+            z = oz[L] - s[L] * lx[i] + c[L] * lz[i]
             pts[b, i, 0] = x
             pts[b, i, 1] = z
             for k in range(n):
                 if k < L:
-                    jac[b, i, 0, k] = z - qz[k]
-                    jac[b, i, 1, k] = qx[k] - x
+                    jac[b, i, 0, k] = z - oz[k + 1] + ddx[k]
+                    jac[b, i, 1, k] = ox[k + 1] - x + ddz[k]
                 else:
                     jac[b, i, 0, k] = 0.0
                     jac[b, i, 1, k] = 0.0

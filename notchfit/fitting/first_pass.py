@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import Geometry, notch_layout
+from ..kinematics import chain
 from .results import as_transform
 
 __all__ = ["as_points", "as_sigma", "estimate_angles", "initial_transform"]
@@ -132,8 +133,9 @@ def estimate_angles(points, geom: Geometry, transform) -> np.ndarray:
     The points are mapped into the manipulator frame; walking from the base,
     each link's orientation is the rotation that best maps its link-local
     notch points onto the measured ones about its joint (whose position
-    follows from the previous links). Links without points continue the
-    previous angle increment.
+    follows from the previous links, :func:`notchfit.kinematics.link_origins`
+    with the pivot model: per-joint spacing and neutral-axis offsets). Links
+    without points continue the previous angle increment.
 
     Parameters
     ----------
@@ -151,15 +153,16 @@ def estimate_angles(points, geom: Geometry, transform) -> np.ndarray:
     T = as_transform(transform)
     X = T.from_plane(Q)
     lay = notch_layout(geom)
-    S, n, p = Q.shape[0], geom.n_joints, geom.p
+    S, n, ch = Q.shape[0], geom.n_joints, chain(geom)
     phis = np.zeros((S, n + 1))
-    q = np.zeros((S, 2))
+    q = np.zeros((S, 2))                                     # the pivot of the current link
     seen = np.zeros(S, dtype=bool)
     for link in range(1, n + 1):
-        if link >= 2:
-            q = q + p * np.stack([np.sin(phis[:, link - 1]), np.cos(phis[:, link - 1])], -1)
+        (dx, dz), prev_phi = ch.steps[link - 1], phis[:, link - 1]
+        c, s = np.cos(prev_phi), np.sin(prev_phi)
+        q = q + np.stack([c * dx + s * dz, -s * dx + c * dz], -1)
         idx = np.nonzero(lay.link == link)[0]
-        L = lay.local[idx]                                   # (k, 2)
+        L = lay.local[idx] - np.array([ch.axis_offset[link - 1], 0.0])   # (k, 2) from the pivot
         d = X[:, idx] - q[:, None, :]                        # (S, k, 2)
         ok = np.isfinite(d).all(-1)
         d0 = np.where(ok[..., None], d, 0.0)
