@@ -128,3 +128,19 @@ def test_overlays_scale_with_the_image():
     green = lambda im: np.count_nonzero((im[..., 1] > 150) & (im[..., 0] < 80) & (im[..., 2] < 80))
     n_small, n_auto = green(draw_overlay(big, det_big, marker_scale=1.0)), green(draw_overlay(big, det_big))
     assert n_auto > 2 * n_small
+
+
+@pytest.mark.parametrize("name", ["wrist_tip_first", "wrist_asymmetric"])
+def test_shipped_wrists_per_notch_dimensions_and_section_backbone(name):
+    """Per-notch depths and spacings, joints on each slot's neutral axis (the shipped geometry files):
+    rendered with the projector's pivot model, every visible corner found and numbered."""
+    from pathlib import Path
+
+    from notchfit.io import load_geometry
+    from notchfit.render import pivot_closure_angles
+
+    g = load_geometry(Path(__file__).resolve().parent.parent / "datasets" / "geometry" / f"{name}.toml")
+    th = g.rest_angles + 0.6 * (pivot_closure_angles(g) - g.rest_angles)
+    cam, r = _scene(11, theta=th, geom=g, holder="chuck")
+    det = detect_notches(r.image, cam, g)
+    _check(det, r)

@@ -120,7 +120,8 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
     specs = []
     if raw is not None:
-        face_len = min(geom.mount_half_width - R, R)
+        # the holder face searched beside a base corner: up to R (less on a narrow mount)
+        face_len = R if geom.mount_half_width is None else min(geom.mount_half_width - R, R)
         specs += base_specs(ol.raw_contour, raw[0], raw[1], sgn=sgn, index=index, geom=geom, low_m=low_m,
                             face_len=face_len)
     else:

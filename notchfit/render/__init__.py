@@ -32,6 +32,7 @@ Every function returns the exact ground truth beside the image.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from dataclasses import dataclass
@@ -44,6 +45,7 @@ from ..batch import run_batch
 from ..camera import Board, CameraModel
 from ..geometry import Geometry
 from ..io import write_camera
+from ..kinematics import chain, link_origins
 from ..notches import notch_points, to_plane
 from ..units import MM
 
@@ -368,30 +370,69 @@ def render_board(board: Board, camera: CameraModel, rvec, tvec, *, rng, supersam
 
 # ----------------------------------------------------------------------------- manipulator
 def _link_frames(theta, geom: Geometry):
-    """Orientation φ_l and origin o_l of links 0..n (closed-form planar chain)."""
+    """Orientation φ_l, origin O_l and straight-configuration pivot a_l of links 0..n.
+
+    The pivot chain of :func:`notchfit.kinematics.link_origins` (joints at the
+    geometry's pivots: the tube axis, or each slot's neutral axis): a point ``P``
+    of link ``l`` in the straight configuration goes to ``O_l + R(φ_l)(P - a_l)``.
+    """
     th = np.asarray(theta, float)
     if th.shape != (geom.n_joints,):
         raise ValueError(f"theta must have shape ({geom.n_joints},), got {th.shape}")
     if not np.isfinite(th).all():
         raise ValueError("theta contains NaN or inf")
-    phi = np.concatenate([[0.0], np.cumsum(th)])
-    org = np.zeros((geom.n_joints + 1, 2))
-    # origin of link l >= 1 is joint l: q_l = sum_{k < l} p (sin φ_k, cos φ_k), k = 1..l-1
-    steps = geom.p * np.stack([np.sin(phi[1:]), np.cos(phi[1:])], -1)      # link k's step, k = 1..n
-    org[2:] = np.cumsum(steps[:-1], axis=0)
-    return phi, org
+    phi, org = link_origins(th, geom)
+    piv = np.concatenate([np.zeros((1, 2)), chain(geom).pivots])
+    return phi, org, piv
+
+
+def pivot_closure_angles(geom: Geometry) -> np.ndarray:
+    """Joint angles at which the pivot model closes each slot's mouth (n,) [rad].
+
+    The outer corners of slot ``j`` (height ``w_j``, on side ``σ_j``) are
+    ``c = R - σ_j x_na,j`` across and ``w_j / 2`` along from the pivot; they meet
+    at ``2 atan(w_j / 2c)`` (the seed tube's ``2 atan(w / 2R)``; a little below the
+    arc model's ``h / (R + ȳ)`` for a section backbone).
+    """
+    c = geom.outer_radius - geom.sides * chain(geom).axis_offset
+    return np.array([2.0 * math.atan(w / (2.0 * cj)) for w, cj in zip(geom.slot_widths, c)])
+
+
+def _world(phi, org, piv, link, x, z):
+    """Straight-configuration point (x, z) rigidly attached to ``link`` -> world (x, z)."""
+    c, s = math.cos(phi[link]), math.sin(phi[link])
+    lx, lz = x - piv[link, 0], z - piv[link, 1]
+    return (org[link, 0] + c * lx + s * lz, org[link, 1] - s * lx + c * lz)
+
+
+def _join(phi, org, piv, j, a):
+    """Where the lines x = a of links j-1 and j meet (the flexure side of joint j)."""
+    p0 = np.array(_world(phi, org, piv, j - 1, a, piv[j, 1]))
+    p1 = np.array(_world(phi, org, piv, j, a, piv[j, 1]))
+    d0 = np.array([math.sin(phi[j - 1]), math.cos(phi[j - 1])])
+    d1 = np.array([math.sin(phi[j]), math.cos(phi[j])])
+    det = d0[0] * (-d1[1]) - d0[1] * (-d1[0])
+    if abs(det) < 1e-15:
+        return tuple(p1)
+    t = ((p1 - p0)[0] * (-d1[1]) - (p1 - p0)[1] * (-d1[0])) / det
+    return tuple(p0 + t * d0)
 
 
 def manipulator_outline(theta, geom: Geometry, *, include_mount: bool = True) -> np.ndarray:
     """Silhouette outline of the tube (docs/geometry.md, "What a camera sees").
 
+    Links are rigid and turn about the geometry's pivots (the pivot model of
+    :mod:`notchfit.kinematics`, the projector's default), each slot with its own
+    height and depth.
+
     Parameters
     ----------
     theta : array_like (n,)
-        Joint angles [rad]; ``|θ_j|`` must not exceed the slot-closure angle.
+        Joint angles [rad]; ``|θ_j|`` must not exceed the slot-closure angle
+        (:func:`pivot_closure_angles`).
     geom : Geometry
     include_mount : bool
-        Include the mount band below the base edge.
+        Include the mount band below the base edge (when the geometry has one).
 
     Returns
     -------
@@ -400,50 +441,40 @@ def manipulator_outline(theta, geom: Geometry, *, include_mount: bool = True) ->
         polygon. Every notch point is a vertex.
     """
     th = np.asarray(theta, float)
-    phi, org = _link_frames(th, geom)
-    if np.any(np.abs(th) > geom.closure_angle * (1 + 1e-9)):
-        j = int(np.argmax(np.abs(th)))
+    phi, org, piv = _link_frames(th, geom)
+    closure = pivot_closure_angles(geom)
+    if np.any(np.abs(th) > closure * (1 + 1e-9)):
+        j = int(np.argmax(np.abs(th) / closure))
         raise ValueError(f"|theta_{j + 1}| = {abs(th[j]):.4f} rad exceeds the slot-closure angle "
-                         f"{geom.closure_angle:.4f} rad: the slot faces would overlap")
-    n, p, R, w, d = geom.n_joints, geom.p, geom.outer_radius, geom.slot_width, geom.slot_depth
-
-    def P(link, x, z):
-        """Straight-configuration point (x, z) rigidly attached to `link` -> world."""
-        z0 = (link - 1) * p if link > 0 else 0.0
-        c, s = math.cos(phi[link]), math.sin(phi[link])
-        lz = z - z0
-        return (org[link, 0] + c * x + s * lz, org[link, 1] - s * x + c * lz)
-
-    def join(j, a):
-        """Where the lines x = a of links j-1 and j meet (joint j at q_j = origin of link j)."""
-        n0 = np.array([math.cos(phi[j - 1]), -math.sin(phi[j - 1])])
-        n1 = np.array([math.cos(phi[j]), -math.sin(phi[j])])
-        X = a * (n0 + n1) / (1.0 + math.cos(phi[j] - phi[j - 1]))
-        return (org[j, 0] + X[0], org[j, 1] + X[1])
-
+                         f"{closure[j]:.4f} rad: the slot faces would overlap")
+    n, R = geom.n_joints, geom.outer_radius
+    zs, ws, ds = geom.joint_z, geom.slot_widths, geom.slot_depths
+    P = functools.partial(_world, phi, org, piv)
+    join = functools.partial(_join, phi, org, piv)
     zb = geom.base_edge_z
+    mount = include_mount and geom.mount_half_width is not None
     pts = []
-    if include_mount:
+    if mount:
         M = geom.mount_half_width
         pts += [(-M, geom.mount_bottom_z), (M, geom.mount_bottom_z), (M, zb)]
     pts.append((R, zb))
     for j in range(1, n + 1):
-        zj = (j - 1) * p
+        zj, w, d = zs[j - 1], ws[j - 1], ds[j - 1]
         if geom.slot_sides[j - 1] == +1:
             pts += [P(j - 1, R, zj - w / 2), P(j - 1, R - d, zj - w / 2), join(j, R - d),
                     P(j, R - d, zj + w / 2), P(j, R, zj + w / 2)]
         else:
             pts.append(join(j, R))
-    pts += [P(n, R, n * p), P(n, -R, n * p)]
+    pts += [P(n, R, geom.tip_z), P(n, -R, geom.tip_z)]
     for j in range(n, 0, -1):
-        zj = (j - 1) * p
+        zj, w, d = zs[j - 1], ws[j - 1], ds[j - 1]
         if geom.slot_sides[j - 1] == -1:
             pts += [P(j, -R, zj + w / 2), P(j, -(R - d), zj + w / 2), join(j, -(R - d)),
                     P(j - 1, -(R - d), zj - w / 2), P(j - 1, -R, zj - w / 2)]
         else:
             pts.append(join(j, -R))
     pts.append((-R, zb))
-    if include_mount:
+    if mount:
         pts.append((-geom.mount_half_width, zb))
     return np.asarray(pts, float)
 
@@ -684,7 +715,8 @@ def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_p
             thetas.append(th)
             planes.append(pl)
             keys.append((e.name, int(s)))
-    clip = np.clip(np.asarray(thetas, float), -geom.closure_angle, geom.closure_angle)
+    closure = pivot_closure_angles(geom)
+    clip = np.clip(np.asarray(thetas, float), -closure, closure)
     cam, _ = camera_for_shapes(clip, geom, mm_per_px=mm_per_px, planes=planes)
     calib_dir = Path(calib_dir)
     calib_dir.mkdir(parents=True, exist_ok=True)

@@ -135,6 +135,8 @@ def holder_outline(scene: Scene, geom: Geometry, face_z: float, length: float = 
     if scene.holder == "none":
         return None
     if scene.holder == "mount":
+        if geom.mount_half_width is None:
+            raise ValueError(f"holder 'mount' needs a geometry with a mount; {geom.name!r} has none")
         M = geom.mount_half_width
         return np.array([[-M, geom.mount_bottom_z], [M, geom.mount_bottom_z], [M, face_z], [-M, face_z]])
     Hh = scene.holder_half_width or 3.0 * R
@@ -201,18 +203,17 @@ def _tube_levels(uv, theta, geom, cam, plane, scene: Scene):
     """Tube level at pixels uv (P, 2): cylinder shading across the nearest link plus the streak."""
     R = geom.outer_radius
     xz = from_plane(cam.pixel_to_plane(uv), *plane)
-    phi, org = _link_frames(np.asarray(theta, float), geom)
+    phi, org, piv = _link_frames(np.asarray(theta, float), geom)
     n = geom.n_joints
     best_x = np.full(len(uv), np.inf)
     best_d = np.full(len(uv), np.inf)
     for link in range(n + 1):
-        z0 = (link - 1) * geom.p if link > 0 else 0.0
         c, s = math.cos(phi[link]), math.sin(phi[link])
         dx, dz = xz[:, 0] - org[link, 0], xz[:, 1] - org[link, 1]
-        x = c * dx - s * dz
-        lz = s * dx + c * dz + z0
-        lo = -np.inf if link == 0 else z0
-        hi = geom.tip_z if link == n else z0 + geom.p
+        x = c * dx - s * dz + piv[link, 0]
+        lz = s * dx + c * dz + piv[link, 1]
+        lo = -np.inf if link == 0 else piv[link, 1]
+        hi = geom.tip_z if link == n else piv[link + 1, 1]
         out = np.maximum(lo - lz, 0) + np.maximum(lz - hi, 0)
         take = out < best_d
         best_d[take], best_x[take] = out[take], x[take]
