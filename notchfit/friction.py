@@ -83,6 +83,7 @@ the lumped stretch uses the measured tension).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -95,15 +96,19 @@ from .cables import pulled_side
 from .geometry import Geometry, default_geometry
 from .notches import notch_points
 from .shapes import line_fit
-from .springs import PiecewiseLinearSpring, friction_spring
+from .springs import PiecewiseLinearSpring, friction_spring, material_spring
 from .units import MM
 from .validation import readonly
 
 __all__ = [
+    "DEFAULT_DAMPING_TIME",
     "DEFAULT_DT",
+    "FRICTION_LAWS",
+    "SPRING_LAWS",
     "FrictionParams",
     "SimulationResult",
     "cable_displacement",
+    "clip_load_cell",
     "params_from_mapping",
     "params_to_mapping",
     "simulate",
@@ -130,7 +135,25 @@ PARAM_KEYS = {
     "tip_force_x": "tip_force_x_N",
     "tip_force_z": "tip_force_z_N",
     "stiffness_gradient": "stiffness_gradient",
+    # real tubes (docs/models.md, "Real tubes: mechanics"); written only when not at their defaults
+    "spring_law": "spring_law",
+    "friction_law": "friction_law",
+    "damping_time": "damping_time_s",
+    "E_lin": "E_lin_Pa",
+    "E_se": "E_se_Pa",
+    "strain_lower": "strain_lower",
+    "stop_ratio": "stop_ratio",
 }
+#: the keys every model file holds (the seed paper's model and its extensions)
+_SEED_KEYS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop", "mu_d", "mu_s", "b", "v_thr",
+              "proximal_beta", "hysteresis_torque", "tip_force_x", "tip_force_z", "stiffness_gradient")
+#: fields that may be one value per joint (a tuple, base to tip)
+PER_JOINT_FIELDS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop")
+SPRING_LAWS = ("rates", "material")
+FRICTION_LAWS = ("channel", "capstan")
+#: The seed tube's damping as a time constant, ``b / k_lin`` = 0.03 / 0.4829 s (Sec. IV-B):
+#: ``DEFAULT_DAMPING_TIME * 0.4829 == 0.03`` exactly in floating point (tested).
+DEFAULT_DAMPING_TIME = paper.DAMPING / paper.FRICTION_K_LIN
 
 
 @dataclass(frozen=True)
@@ -139,11 +162,13 @@ class FrictionParams:
 
     Attributes
     ----------
-    k_lin, k_mid, k_stop : float
+    k_lin, k_mid, k_stop : float or tuple of n floats
         Spring rates [N m/rad]: below ``theta_mid`` (0.4829), mid range
-        (0.25, fitted), beyond ``theta_stop`` (slot closure, 10) (Fig. 17).
-    theta_mid, theta_stop : float
-        Breaks of the spring [rad] (0.07, 0.14).
+        (0.25, fitted), beyond ``theta_stop`` (slot closure, 10) (Fig. 17);
+        one value for every joint or one per joint, base to tip
+        (``spring_law = "rates"``).
+    theta_mid, theta_stop : float or tuple of n floats
+        Breaks of the spring [rad] (0.07, 0.14), measured from the rest angle.
     mu_d, mu_s : float
         Sliding and static friction coefficients (0.29, 0.30); ``0 <= mu_d < 1``,
         ``mu_s >= mu_d``.
@@ -159,6 +184,28 @@ class FrictionParams:
         Constant manipulator-frame force at the tool point [N].
     stiffness_gradient : float
         ``g`` in (-1, 1): joint ``j``'s rates scaled by ``1 + g (2 (j-1)/(n-1) - 1)``.
+    spring_law : {"rates", "material"}
+        ``"rates"``: the paper's law with the rates and breaks above.
+        ``"material"``: :func:`notchfit.springs.material_spring` from the
+        geometry's section and ``E_lin``, ``E_se``, ``strain_lower``,
+        ``stop_ratio`` (one set for every tube cut from the same stock).
+    friction_law : {"channel", "capstan"}
+        The seed's per-link channel law, or the capstan law of a tendon free
+        in the lumen (tension ``e^{-μ Σ|θ|}`` along the tendon in full sliding).
+    damping_time : float
+        ``τ_b`` [s]: joint ``j``'s damping is ``b_j = τ_b k_j`` (``k_j`` its
+        linear rate, scale included), so every joint settles on the same time
+        scale on any tube. 0 (default): the absolute ``b`` for the rates law
+        (the paper), :data:`DEFAULT_DAMPING_TIME` (the seed tube's ``b/k_lin``)
+        for the material law.
+    E_lin, E_se : float
+        Linear and superelastic-plateau moduli [Pa] (material law; 40 and 4 GPa,
+        superelastic nitinol, fitted).
+    strain_lower : float
+        Outer-fibre strain where the plateau starts (material law; 0.015).
+    stop_ratio : float
+        Slot-closure stop rate over the linear rate (material law; the seed's
+        ``k_stop / k_lin``).
     """
 
     k_lin: float = paper.FRICTION_K_LIN
@@ -175,20 +222,45 @@ class FrictionParams:
     tip_force_x: float = 0.0
     tip_force_z: float = 0.0
     stiffness_gradient: float = 0.0
+    spring_law: str = "rates"
+    friction_law: str = "channel"
+    damping_time: float = 0.0
+    E_lin: float = 40e9
+    E_se: float = 4e9
+    strain_lower: float = 0.015
+    stop_ratio: float = paper.FRICTION_K_STOP / paper.FRICTION_K_LIN
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
-                raise ValueError(f"friction parameter {f.name} must be a number, got {v!r}")
-            v = float(v)
-            if not math.isfinite(v):
-                raise ValueError(f"friction parameter {f.name} must be finite, got {v}")
+            if f.name in ("spring_law", "friction_law"):
+                continue
+            if f.name in PER_JOINT_FIELDS and isinstance(v, (tuple, list, np.ndarray)):
+                v = tuple(_number(f.name, x) for x in v)
+                if not v:
+                    raise ValueError(f"friction parameter {f.name} needs at least one value")
+            else:
+                v = _number(f.name, v)
             object.__setattr__(self, f.name, v)
-        for name in ("k_lin", "k_mid", "k_stop", "b", "v_thr", "theta_mid"):
-            if getattr(self, name) <= 0:
+        if self.spring_law not in SPRING_LAWS:
+            raise ValueError(f"spring_law must be one of {SPRING_LAWS}, got {self.spring_law!r}")
+        if self.friction_law not in FRICTION_LAWS:
+            raise ValueError(f"friction_law must be one of {FRICTION_LAWS}, got {self.friction_law!r}")
+        for name in ("k_lin", "k_mid", "k_stop", "b", "v_thr", "theta_mid", "E_lin", "E_se", "strain_lower",
+                     "stop_ratio"):
+            v = getattr(self, name)
+            if (min(v) if isinstance(v, tuple) else v) <= 0:
                 raise ValueError(f"friction parameter {name} must be positive, got {getattr(self, name)}")
-        if self.theta_stop <= self.theta_mid:
+        if self.damping_time < 0:
+            raise ValueError(f"damping_time must be >= 0 s (0: the default damping), got {self.damping_time}")
+        lengths = {len(getattr(self, f)) for f in PER_JOINT_FIELDS if isinstance(getattr(self, f), tuple)}
+        if len(lengths) > 1:
+            raise ValueError(f"per-joint parameters must all have one length, got {sorted(lengths)}")
+        if self.n_per_joint is None:
+            bad = self.theta_stop <= self.theta_mid
+        else:
+            bad = np.any(np.asarray(self.theta_stop) <= np.asarray(self.theta_mid))
+        if bad:
             raise ValueError(f"need theta_mid < theta_stop, got {self.theta_mid} and {self.theta_stop}")
         if not 0.0 <= self.mu_d < 1.0:
             raise ValueError(f"mu_d must be in [0, 1), got {self.mu_d}")
@@ -201,6 +273,15 @@ class FrictionParams:
         if not -1.0 < self.stiffness_gradient < 1.0:
             raise ValueError(f"stiffness_gradient must be in (-1, 1), got {self.stiffness_gradient}")
 
+    @property
+    def n_per_joint(self) -> int | None:
+        """Number of joints the per-joint parameters are given for (None: all scalar)."""
+        for f in PER_JOINT_FIELDS:
+            v = getattr(self, f)
+            if isinstance(v, tuple):
+                return len(v)
+        return None
+
     def joint_scale(self, n: int) -> np.ndarray:
         """Per-joint stiffness factor ``1 + g (2 (j-1)/(n-1) - 1)`` (n,)."""
         if n == 1:
@@ -208,9 +289,46 @@ class FrictionParams:
         return 1.0 + self.stiffness_gradient * (2.0 * np.arange(n) / (n - 1) - 1.0)
 
     def spring(self, n: int | None = None) -> PiecewiseLinearSpring:
-        """The Fig. 17 spring, with the per-joint gradient scale when ``n`` is given."""
+        """The Fig. 17 spring, with the per-joint gradient scale when ``n`` is given.
+
+        Per-joint rates or breaks give a spring with breaks (n, 2), rates (n, 3).
+        """
         scale = 1.0 if n is None else self.joint_scale(n)
-        return friction_spring(self.k_lin, self.k_mid, self.k_stop, self.theta_mid, self.theta_stop, scale)
+        if self.n_per_joint is None:
+            return friction_spring(self.k_lin, self.k_mid, self.k_stop, self.theta_mid, self.theta_stop, scale)
+        m = self.n_per_joint
+        if n is not None and n != m:
+            raise ValueError(f"per-joint friction parameters are given for {m} joints, the geometry has {n}")
+        col = lambda v: np.broadcast_to(np.asarray(v, dtype=float), (m,))  # noqa: E731
+        breaks = np.stack([col(self.theta_mid), col(self.theta_stop)], axis=-1)
+        rates = np.stack([col(self.k_lin), col(self.k_mid), col(self.k_stop)], axis=-1)
+        return PiecewiseLinearSpring(breaks, rates, scale)
+
+    def joint_spring(self, geom: Geometry) -> PiecewiseLinearSpring:
+        """The spring of every joint of ``geom`` (breaks (n, 2), rates (n, 3), scale (n,)).
+
+        The rates law (:meth:`spring`) or the material law
+        (:func:`notchfit.springs.material_spring`), with the gradient scale. The
+        spring acts on the deflection from the rest angle, ``θ_j - θ0_j``.
+        """
+        n = geom.n_joints
+        if self.spring_law == "material":
+            sp = material_spring(geom, self.E_lin, self.E_se, self.strain_lower, self.stop_ratio)
+            return sp.with_scale(self.joint_scale(n))
+        sp = self.spring(n)
+        b = np.broadcast_to(sp.breaks, (n, 2))
+        r = np.broadcast_to(sp.rates, (n, 3))
+        return PiecewiseLinearSpring(b, r, sp.scale)
+
+    def joint_damping(self, spring: PiecewiseLinearSpring) -> np.ndarray:
+        """``b_j`` [N m s/rad] (n,): ``τ_b k_j`` or the absolute ``b`` (see ``damping_time``)."""
+        tau = self.damping_time
+        if tau == 0.0 and self.spring_law == "material":
+            tau = DEFAULT_DAMPING_TIME
+        n = spring.rates.shape[0]
+        if tau == 0.0:
+            return np.full(n, self.b)
+        return tau * (spring.rates[:, 0] * np.broadcast_to(spring.scale, (n,)))
 
     def replace(self, **changes) -> "FrictionParams":
         """A copy with some fields changed (validated again)."""
@@ -220,16 +338,69 @@ class FrictionParams:
         """``{field: value}`` (SI)."""
         return dataclasses.asdict(self)
 
-    def packed(self, geom: Geometry) -> np.ndarray:
-        """The kernels' parameter vector (``_friction_kernels.P_*``)."""
+    def joint_table(self, geom: Geometry) -> np.ndarray:
+        """The kernels' per-joint table (``_friction_kernels.J_*`` rows, n columns), read-only.
+
+        Spring rates, breaks and scale (:meth:`joint_spring`), damping
+        (:meth:`joint_damping`), rest angles ``θ0_j`` and the moment arms of the
+        right and left tendons about each joint's bending axis
+        (:meth:`Geometry.moment_arms`). Cached per (parameters, geometry).
+        """
+        return _joint_table(self, geom)
+
+    def _build_joint_table(self, geom: Geometry) -> np.ndarray:
+        sp = self.joint_spring(geom)
+        n = geom.n_joints
+        J = np.empty((_k.N_J, n))
+        J[_k.J_K1], J[_k.J_K2], J[_k.J_K3] = sp.rates[:, 0], sp.rates[:, 1], sp.rates[:, 2]
+        J[_k.J_TM], J[_k.J_TS] = sp.breaks[:, 0], sp.breaks[:, 1]
+        J[_k.J_S] = np.broadcast_to(sp.scale, (n,))
+        J[_k.J_B] = self.joint_damping(sp)
+        J[_k.J_TH0] = geom.rest_angles
+        J[_k.J_AR], J[_k.J_AL] = geom.moment_arms(+1), geom.moment_arms(-1)
+        return readonly(J)
+
+    def packed(self, geom: Geometry, table: np.ndarray | None = None) -> np.ndarray:
+        """The kernels' parameter vector (``_friction_kernels.P_*``).
+
+        The spring and damping entries hold joint 1's values; ``P_UNI`` says
+        whether every joint has the same law and damping, ``P_ARMU`` whether
+        both tendons have one moment arm ``P_RX`` at every joint (the seed tube).
+        """
+        J = self.joint_table(geom) if table is None else table
         par = np.zeros(_k.N_PAR)
-        par[_k.P_K1], par[_k.P_K2], par[_k.P_K3] = self.k_lin, self.k_mid, self.k_stop
-        par[_k.P_TM], par[_k.P_TS] = self.theta_mid, self.theta_stop
-        par[_k.P_MUD], par[_k.P_MUS], par[_k.P_B], par[_k.P_VTHR] = self.mu_d, self.mu_s, self.b, self.v_thr
+        par[_k.P_K1], par[_k.P_K2], par[_k.P_K3] = J[_k.J_K1, 0], J[_k.J_K2, 0], J[_k.J_K3, 0]
+        par[_k.P_TM], par[_k.P_TS], par[_k.P_B] = J[_k.J_TM, 0], J[_k.J_TS, 0], J[_k.J_B, 0]
+        par[_k.P_MUD], par[_k.P_MUS], par[_k.P_VTHR] = self.mu_d, self.mu_s, self.v_thr
         par[_k.P_BETA], par[_k.P_H] = self.proximal_beta, self.hysteresis_torque
         par[_k.P_FX], par[_k.P_FZ] = self.tip_force_x, self.tip_force_z
-        par[_k.P_RX], par[_k.P_P] = geom.r_x, geom.p
+        rows = [_k.J_K1, _k.J_K2, _k.J_K3, _k.J_TM, _k.J_TS, _k.J_B]
+        par[_k.P_UNI] = float(np.all(J[rows] == J[rows, :1]))
+        arms = J[[_k.J_AR, _k.J_AL]]
+        par[_k.P_ARMU] = float(np.all(arms == arms[0, 0]))
+        par[_k.P_RX] = arms[0, 0]
+        par[_k.P_LAW] = _k.LAW_CAPSTAN if self.friction_law == "capstan" else _k.LAW_CHANNEL
+        pitches = geom.pitches
+        if (self.tip_force_x != 0.0 or self.tip_force_z != 0.0) and (
+                not np.all(pitches == pitches[0]) or geom.backbone != "axis"):
+            raise ValueError("a tip force needs equal joint spacings and backbone = 'axis' "
+                             "(the tip-load torques of the section backbone come with its kinematics)")
+        par[_k.P_P] = pitches[0]
         return par
+
+
+@functools.lru_cache(maxsize=64)
+def _joint_table(params: FrictionParams, geom: Geometry) -> np.ndarray:
+    return params._build_joint_table(geom)
+
+
+def _number(name: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+        raise ValueError(f"friction parameter {name} must be a number, got {v!r}")
+    v = float(v)
+    if not math.isfinite(v):
+        raise ValueError(f"friction parameter {name} must be finite, got {v}")
+    return v
 
 
 @dataclass(frozen=True, eq=False)
@@ -263,6 +434,9 @@ class SimulationResult:
         ``"fast"`` or ``"reference"``.
     n_steps : int
         Time steps the solver took (fast: steps + frozen passes).
+    n_clipped : int
+        Load-cell readings slightly below zero (down to ``-3 σ_T``) that were
+        clipped at zero (:func:`clip_load_cell`); the command logs the count.
     """
 
     time: np.ndarray
@@ -284,6 +458,7 @@ class SimulationResult:
     geom: Geometry
     method: str = "fast"
     n_steps: int = 0
+    n_clipped: int = 0
 
     @property
     def n_samples(self) -> int:
@@ -305,17 +480,26 @@ class SimulationResult:
 def cable_displacement(theta, tension_left, tension_right, geom: Geometry):
     """Cable drawn in by each actuator ``(Δ_L, Δ_R)`` [m] (module docstring).
 
-    ``Δ_L = -r_x Σθ + T_L/k_c``, ``Δ_R = r_x Σθ + T_R/k_c``, ``k_c = E A / L_0``.
+    ``Δ_L = -r_x Σθ + T_L/k_c``, ``Δ_R = r_x Σθ + T_R/k_c``, ``k_c = E A / L_0``;
+    with per-joint moment arms ``Δ_c = s_c Σ_j a_c,j θ_j`` (+ the stretch), and
+    no stretch term when the geometry gives no cable modulus.
 
     Parameters
     ----------
     theta : array_like, shape (..., n) [rad]
     tension_left, tension_right : array_like, shape (...) [N]
     """
-    s = np.asarray(theta, dtype=float).sum(axis=-1)
+    th = np.asarray(theta, dtype=float)
+    aR, aL = geom.moment_arms(+1), geom.moment_arms(-1)
+    if np.all(aR == aR[0]) and np.all(aL == aR[0]):
+        sR = sL = aR[0] * th.sum(axis=-1)
+    else:
+        sR, sL = th @ aR, th @ aL
+    tl, tr = np.asarray(tension_left, float), np.asarray(tension_right, float)
+    if None in (geom.cable_E, geom.cable_A, geom.cable_L0):
+        return -sL, sR
     kc = geom.cable_stiffness
-    return (-geom.r_x * s + np.asarray(tension_left, float) / kc,
-            geom.r_x * s + np.asarray(tension_right, float) / kc)
+    return -sL + tl / kc, sR + tr / kc
 
 
 def stepwise_regimes(tension_left, tension_right, shape, *, tension_tol: float = 0.05,
@@ -405,7 +589,61 @@ def stepwise_regimes(tension_left, tension_right, shape, *, tension_tol: float =
 # =============================================================================
 # the simulator
 # =============================================================================
-def _check_inputs(time, tension_left, tension_right):
+def clip_load_cell(tension, sigma: float = 0.05, name: str = "tension") -> tuple[np.ndarray, int]:
+    """Load-cell readings clipped at zero (docs/models.md, real tubes: load cells).
+
+    A load cell reads slightly below zero at rest (offset and noise). A reading
+    down to ``-3 σ_T`` is a valid measurement of zero tension: it is clipped at
+    zero and counted, so that the run log can say so. Below that it is an
+    input error.
+
+    Parameters
+    ----------
+    tension : array_like [N]
+    sigma : float
+        ``σ_T``, the tension uncertainty [N] (the experiment's, default 0.05 N).
+    name : str
+        Named in the message.
+
+    Returns
+    -------
+    clipped : ndarray [N]
+    count : int
+        Readings that were below zero.
+
+    Raises
+    ------
+    ValueError
+        A reading below ``-3 σ_T`` (its index and value in the message).
+    """
+    a = np.asarray(tension, dtype=float)
+    if not (math.isfinite(sigma) and sigma >= 0):
+        raise ValueError(f"sigma must be >= 0 N, got {sigma}")
+    low = a < -3.0 * sigma
+    if low.any():
+        bad = int(np.flatnonzero(low)[0])
+        raise ValueError(f"{name} must be >= 0 N (cables only pull; readings down to -3 sigma_T = "
+                         f"{-3.0 * sigma:g} N count as zero), got {a[bad]} at sample index {bad}")
+    neg = a < 0
+    return np.where(neg, 0.0, a), int(neg.sum())
+
+
+def _tendon_tension(tension, geom: Geometry, side: str, like):
+    """The tension of one tendon: None or zeros for a tendon the geometry lacks."""
+    if side in geom.tendons:
+        if tension is None:
+            raise ValueError(f"the geometry has a {side} tendon: tension_{side} is required")
+        return tension
+    if tension is None:
+        return np.zeros(np.shape(like))
+    a = np.asarray(tension, dtype=float)
+    if np.any(a != 0):
+        raise ValueError(f"the geometry has no {side} tendon (tendons = {list(geom.tendons)}): "
+                         f"tension_{side} must be absent or zero")
+    return a
+
+
+def _check_inputs(time, tension_left, tension_right, sigma=None):
     t = np.asarray(time, dtype=float)
     tl = np.asarray(tension_left, dtype=float)
     tr = np.asarray(tension_right, dtype=float)
@@ -418,14 +656,20 @@ def _check_inputs(time, tension_left, tension_right):
         if not np.isfinite(a).all():
             bad = int(np.flatnonzero(~np.isfinite(a))[0])
             raise ValueError(f"{name} contains NaN or inf (first at sample index {bad})")
-    for name, a in (("tension_left", tl), ("tension_right", tr)):
-        if (a < 0).any():
-            bad = int(np.flatnonzero(a < 0)[0])
-            raise ValueError(f"{name} must be >= 0 N (cables only pull), got {a[bad]} at sample index {bad}")
+    clipped = 0
+    if sigma is None:
+        for name, a in (("tension_left", tl), ("tension_right", tr)):
+            if (a < 0).any():
+                bad = int(np.flatnonzero(a < 0)[0])
+                raise ValueError(f"{name} must be >= 0 N (cables only pull), got {a[bad]} at sample index {bad}")
+    else:
+        tl, cl = clip_load_cell(tl, sigma, "tension_left")
+        tr, cr = clip_load_cell(tr, sigma, "tension_right")
+        clipped = cl + cr
     if t.size > 1 and not (np.diff(t) > 0).all():
         bad = int(np.flatnonzero(np.diff(t) <= 0)[0])
         raise ValueError(f"time must increase strictly, got {t[bad]} then {t[bad + 1]} s at sample index {bad + 1}")
-    return (np.ascontiguousarray(t), np.ascontiguousarray(tl), np.ascontiguousarray(tr))
+    return (np.ascontiguousarray(t), np.ascontiguousarray(tl), np.ascontiguousarray(tr), clipped)
 
 
 def _check_protocol(t, ramp_time, settle_time) -> float:
@@ -439,7 +683,7 @@ def _check_protocol(t, ramp_time, settle_time) -> float:
     return settle_time
 
 
-def _fast(t, tl, tr, par, scale, ramp_time, settle_time, *, n, h_min, h_max, growth, dtheta_max, order,
+def _fast(t, tl, tr, par, J, ramp_time, settle_time, *, n, h_min, h_max, growth, dtheta_max, order,
           land_sticks, max_events, max_micro, settle_tol, settle_maxiter):
     """Check the fast solver's options and run it (:func:`simulate` documents them)."""
     for name, v in (("h_min", h_min), ("h_max", h_max)):
@@ -453,7 +697,7 @@ def _fast(t, tl, tr, par, scale, ramp_time, settle_time, *, n, h_min, h_max, gro
     mm = max(1000, 40 * n) if max_micro is None else int(max_micro)
     if me < 0 or mm < 0:
         raise ValueError("max_events and max_micro must be >= 0")
-    return _k.fast_kernel(t, tl, tr, par, scale, ramp_time, settle_time,
+    return _k.fast_kernel(t, tl, tr, par, J, ramp_time, settle_time,
                           float(h_min), float(h_max), float(growth), me, mm,
                           float(settle_tol), int(settle_maxiter), bool(land_sticks), float(dtheta_max),
                           int(order))
@@ -466,16 +710,18 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
              land_sticks: bool = True,
              max_events: int | None = None, max_micro: int | None = None,
              settle_tol: float = 1e-13, settle_maxiter: int = 200,
-             tension_tol: float = 0.05, hold_fraction: float = 0.25) -> SimulationResult:
+             tension_tol: float = 0.05, hold_fraction: float = 0.25,
+             tension_sigma: float | None = None) -> SimulationResult:
     """Simulate a tension history with the friction model (Sec. IV-B).
 
     Parameters
     ----------
     time : array_like, shape (S,) [s]
         Sample times, strictly increasing.
-    tension_left, tension_right : array_like, shape (S,) [N]
+    tension_left, tension_right : array_like, shape (S,) [N], or None
         Measured (load-cell) tensions, >= 0. Between samples: the protocol
-        of the module docstring.
+        of the module docstring. A tendon the geometry lacks
+        (``geom.tendons``) carries no tension: None or zeros.
     params : FrictionParams, optional
         The paper's values by default.
     geom : Geometry, optional
@@ -511,6 +757,10 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         Fast solver: fixed point of the closed-form rest state (tip load) [rad].
     tension_tol, hold_fraction :
         Passed to :func:`stepwise_regimes`.
+    tension_sigma : float, optional
+        ``σ_T`` of the load cells [N]: readings down to ``-3 σ_T`` are clipped at
+        zero and counted (:func:`clip_load_cell`, ``n_clipped``). None (default):
+        every reading must be >= 0.
 
     Returns
     -------
@@ -519,31 +769,37 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
     Raises
     ------
     ValueError
-        Bad input (shapes, NaN, negative tension, time not increasing) or options.
+        Bad input (shapes, NaN, negative tension, a tension on a missing
+        tendon, time not increasing) or options.
     """
     params = FrictionParams() if params is None else params
     geom = default_geometry() if geom is None else geom
     if not isinstance(params, FrictionParams):
         raise ValueError(f"params must be a FrictionParams, got {type(params).__name__}")
-    t, tl, tr = _check_inputs(time, tension_left, tension_right)
+    t, tl, tr, n_clipped = _check_inputs(time, _tendon_tension(tension_left, geom, "left", time),
+                                         _tendon_tension(tension_right, geom, "right", time), tension_sigma)
     settle_time = _check_protocol(t, ramp_time, settle_time)
-    n = geom.n_joints
-    par = params.packed(geom)
-    scale = np.ascontiguousarray(params.joint_scale(n), dtype=float)
+    J = params.joint_table(geom)
+    par = params.packed(geom, J)
     if method == "reference":
         dt = DEFAULT_DT if dt is None else float(dt)
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be > 0 s, got {dt}")
-        out = _k.reference_kernel(t, tl, tr, par, scale, dt, float(ramp_time), float(settle_time))
+        out = _k.reference_kernel(t, tl, tr, par, J, dt, float(ramp_time), float(settle_time))
     elif method == "fast":
         if order is None:
             order = 2 if (params.tip_force_x != 0.0 or params.tip_force_z != 0.0) else 1
-        out = _fast(t, tl, tr, par, scale, float(ramp_time), float(settle_time), n=n, h_min=h_min,
+        out = _fast(t, tl, tr, par, J, float(ramp_time), float(settle_time), n=geom.n_joints, h_min=h_min,
                     h_max=h_max, growth=growth, dtheta_max=dtheta_max, order=order, land_sticks=land_sticks,
                     max_events=max_events, max_micro=max_micro, settle_tol=settle_tol,
                     settle_maxiter=settle_maxiter)
     else:
         raise ValueError(f"method must be 'fast' or 'reference', got {method!r}")
+    return _result(out, t, tl, tr, params, geom, method, n_clipped, tension_tol, hold_fraction)
+
+
+def _result(out, t, tl, tr, params, geom, method, n_clipped, tension_tol, hold_fraction) -> SimulationResult:
+    """The :class:`SimulationResult` of a kernel's output."""
     theta, TL, TR, bL, bR, sL, sR, nsteps = out
     dl, dr = cable_displacement(theta, tl, tr, geom)
     a, b = line_fit(theta)
@@ -555,7 +811,7 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         base_tension_right=readonly(bR), state_left=readonly(sL, np.int8), state_right=readonly(sR, np.int8),
         displacement_left=readonly(dl), displacement_right=readonly(dr), a=readonly(a), b=readonly(b),
         regime=readonly(regime, regime.dtype), params=params, geom=geom, method=method,
-        n_steps=int(nsteps))
+        n_steps=int(nsteps), n_clipped=n_clipped)
 
 
 def simulation_table(result: SimulationResult, sample_ids=None):
@@ -626,18 +882,42 @@ def params_from_mapping(data: dict, origin: str = "<dict>") -> FrictionParams:
                              f"(known: {', '.join(PARAM_KEYS.values())})")
         if field in kw:
             raise ValueError(f"{origin}: parameter {field} given twice")
-        if isinstance(val, bool) or not isinstance(val, (int, float)):
-            raise ValueError(f"{origin}: {key} must be a number, got {val!r}")
-        kw[field] = float(val)
+        kw[field] = _mapping_value(field, key, val, origin)
     try:
         return FrictionParams(**kw)
     except ValueError as exc:
         raise ValueError(f"{origin}: {exc}") from None
 
 
+def _mapping_value(field: str, key: str, val, origin: str):
+    """One parameter-file value: a string law, a number, or a list for a per-joint field."""
+    if field in ("spring_law", "friction_law"):
+        if not isinstance(val, str):
+            raise ValueError(f"{origin}: {key} must be a string, got {val!r}")
+        return val
+    if field in PER_JOINT_FIELDS and isinstance(val, list):
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in val):
+            raise ValueError(f"{origin}: {key} must be a number or a list of numbers, got {val!r}")
+        return tuple(float(v) for v in val)
+    if isinstance(val, bool) or not isinstance(val, (int, float)):
+        raise ValueError(f"{origin}: {key} must be a number, got {val!r}")
+    return float(val)
+
+
 def params_to_mapping(params: FrictionParams) -> dict:
-    """``{file key: value}`` of ``params`` (SI keys with units, :data:`PARAM_KEYS`), in file order."""
-    return {key: getattr(params, f) for f, key in PARAM_KEYS.items()}
+    """``{file key: value}`` of ``params`` (SI keys with units, :data:`PARAM_KEYS`), in file order.
+
+    The seed model's keys always; the real-tube keys (laws, damping time,
+    material) only where they differ from their defaults, so a seed model file
+    is as before. Per-joint values are lists.
+    """
+    default = FrictionParams()
+    out = {}
+    for f, key in PARAM_KEYS.items():
+        v = getattr(params, f)
+        if f in _SEED_KEYS or v != getattr(default, f):
+            out[key] = list(v) if isinstance(v, tuple) else v
+    return out
 
 
 def __getattr__(name):
