@@ -335,8 +335,16 @@ class FrictionParams:
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
-        """``{field: value}`` (SI)."""
-        return dataclasses.asdict(self)
+        """``{field: value}`` (SI): the seed model's fields, and the real-tube fields
+        (laws, damping time, material) where they differ from their defaults.
+        Per-joint values are lists."""
+        default = FrictionParams()
+        out = {}
+        for f in PARAM_KEYS:
+            v = getattr(self, f)
+            if f in _SEED_KEYS or v != getattr(default, f):
+                out[f] = list(v) if isinstance(v, tuple) else v
+        return out
 
     def joint_table(self, geom: Geometry) -> np.ndarray:
         """The kernels' per-joint table (``_friction_kernels.J_*`` rows, n columns), read-only.
@@ -911,13 +919,7 @@ def params_to_mapping(params: FrictionParams) -> dict:
     material) only where they differ from their defaults, so a seed model file
     is as before. Per-joint values are lists.
     """
-    default = FrictionParams()
-    out = {}
-    for f, key in PARAM_KEYS.items():
-        v = getattr(params, f)
-        if f in _SEED_KEYS or v != getattr(default, f):
-            out[key] = list(v) if isinstance(v, tuple) else v
-    return out
+    return {PARAM_KEYS[f]: v for f, v in params.to_dict().items()}
 
 
 def __getattr__(name):
