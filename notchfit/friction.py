@@ -402,6 +402,18 @@ def _joint_table(params: FrictionParams, geom: Geometry) -> np.ndarray:
     return params._build_joint_table(geom)
 
 
+@functools.lru_cache(maxsize=64)
+def _kernel_inputs(params: FrictionParams, geom: Geometry) -> tuple[np.ndarray, np.ndarray]:
+    """The kernels' per-joint table and parameter vector (read-only, cached)."""
+    J = params.joint_table(geom)
+    return J, readonly(params.packed(geom, J))
+
+
+@functools.lru_cache(maxsize=1)
+def _paper_params() -> FrictionParams:
+    return FrictionParams()
+
+
 def _number(name: str, v) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
         raise ValueError(f"friction parameter {name} must be a number, got {v!r}")
@@ -780,15 +792,14 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         Bad input (shapes, NaN, negative tension, a tension on a missing
         tendon, time not increasing) or options.
     """
-    params = FrictionParams() if params is None else params
+    params = _paper_params() if params is None else params
     geom = default_geometry() if geom is None else geom
     if not isinstance(params, FrictionParams):
         raise ValueError(f"params must be a FrictionParams, got {type(params).__name__}")
     t, tl, tr, n_clipped = _check_inputs(time, _tendon_tension(tension_left, geom, "left", time),
                                          _tendon_tension(tension_right, geom, "right", time), tension_sigma)
     settle_time = _check_protocol(t, ramp_time, settle_time)
-    J = params.joint_table(geom)
-    par = params.packed(geom, J)
+    J, par = _kernel_inputs(params, geom)
     if method == "reference":
         dt = DEFAULT_DT if dt is None else float(dt)
         if not (math.isfinite(dt) and dt > 0):
