@@ -1,7 +1,9 @@
 """Numba kernels of the friction simulator (Sec. IV-B); see :mod:`notchfit.friction`.
 
 Everything here works on plain float64 arrays. Parameters are packed in one
-vector ``par`` (indices ``P_*`` below) and a per-joint spring scale vector.
+vector ``par`` (indices ``P_*`` below) and a per-joint table ``J`` (rows
+``J_*``: spring rates, breaks and scale, damping, rest angle, the two tendons'
+moment arms; :meth:`notchfit.friction_params.FrictionParams.joint_table`).
 Indices are 0-based: joint ``i`` is the paper's joint ``i + 1``; link ``i``
 (``i = 0..n-2``) lies between joints ``i`` and ``i + 1`` (the paper's link
 ``i + 1``); the tension profile ``T[i]`` is the cable tension where it
