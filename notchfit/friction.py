@@ -104,7 +104,7 @@ from .geometry import Geometry, default_geometry
 from .notches import notch_points
 from .shapes import line_fit
 from .friction_params import (DEFAULT_DAMPING_TIME, FRICTION_LAWS, PARAM_KEYS, PER_JOINT_FIELDS,  # noqa: F401
-                              SPRING_LAWS, FrictionParams, _kernel_inputs, _paper_params, params_from_mapping,
+                              SPRING_LAWS, FrictionParams, _kernel_inputs, default_params, params_from_mapping,
                               params_to_mapping)
 from .units import MM
 from .validation import readonly
@@ -120,6 +120,7 @@ __all__ = [
     "SimulationResult",
     "cable_displacement",
     "clip_load_cell",
+    "default_params",
     "params_from_mapping",
     "params_to_mapping",
     "simulate",
@@ -451,7 +452,8 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         of the module docstring. A tendon the geometry lacks
         (``geom.tendons``) carries no tension: None or zeros.
     params : FrictionParams, optional
-        The paper's values by default.
+        Default :func:`default_params` of the geometry (the paper's values for
+        the seed tube; the material and capstan laws for a one-sided wrist).
     geom : Geometry, optional
         The default manipulator by default (``n_joints``, ``r_x``, ``p``, cable).
     method : {"fast", "reference"}
@@ -500,8 +502,8 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         Bad input (shapes, NaN, negative tension, a tension on a missing
         tendon, time not increasing) or options.
     """
-    params = _paper_params() if params is None else params
     geom = default_geometry() if geom is None else geom
+    params = default_params(geom) if params is None else params
     if not isinstance(params, FrictionParams):
         raise ValueError(f"params must be a FrictionParams, got {type(params).__name__}")
     t, tl, tr, n_clipped = _check_inputs(time, _tendon_tension(tension_left, geom, "left", time),

@@ -32,6 +32,7 @@ __all__ = [
     "PARAM_KEYS",
     "PER_JOINT_FIELDS",
     "SPRING_LAWS",
+    "default_params",
     "params_from_mapping",
     "params_to_mapping",
 ]
@@ -329,6 +330,22 @@ def _kernel_inputs(params: FrictionParams, geom: Geometry) -> tuple[np.ndarray, 
 @functools.lru_cache(maxsize=1)
 def _paper_params() -> FrictionParams:
     return FrictionParams()
+
+
+def default_params(geom: Geometry) -> FrictionParams:
+    """The model a geometry gets when none is given.
+
+    The seed paper's parameters (Sec. IV-B) for a tube bending about its axis;
+    for a section backbone (a real asymmetric-notch tube) the material law from
+    its section (:func:`notchfit.springs.material_spring`, damping as a time
+    constant), and for a tendon free in the lumen the capstan law.
+    """
+    changes = {}
+    if geom.backbone == "section" and geom.inner_radius is not None:
+        changes["spring_law"] = "material"
+    if geom.tendon_path == "lumen":
+        changes["friction_law"] = "capstan"
+    return _paper_params().replace(**changes) if changes else _paper_params()
 
 
 def _number(name: str, v) -> float:

@@ -289,3 +289,12 @@ def test_model_mapping_round_trip():
 def test_model_file_round_trip(tmp_path):
     p = FrictionParams(spring_law="material", friction_law="capstan", E_lin=35e9, theta_mid=(0.05, 0.06))
     assert load_params(save_params(p, tmp_path / "m.toml")) == p
+
+
+def test_default_model_follows_the_geometry(wrist):
+    from notchfit.friction import default_params
+    assert default_params(default_geometry()) == FrictionParams()
+    p = default_params(wrist)
+    assert p.spring_law == "material" and p.friction_law == "capstan"
+    t, T = _steps([0.3, 0.6])
+    np.testing.assert_array_equal(simulate(t, None, T, geom=wrist).theta, simulate(t, None, T, p, wrist).theta)
