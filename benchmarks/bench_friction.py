@@ -16,10 +16,16 @@ In one run:
 4. **Input protocol** (``--protocols``): how the reference's rest states
    depend on the ramp time (step vs linear ramps of 0.1–5 s) and, for each
    ramp, on dt — why the default input is a step followed by a hold.
+5. **Real tubes** (``--real-tubes``): a one-tendon 5-joint asymmetric-notch
+   wrist (``datasets/geometry/wrist_asymmetric.toml``, springs from material
+   and section) with the channel and the capstan law, time per 38-sample test
+   beside the seed tube's; fast vs reference on it with damping as a time
+   constant, and with the seed's absolute ``b`` (the issue-14 failure).
 
 Usage::
 
     python benchmarks/bench_friction.py [--repeat 20] [--ref-dt 2.5e-5] [--convergence] [--fine] [--protocols]
+                                        [--real-tubes] [--no-agreement]
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ import time
 import numpy as np
 
 from notchfit.friction import DEFAULT_DT, FrictionParams, simulate
+from notchfit.io import datasets_dir, load_geometry
 from notchfit.protocols import bend_unbend
 
 
@@ -112,17 +119,52 @@ def protocols():
               f"{np.abs(f - b).max():24.1e}")
 
 
+def real_tubes(repeat):
+    """Time per test and solver agreement on a one-tendon 5-joint wrist, channel and capstan law."""
+    wrist = load_geometry(datasets_dir() / "geometry" / "wrist_asymmetric.toml")
+    t, tl, tr, _ = bend_unbend(25.0, 0.45)
+    tw, _, trw, _ = bend_unbend(2.5, 0.0, pull="right")
+    simulate(t, tl, tr)
+    seed = best_time(lambda: simulate(t, tl, tr), repeat)
+    print("\n== real tubes: time per 38-sample bend/unbend test, fast solver (best of runs)")
+    print(f"{'seed tube, 27 joints, two cables (paper values)':58s} {seed * 1e3:8.3f} ms")
+    rows = [("wrist 5 joints, one lumen tendon, material law, channel", dict(friction_law="channel")),
+            ("wrist 5 joints, one lumen tendon, material law, capstan", dict(friction_law="capstan"))]
+    for name, kw in rows:
+        p = FrictionParams(spring_law="material", mu_d=0.15, mu_s=0.16, **kw)
+        simulate(tw, None, trw, p, wrist)
+        tf = best_time(lambda: simulate(tw, None, trw, p, wrist), repeat)
+        f = simulate(tw, None, trw, p, wrist)
+        r = simulate(tw, None, trw, p, wrist, method="reference")
+        print(f"{name:58s} {tf * 1e3:8.3f} ms  ({f.n_steps} steps)  max |θ_fast - θ_ref| "
+              f"{np.abs(f.theta - r.theta).max():.1e} rad, peak θ {np.abs(f.theta).max():.3f} rad")
+    k = (0.006, 0.006, 0.005, 0.004, 0.004)
+    for label, tau in (("absolute b = 0.03 N m s/rad (b/k = 5-7.5 s)", 0.0),
+                       ("damping time 0.0621 s (the seed's b/k_lin)", 0.03 / 0.4829)):
+        p = FrictionParams(k_lin=k, k_mid=tuple(0.3 * x for x in k), k_stop=tuple(20 * x for x in k),
+                           theta_mid=0.15, theta_stop=0.5, mu_d=0.15, mu_s=0.16, damping_time=tau)
+        f = simulate(tw, None, trw, p, wrist).theta
+        r = simulate(tw, None, trw, p, wrist, method="reference").theta
+        print(f"per-joint rates on the wrist, {label:45s} max |θ_fast - θ_ref| = "
+              f"{np.degrees(np.abs(f - r).max()):.3g} deg")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=20)
     ap.add_argument("--convergence", action="store_true")
     ap.add_argument("--fine", action="store_true", help="with --convergence: add dt = 6.25e-6 s")
     ap.add_argument("--protocols", action="store_true")
+    ap.add_argument("--real-tubes", action="store_true", help="one-tendon 5-joint wrist, channel and capstan law")
+    ap.add_argument("--no-agreement", action="store_true", help="skip the agreement table (~1 min)")
     ap.add_argument("--ref-dt", type=float, default=DEFAULT_DT,
                     help="reference step for the agreement table (2.5e-5: converged to ~4e-5 rad, ~3 s per test)")
     args = ap.parse_args()
     speed(args.repeat)
-    agreement(args.ref_dt)
+    if not args.no_agreement:
+        agreement(args.ref_dt)
+    if args.real_tubes:
+        real_tubes(args.repeat)
     if args.convergence:
         convergence(args.fine)
     if args.protocols:

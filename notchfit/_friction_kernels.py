@@ -1,7 +1,9 @@
 """Numba kernels of the friction simulator (Sec. IV-B); see :mod:`notchfit.friction`.
 
 Everything here works on plain float64 arrays. Parameters are packed in one
-vector ``par`` (indices ``P_*`` below) and a per-joint spring scale vector.
+vector ``par`` (indices ``P_*`` below) and a per-joint table ``J`` (rows
+``J_*``: spring rates, breaks and scale, damping, rest angle, the two tendons'
+moment arms; :meth:`notchfit.friction_params.FrictionParams.joint_table`).
 Indices are 0-based: joint ``i`` is the paper's joint ``i + 1``; link ``i``
 (``i = 0..n-2``) lies between joints ``i`` and ``i + 1`` (the paper's link
 ``i + 1``); the tension profile ``T[i]`` is the cable tension where it
@@ -18,9 +20,19 @@ import math
 import numpy as np
 from numba import njit
 
-# ---- packed parameter vector
-P_K1, P_K2, P_K3, P_TM, P_TS, P_MUD, P_MUS, P_B, P_VTHR, P_BETA, P_H, P_FX, P_FZ, P_RX, P_P = range(15)
-N_PAR = 15
+# ---- packed parameter vector (the spring and damping entries hold joint 1's values; the
+# kernels read every joint's own from the per-joint table ``J``)
+(P_K1, P_K2, P_K3, P_TM, P_TS, P_MUD, P_MUS, P_B, P_VTHR, P_BETA, P_H, P_FX, P_FZ, P_RX, P_P,
+ P_LAW, P_UNI, P_ARMU) = range(18)
+N_PAR = 18
+#: friction laws (``P_LAW``): the seed's per-link channel law, the capstan law of a lumen tendon
+LAW_CHANNEL, LAW_CAPSTAN = 0, 1
+
+# ---- per-joint table ``J`` (rows, one column per joint): unscaled spring rates and breaks
+# (Fig. 17 form), stiffness scale, damping b_j [N m s/rad], rest angle θ0_j [rad], moment
+# arms of the right and left tendons [m]
+J_K1, J_K2, J_K3, J_TM, J_TS, J_S, J_B, J_TH0, J_AR, J_AL = range(10)
+N_J = 10
 
 # relative slack on the stick test |ΔT| <= μ_s N (1 + slack): lets a link stick when N = 0
 # (straight joints) or μ_s == μ_d, where the paper's strict |ΔT| < μ_s N can never hold
@@ -74,6 +86,72 @@ def slide_next(T0, sa, sb, mu, state):
     return T0 * (1.0 + mu * sa) / (1.0 - mu * sb)
 
 
+@njit(cache=True, inline="always")
+def slide_law(T0, sa, sb, mu, state, law):
+    """``T[j+1]`` of a sliding link under either friction law.
+
+    Channel law (:func:`slide_next`; ``sa``, ``sb`` = ``|sin θ|``). Capstan law
+    (``sa``, ``sb`` = ``|θ|``, the wrap angles): the tendon wraps half of each
+    joint's angle at each of the two cut edges between the gaps of joints
+    ``j`` and ``j+1``, so ``T[j+1] = T[j] exp(∓μ (|θ_j| + |θ_{j+1}|)/2)``
+    (Euler–Eytelwein capstan equation; ``state = +1`` toward the base).
+    """
+    if law == LAW_CHANNEL:
+        return slide_next(T0, sa, sb, mu, state)
+    if state > 0:
+        return T0 * math.exp(-mu * 0.5 * (sa + sb))
+    return T0 * math.exp(mu * 0.5 * (sa + sb))
+
+
+@njit(cache=True, inline="always")
+def stick_ok(Ta, Tb, sa, sb, fac, law):
+    """A sliding link may stick: ``|T_b - T_a| <= fac N`` (channel) or
+    ``T_a e^{-fac w} <= T_b <= T_a e^{fac w}``, ``w = (sa + sb)/2`` (capstan)."""
+    if law == LAW_CHANNEL:
+        N = Tb * sb + Ta * sa
+        return abs(Tb - Ta) <= fac * N
+    w = 0.5 * (sa + sb)
+    return Ta * math.exp(-fac * w) <= Tb <= Ta * math.exp(fac * w)
+
+
+@njit(cache=True, inline="always")
+def slip_dir(Ta, Tb, sa, sb, mus, law):
+    """A sticking link breaks away: +1 toward the base, -1 toward the tip, 0 it holds
+    (``|ΔT| > μ_s N``, channel; ``T_b`` outside ``T_a e^{±μ_s w}``, capstan)."""
+    if law == LAW_CHANNEL:
+        dT = Tb - Ta
+        N = Tb * sb + Ta * sa
+        if -dT > mus * N:
+            return 1
+        if dT > mus * N:
+            return -1
+        return 0
+    w = 0.5 * (sa + sb)
+    if Tb < Ta * math.exp(-mus * w):
+        return 1
+    if Tb > Ta * math.exp(mus * w):
+        return -1
+    return 0
+
+
+@njit(cache=True, inline="always")
+def stick_margin(Ta, Tb, sa, sb, mus, law):
+    """Distance of a sticking link from break-away [N] (< 0: it slips)."""
+    if law == LAW_CHANNEL:
+        N = Tb * sb + Ta * sa
+        return mus * N - abs(Tb - Ta)
+    w = 0.5 * (sa + sb)
+    return min(Tb - Ta * math.exp(-mus * w), Ta * math.exp(mus * w) - Tb)
+
+
+@njit(cache=True, inline="always")
+def wrap_measure(th, law):
+    """``|sin θ|`` (channel law's normal-force factor) or ``|θ|`` (capstan wrap angle)."""
+    if law == LAW_CHANNEL:
+        return abs(math.sin(th))
+    return abs(th)
+
+
 @njit(cache=True)
 def tip_torques(theta, p, fx, fz, out):
     """``J_X(θ)^T (f_x, f_z, 0)`` (Eqs. 18-20) into ``out`` [N m].
@@ -109,7 +187,7 @@ def band_update(tb, tm, ebeta, embeta):
 
 
 @njit(cache=True)
-def reference_kernel(t_s, TLm, TRm, par, scale, dt_max, ramp_time, settle_time):
+def reference_kernel(t_s, TLm, TRm, par, J, dt_max, ramp_time, settle_time):
     """The paper's four-step algorithm, explicit Euler (Sec. IV-B).
 
     Input protocol: before ``t_s[0]`` the model starts at rest (θ = 0, zero
@@ -121,22 +199,29 @@ def reference_kernel(t_s, TLm, TRm, par, scale, dt_max, ramp_time, settle_time):
     the input used for the step from ``t`` to ``t + dt`` is its value at
     ``t + dt``.
 
+    Per joint (the table ``J``): spring rates and breaks, scale, damping,
+    rest angle ``θ0_j`` (the spring acts on ``θ_j - θ0_j``; the start is at
+    rest, ``θ = θ0``) and the tendons' moment arms (drive
+    ``a_R,j T_R[j] - a_L,j T_L[j]``; cable speed through link ``j``
+    ``v_c[j] = s_c Σ_{k>j} a_c,k θ̇_k``). ``par[P_LAW]`` selects the channel or
+    the capstan law (:func:`slide_law`).
+
     Returns per sample: θ (S, n), tension profiles L, R (S, n), base tensions
     after the band L, R (S,), the last slip direction of each link during
     the interval L, R (S, n-1) int8, and the number of steps taken.
     """
     S = t_s.shape[0]
-    n = scale.shape[0]
-    k1, k2, k3 = par[P_K1], par[P_K2], par[P_K3]
-    tm, ts = par[P_TM], par[P_TS]
-    mud, mus, bdamp, vthr = par[P_MUD], par[P_MUS], par[P_B], par[P_VTHR]
+    n = J.shape[1]
+    mud, mus, vthr = par[P_MUD], par[P_MUS], par[P_VTHR]
     beta, h, fx, fz, rx, p = par[P_BETA], par[P_H], par[P_FX], par[P_FZ], par[P_RX], par[P_P]
+    law = int(par[P_LAW])
+    armu = par[P_ARMU] != 0.0
     ebeta = math.exp(beta)
     embeta = math.exp(-beta)
     use_tip = fx != 0.0 or fz != 0.0
     stick_fac = mus * (1.0 + STICK_SLACK)
 
-    th = np.zeros(n)
+    th = J[J_TH0].copy()
     thd = np.zeros(n)
     TL = np.zeros(n)
     TR = np.zeros(n)
@@ -194,19 +279,24 @@ def reference_kernel(t_s, TLm, TRm, par, scale, dt_max, ramp_time, settle_time):
                 tbL, tbR = mL, mR
             # ---- Step 1: tension propagation, base to tip
             for i in range(n):
-                sinabs[i] = abs(math.sin(th[i]))
+                sinabs[i] = wrap_measure(th[i], law)
             TL[0] = tbL
             TR[0] = tbR
             for i in range(n - 1):
                 if sL[i] != 0:
-                    TL[i + 1] = slide_next(TL[i], sinabs[i], sinabs[i + 1], mud, sL[i])
+                    TL[i + 1] = slide_law(TL[i], sinabs[i], sinabs[i + 1], mud, sL[i], law)
                 if sR[i] != 0:
-                    TR[i + 1] = slide_next(TR[i], sinabs[i], sinabs[i + 1], mud, sR[i])
+                    TR[i + 1] = slide_law(TR[i], sinabs[i], sinabs[i + 1], mud, sR[i], law)
             # ---- Step 2: first-order dynamics
             if use_tip:
                 tip_torques(th, p, fx, fz, tip)
             for i in range(n):
-                x = rx * (TR[i] - TL[i]) - spring_torque(th[i], k1, k2, k3, tm, ts, scale[i])
+                if armu:
+                    x = rx * (TR[i] - TL[i])
+                else:
+                    x = J[J_AR, i] * TR[i] - J[J_AL, i] * TL[i]
+                x -= spring_torque(th[i] - J[J_TH0, i], J[J_K1, i], J[J_K2, i], J[J_K3, i],
+                                   J[J_TM, i], J[J_TS, i], J[J_S, i])
                 if use_tip:
                     x += tip[i]
                 if h > 0.0:
@@ -216,35 +306,32 @@ def reference_kernel(t_s, TLm, TRm, par, scale, dt_max, ramp_time, settle_time):
                         x = x + h
                     else:
                         x = 0.0
-                thd[i] = x / bdamp
+                thd[i] = x / J[J_B, i]
             # ---- Step 3 + Step 4: cable speeds and the stick/slip state machine
             ssum = 0.0
+            ssumL = 0.0
             for i in range(n - 2, -1, -1):
-                ssum += thd[i + 1]
-                vR = rx * ssum
-                vL = -vR
+                if armu:
+                    ssum += thd[i + 1]
+                    vR = rx * ssum
+                    vL = -vR
+                else:
+                    ssum += J[J_AR, i + 1] * thd[i + 1]
+                    ssumL += J[J_AL, i + 1] * thd[i + 1]
+                    vR = ssum
+                    vL = -ssumL
                 # right cable
-                dT = TR[i + 1] - TR[i]
-                N = TR[i + 1] * sinabs[i + 1] + TR[i] * sinabs[i]
                 if sR[i] != 0:
-                    if abs(vR) < vthr and abs(dT) <= stick_fac * N:
+                    if abs(vR) < vthr and stick_ok(TR[i], TR[i + 1], sinabs[i], sinabs[i + 1], stick_fac, law):
                         sR[i] = 0
                 else:
-                    if -dT > mus * N:
-                        sR[i] = 1
-                    elif dT > mus * N:
-                        sR[i] = -1
+                    sR[i] = slip_dir(TR[i], TR[i + 1], sinabs[i], sinabs[i + 1], mus, law)
                 # left cable
-                dT = TL[i + 1] - TL[i]
-                N = TL[i + 1] * sinabs[i + 1] + TL[i] * sinabs[i]
                 if sL[i] != 0:
-                    if abs(vL) < vthr and abs(dT) <= stick_fac * N:
+                    if abs(vL) < vthr and stick_ok(TL[i], TL[i + 1], sinabs[i], sinabs[i + 1], stick_fac, law):
                         sL[i] = 0
                 else:
-                    if -dT > mus * N:
-                        sL[i] = 1
-                    elif dT > mus * N:
-                        sL[i] = -1
+                    sL[i] = slip_dir(TL[i], TL[i + 1], sinabs[i], sinabs[i + 1], mus, law)
                 if sL[i] != 0:
                     lastL[i] = sL[i]
                 if sR[i] != 0:
@@ -337,38 +424,54 @@ G_SIN, G_TIP, G_TAU, G_FB, G_FT, G_IB, G_IT = range(7)
 
 
 @njit(cache=True)
-def _geometry_terms(th, par, scale, G):
+def _geometry_terms(th, par, J, G):
     """Everything that depends on θ alone, for the passes at a frozen configuration.
 
-    Rows of ``G`` (7, n): ``|sin θ_j|``, tip-load torque, spring torque
-    ``τ_j(θ_j)``, and the factors of the slide law ``1 - μ_d s``,
-    ``1 + μ_d s``, ``1/(1 + μ_d s)``, ``1/(1 - μ_d s)`` (``s = |sin θ_j|``).
+    Rows of ``G`` (7, n): ``s_j`` (:func:`wrap_measure`), tip-load torque,
+    spring torque ``τ_j(θ_j - θ0_j)``, and the factors of the slide law:
+    channel ``1 - μ_d s``, ``1 + μ_d s``, ``1/(1 + μ_d s)``, ``1/(1 - μ_d s)``
+    (``s = |sin θ_j|``); capstan ``e^{-μ_d s/2}``, ``e^{μ_d s/2}`` (twice each,
+    ``s = |θ_j|``), so that both laws propagate as ``T[j+1] = T[j] F_j I_{j+1}``.
     """
     n = th.shape[0]
-    k1, k2, k3, tm, ts, mud = par[P_K1], par[P_K2], par[P_K3], par[P_TM], par[P_TS], par[P_MUD]
+    mud = par[P_MUD]
     for i in range(n):
-        sa = abs(math.sin(th[i]))
-        G[G_SIN, i] = sa
-        G[G_TAU, i] = spring_torque(th[i], k1, k2, k3, tm, ts, scale[i])
-        fb = 1.0 - mud * sa
-        ft = 1.0 + mud * sa
-        d = 1.0 / (fb * ft)
-        G[G_FB, i] = fb
-        G[G_FT, i] = ft
-        G[G_IB, i] = fb * d
-        G[G_IT, i] = ft * d
+        G[G_TAU, i] = spring_torque(th[i] - J[J_TH0, i], J[J_K1, i], J[J_K2, i], J[J_K3, i],
+                                    J[J_TM, i], J[J_TS, i], J[J_S, i])
         G[G_TIP, i] = 0.0
+    if par[P_LAW] == LAW_CHANNEL:
+        for i in range(n):
+            sa = abs(math.sin(th[i]))
+            G[G_SIN, i] = sa
+            fb = 1.0 - mud * sa
+            ft = 1.0 + mud * sa
+            d = 1.0 / (fb * ft)
+            G[G_FB, i] = fb
+            G[G_FT, i] = ft
+            G[G_IB, i] = fb * d
+            G[G_IT, i] = ft * d
+    else:
+        for i in range(n):
+            sa = abs(th[i])
+            G[G_SIN, i] = sa
+            fb = math.exp(-0.5 * mud * sa)
+            ft = math.exp(0.5 * mud * sa)
+            G[G_FB, i] = fb
+            G[G_FT, i] = ft
+            G[G_IB, i] = fb
+            G[G_IT, i] = ft
     if par[P_FX] != 0.0 or par[P_FZ] != 0.0:
         tip_torques(th, par[P_P], par[P_FX], par[P_FZ], G[G_TIP])
 
 
 @njit(cache=True)
-def _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v):
+def _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL):
     """Steps 1-3 at a configuration (its table ``G``): tension propagation, drive torques
-    ``F``, rates, cable speeds. ``v[i]`` is the right cable's speed through link ``i``
-    (the left one's is ``-v[i]``)."""
+    ``F``, rates, cable speeds. ``v[i]``, ``vL[i]``: the right and left cables' speeds
+    through link ``i`` (``ibd`` = ``1/b_j``)."""
     n = TL.shape[0]
-    ib, hyst, rx = 1.0 / par[P_B], par[P_H], par[P_RX]
+    hyst, rx = par[P_H], par[P_RX]
+    armu = par[P_ARMU] != 0.0
     TL[0] = tbL
     TR[0] = tbR
     for i in range(n - 1):
@@ -380,8 +483,13 @@ def _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v):
             TR[i + 1] = TR[i] * G[G_FB, i] * G[G_IB, i + 1]
         elif sR[i] < 0:
             TR[i + 1] = TR[i] * G[G_FT, i] * G[G_IT, i + 1]
+    if armu:
+        for i in range(n):
+            F[i] = rx * (TR[i] - TL[i]) + G[G_TIP, i]
+    else:
+        for i in range(n):
+            F[i] = J[J_AR, i] * TR[i] - J[J_AL, i] * TL[i] + G[G_TIP, i]
     for i in range(n):
-        F[i] = rx * (TR[i] - TL[i]) + G[G_TIP, i]
         x = F[i] - G[G_TAU, i]
         if hyst > 0.0:
             if x > hyst:
@@ -390,15 +498,24 @@ def _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v):
                 x += hyst
             else:
                 x = 0.0
-        thd[i] = x * ib
+        thd[i] = x * ibd[i]
     ssum = 0.0
-    for i in range(n - 2, -1, -1):
-        ssum += thd[i + 1]
-        v[i] = rx * ssum
+    ssumL = 0.0
+    if armu:
+        for i in range(n - 2, -1, -1):
+            ssum += thd[i + 1]
+            v[i] = rx * ssum
+            vL[i] = -v[i]
+    else:
+        for i in range(n - 2, -1, -1):
+            ssum += J[J_AR, i + 1] * thd[i + 1]
+            ssumL += J[J_AL, i + 1] * thd[i + 1]
+            v[i] = ssum
+            vL[i] = -ssumL
 
 
 @njit(cache=True)
-def _state_machine(TL, TR, sL, sR, sinabs, v, mus, vthr, lastL, lastR, flags,
+def _state_machine(TL, TR, sL, sR, sinabs, v, vLs, mus, vthr, law, lastL, lastR, flags,
                    phiL, phiR, TLp, TRp):
     """Step 4 (the paper's rules, as in :func:`reference_kernel`).
 
@@ -415,36 +532,26 @@ def _state_machine(TL, TR, sL, sR, sinabs, v, mus, vthr, lastL, lastR, flags,
     corrected = 0
     for i in range(m):
         vR = v[i]
-        vL = -vR
-        dT = TR[i + 1] - TR[i]
-        N = TR[i + 1] * sinabs[i + 1] + TR[i] * sinabs[i]
+        vL = vLs[i]
         if sR[i] != 0:
-            if abs(vR) < vthr and abs(dT) <= stick_fac * N:
+            if abs(vR) < vthr and stick_ok(TR[i], TR[i + 1], sinabs[i], sinabs[i + 1], stick_fac, law):
                 sR[i] = 0
                 if phiR[i] >= 0.0:
                     TR[i + 1] = TRp[i + 1] + phiR[i] * (TR[i + 1] - TRp[i + 1])
                     corrected = 1
         else:
-            if -dT > mus * N:
-                sR[i] = 1
+            sR[i] = slip_dir(TR[i], TR[i + 1], sinabs[i], sinabs[i + 1], mus, law)
+            if sR[i] != 0:
                 slipped = 1
-            elif dT > mus * N:
-                sR[i] = -1
-                slipped = 1
-        dT = TL[i + 1] - TL[i]
-        N = TL[i + 1] * sinabs[i + 1] + TL[i] * sinabs[i]
         if sL[i] != 0:
-            if abs(vL) < vthr and abs(dT) <= stick_fac * N:
+            if abs(vL) < vthr and stick_ok(TL[i], TL[i + 1], sinabs[i], sinabs[i + 1], stick_fac, law):
                 sL[i] = 0
                 if phiL[i] >= 0.0:
                     TL[i + 1] = TLp[i + 1] + phiL[i] * (TL[i + 1] - TLp[i + 1])
                     corrected = 1
         else:
-            if -dT > mus * N:
-                sL[i] = 1
-                slipped = 1
-            elif dT > mus * N:
-                sL[i] = -1
+            sL[i] = slip_dir(TL[i], TL[i + 1], sinabs[i], sinabs[i + 1], mus, law)
+            if sL[i] != 0:
                 slipped = 1
         if sL[i] != 0:
             lastL[i] = sL[i]
@@ -472,49 +579,81 @@ def _segment(x, tm, ts):
 
 
 @njit(cache=True)
-def _advance(th, F, tau, h, par, scale, out):
+def _advance(th, F, tau, h, par, J, out):
     """Every joint by the exact relaxation over ``h`` with its drive ``F`` held.
 
-    Fast path: when the target lies on the same piece of the spring law as
-    ``θ`` the motion is one exponential, ``θ* + (θ - θ*) e^{-k h/b}``
-    (the three decay factors are shared by all joints of equal scale);
-    otherwise :func:`relax` crosses the breaks at their exact times.
+    The spring acts on ``θ - θ0`` (the rest angle). Fast path: when the
+    target lies on the same piece of the spring law as ``θ`` the motion is
+    one exponential, ``θ* + (θ - θ*) e^{-k h/b}`` (with ``par[P_UNI]`` — every
+    joint with the same law and damping — the three decay factors are shared
+    by all joints of unit scale); otherwise :func:`relax` crosses the breaks
+    at their exact times.
     """
     n = th.shape[0]
-    k1, k2, k3, tm, ts = par[P_K1], par[P_K2], par[P_K3], par[P_TM], par[P_TS]
-    bd, hyst = par[P_B], par[P_H]
-    e1 = math.exp(-k1 * h / bd)
-    e2 = math.exp(-k2 * h / bd)
-    e3 = math.exp(-k3 * h / bd)
+    hyst = par[P_H]
+    if par[P_UNI] != 0.0:
+        _advance_uniform(th, F, tau, h, hyst, J, out)
+        return
     for i in range(n):
-        s = scale[i]
+        k1, k2, k3, tm, ts = J[J_K1, i], J[J_K2, i], J[J_K3, i], J[J_TM, i], J[J_TS, i]
+        s, bd, th0 = J[J_S, i], J[J_B, i], J[J_TH0, i]
         y = drive_target(F[i], tau[i], hyst)
         if math.isnan(y):
             out[i] = th[i]
             continue
-        target = spring_angle(y, k1, k2, k3, tm, ts, s)
-        seg = _segment(th[i], tm, ts)
-        if seg == _segment(target, tm, ts):
+        x = spring_angle(y, k1, k2, k3, tm, ts, s)
+        target = th0 + x
+        dev = th[i] - th0
+        seg = _segment(dev, tm, ts)
+        if seg == _segment(x, tm, ts):
+            a = abs(seg)
+            kk = k1 if a == 0 else (k2 if a == 1 else k3)
+            e = math.exp(-kk * s * h / bd)
+            out[i] = target + (th[i] - target) * e
+        else:
+            out[i] = th0 + relax(dev, y, bd, h, k1, k2, k3, tm, ts, s)
+
+
+@njit(cache=True)
+def _advance_uniform(th, F, tau, h, hyst, J, out):
+    """:func:`_advance` when every joint has the same law and damping (the seed tube):
+    the three decay factors are computed once and shared by the joints of unit scale."""
+    n = th.shape[0]
+    k1, k2, k3, tm, ts, bd = J[J_K1, 0], J[J_K2, 0], J[J_K3, 0], J[J_TM, 0], J[J_TS, 0], J[J_B, 0]
+    e1 = math.exp(-k1 * h / bd)
+    e2 = math.exp(-k2 * h / bd)
+    e3 = math.exp(-k3 * h / bd)
+    for i in range(n):
+        s = J[J_S, i]
+        th0 = J[J_TH0, i]
+        y = drive_target(F[i], tau[i], hyst)
+        if math.isnan(y):
+            out[i] = th[i]
+            continue
+        x = spring_angle(y, k1, k2, k3, tm, ts, s)
+        dev = th[i] - th0
+        seg = _segment(dev, tm, ts)
+        if seg == _segment(x, tm, ts):
             a = abs(seg)
             if s == 1.0:
                 e = e1 if a == 0 else (e2 if a == 1 else e3)
             else:
                 kk = k1 if a == 0 else (k2 if a == 1 else k3)
                 e = math.exp(-kk * s * h / bd)
+            target = th0 + x
             out[i] = target + (th[i] - target) * e
         else:
-            out[i] = relax(th[i], y, bd, h, k1, k2, k3, tm, ts, s)
+            out[i] = th0 + relax(dev, y, bd, h, k1, k2, k3, tm, ts, s)
 
 
 @njit(cache=True)
-def _margins(T, st, sinabs, v, mus, vthr, g):
-    """Event functions per link: sticking -> ``μ_s N - |ΔT|`` (slips when < 0);
-    sliding -> ``|v| - v_thr`` (sticks when < 0)."""
+def _margins(T, st, sinabs, v, mus, vthr, law, g):
+    """Event functions per link: sticking -> :func:`stick_margin` (``μ_s N - |ΔT|``
+    for the channel law; slips when < 0); sliding -> ``|v| - v_thr`` (sticks when < 0)."""
     n = T.shape[0]
     for i in range(n - 1):
         if st[i] == 0:
-            N = T[i + 1] * sinabs[i + 1] + T[i] * sinabs[i]
-            g[i] = mus * N - abs(T[i + 1] - T[i])
+            g[i] = stick_margin(T[i], T[i + 1], sinabs[i], sinabs[i + 1], mus, law)
         else:
             g[i] = abs(v[i]) - vthr
 
@@ -529,7 +668,7 @@ def _cross_fraction(v0, v1, vthr):
 
 
 @njit(cache=True)
-def _settle(th, TL, TR, par, scale, out, work, tol, maxiter):
+def _settle(th, TL, TR, par, J, out, work, tol, maxiter):
     """Rest state with every link sticking (all tensions frozen).
 
     Per joint ``τ(θ) = F`` (or the play operator ``θ ∈ [τ⁻¹(F - h), τ⁻¹(F + h)]``
@@ -537,8 +676,8 @@ def _settle(th, TL, TR, par, scale, out, work, tol, maxiter):
     configuration and are iterated to a fixed point (``tol`` [rad], ``maxiter``).
     """
     n = th.shape[0]
-    k1, k2, k3, tm, ts = par[P_K1], par[P_K2], par[P_K3], par[P_TM], par[P_TS]
     hyst, fx, fz, rx = par[P_H], par[P_FX], par[P_FZ], par[P_RX]
+    armu = par[P_ARMU] != 0.0
     use_tip = fx != 0.0 or fz != 0.0
     for i in range(n):
         out[i] = th[i]
@@ -548,13 +687,18 @@ def _settle(th, TL, TR, par, scale, out, work, tol, maxiter):
             tip_torques(out, par[P_P], fx, fz, work)
         delta = 0.0
         for i in range(n):
-            F = rx * (TR[i] - TL[i]) + work[i]
+            if armu:
+                F = rx * (TR[i] - TL[i]) + work[i]
+            else:
+                F = J[J_AR, i] * TR[i] - J[J_AL, i] * TL[i] + work[i]
+            k1, k2, k3, tm, ts, s, th0 = (J[J_K1, i], J[J_K2, i], J[J_K3, i], J[J_TM, i], J[J_TS, i],
+                                          J[J_S, i], J[J_TH0, i])
             if hyst > 0.0:
-                lo = spring_angle(F - hyst, k1, k2, k3, tm, ts, scale[i])
-                hi = spring_angle(F + hyst, k1, k2, k3, tm, ts, scale[i])
+                lo = th0 + spring_angle(F - hyst, k1, k2, k3, tm, ts, s)
+                hi = th0 + spring_angle(F + hyst, k1, k2, k3, tm, ts, s)
                 new = min(max(th[i], lo), hi)
             else:
-                new = spring_angle(F, k1, k2, k3, tm, ts, scale[i])
+                new = th0 + spring_angle(F, k1, k2, k3, tm, ts, s)
             delta = max(delta, abs(new - out[i]))
             out[i] = new
         if not use_tip or delta <= tol:
@@ -563,7 +707,7 @@ def _settle(th, TL, TR, par, scale, out, work, tol, maxiter):
 
 
 @njit(cache=True)
-def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max, growth,
+def fast_kernel(t_s, TLm, TRm, par, J, ramp_time, settle_time, h_min, h_max, growth,
                 max_events, max_micro, settle_tol, settle_maxiter, land_sticks, dth_max, order):
     """Same model and input protocol as :func:`reference_kernel`, in large exact steps.
 
@@ -594,15 +738,17 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
     """
 
     S = t_s.shape[0]
-    n = scale.shape[0]
+    n = J.shape[1]
     m = max(n - 1, 0)
     mus, vthr, beta = par[P_MUS], par[P_VTHR], par[P_BETA]
+    law = int(par[P_LAW])
+    ibd = 1.0 / J[J_B]
     h_micro_min = 1e-6
     use_tip = par[P_FX] != 0.0 or par[P_FZ] != 0.0
     ebeta = math.exp(beta)
     embeta = math.exp(-beta)
 
-    th = np.zeros(n)
+    th = J[J_TH0].copy()
     TL = np.zeros(n)
     TR = np.zeros(n)
     sL = np.zeros(m, np.int8)
@@ -613,6 +759,7 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
     F = np.zeros(n)
     thd = np.zeros(n)
     v = np.zeros(m)
+    vL = np.zeros(m)
     gL = np.zeros(m)
     gR = np.zeros(m)
     flags = np.zeros(3, np.int64)
@@ -630,6 +777,7 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
     Fa = np.zeros(n)
     thd_e = np.zeros(n)
     v_e = np.zeros(m)
+    vL_e = np.zeros(m)
     gL_e = np.zeros(m)
     gR_e = np.zeros(m)
     work = np.zeros(n)
@@ -683,32 +831,30 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
                 tbL, tbR = mL, mR
             # ---- Steps 1-3
             if not fresh:
-                _geometry_terms(th, par, scale, G)
-                _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v)
+                _geometry_terms(th, par, J, G)
+                _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL)
             # ---- Step 4, repeated with θ frozen while links keep slipping
-            _state_machine(TL, TR, sL, sR, G[G_SIN], v, mus, vthr, lastL, lastR, flags,
+            _state_machine(TL, TR, sL, sR, G[G_SIN], v, vL, mus, vthr, law, lastL, lastR, flags,
                            phiL, phiR, TLp, TRp)
             while flags[0] == 1 and nmicro < max_micro:
                 nmicro += 1
                 nsteps_total += 1
-                _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v)
-                _state_machine(TL, TR, sL, sR, G[G_SIN], v, mus, vthr, lastL, lastR, flags,
+                _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL)
+                _state_machine(TL, TR, sL, sR, G[G_SIN], v, vL, mus, vthr, law, lastL, lastR, flags,
                                phiL, phiR, TLp, TRp)
             if flags[0] == 1 or flags[2] == 1:
                 # cap reached (slipped links take their law) or frozen tensions corrected
-                _forces(TL, TR, sL, sR, tbL, tbR, par, G, F, thd, v)
+                _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL)
             # ---- rest state in closed form once everything sticks
             if not in_ramp and flags[1] == 0 and settle_tol >= 0.0:
-                _settle(th, TL, TR, par, scale, th_e, work, settle_tol, settle_maxiter)
+                _settle(th, TL, TR, par, J, th_e, work, settle_tol, settle_maxiter)
                 ok = True
                 for i in range(n):
-                    sin_s[i] = abs(math.sin(th_e[i]))
+                    sin_s[i] = wrap_measure(th_e[i], law)
                 for i in range(m):
-                    N = TL[i + 1] * sin_s[i + 1] + TL[i] * sin_s[i]
-                    if abs(TL[i + 1] - TL[i]) > mus * N:
+                    if slip_dir(TL[i], TL[i + 1], sin_s[i], sin_s[i + 1], mus, law) != 0:
                         ok = False
-                    N = TR[i + 1] * sin_s[i + 1] + TR[i] * sin_s[i]
-                    if abs(TR[i + 1] - TR[i]) > mus * N:
+                    if slip_dir(TR[i], TR[i + 1], sin_s[i], sin_s[i + 1], mus, law) != 0:
                         ok = False
                 if ok:
                     for i in range(n):
@@ -726,31 +872,31 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
                     rmax = max(rmax, abs(thd[i]))
                 if rmax * h > dth_max:
                     h = max(dth_max / rmax, h_micro_min)
-            _advance(th, F, G[G_TAU], h, par, scale, th_e)
+            _advance(th, F, G[G_TAU], h, par, J, th_e)
             fresh = False
             if not in_ramp:
                 for i in range(n):
                     TL_e[i] = TL[i]
                     TR_e[i] = TR[i]
-                _geometry_terms(th_e, par, scale, G_e)
-                _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, G_e, F_e, thd_e, v_e)
+                _geometry_terms(th_e, par, J, G_e)
+                _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, J, ibd, G_e, F_e, thd_e, v_e, vL_e)
                 correct = order == 2 and (flags[1] == 1 or use_tip)
                 if correct:
                     # corrector: the drive's mean over the step (trapezoid), then re-evaluate
                     for i in range(n):
                         Fa[i] = 0.5 * (F[i] + F_e[i])
-                    _advance(th, Fa, G[G_TAU], h, par, scale, th_e)
+                    _advance(th, Fa, G[G_TAU], h, par, J, th_e)
                     for i in range(n):
                         TL_e[i] = TL[i]
                         TR_e[i] = TR[i]
-                    _geometry_terms(th_e, par, scale, G_e)
-                    _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, G_e, F_e, thd_e, v_e)
+                    _geometry_terms(th_e, par, J, G_e)
+                    _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, J, ibd, G_e, F_e, thd_e, v_e, vL_e)
                 phi = 1.0
                 if nev < max_events:
-                    _margins(TL, sL, G[G_SIN], v, mus, vthr, gL)
-                    _margins(TR, sR, G[G_SIN], v, mus, vthr, gR)
-                    _margins(TL_e, sL, G_e[G_SIN], v_e, mus, vthr, gL_e)
-                    _margins(TR_e, sR, G_e[G_SIN], v_e, mus, vthr, gR_e)
+                    _margins(TL, sL, G[G_SIN], vL, mus, vthr, law, gL)
+                    _margins(TR, sR, G[G_SIN], v, mus, vthr, law, gR)
+                    _margins(TL_e, sL, G_e[G_SIN], vL_e, mus, vthr, law, gL_e)
+                    _margins(TR_e, sR, G_e[G_SIN], v_e, mus, vthr, law, gR_e)
                     # sticking -> sliding events: shorten the step to land on the first;
                     # sliding -> sticking: remember where v crossed v_thr (frozen tension)
                     for i in range(m):
@@ -770,9 +916,9 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
                     if correct:
                         for i in range(n):
                             Fa[i] = F[i] + 0.5 * phi * (F_e[i] - F[i])
-                        _advance(th, Fa, G[G_TAU], h, par, scale, th_e)
+                        _advance(th, Fa, G[G_TAU], h, par, J, th_e)
                     else:
-                        _advance(th, F, G[G_TAU], h, par, scale, th_e)
+                        _advance(th, F, G[G_TAU], h, par, J, th_e)
                     for i in range(m):
                         phiL[i] = -1.0
                         phiR[i] = -1.0
@@ -793,6 +939,7 @@ def fast_kernel(t_s, TLm, TRm, par, scale, ramp_time, settle_time, h_min, h_max,
                         G[r, i] = G_e[r, i]
                 for i in range(m):
                     v[i] = v_e[i]
+                    vL[i] = vL_e[i]
             t += h
             nsteps_total += 1
             if h >= hnom:

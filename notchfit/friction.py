@@ -73,6 +73,16 @@ Two solvers of the same model (``method=``):
 * ``stiffness_gradient`` ``g`` (``stiffness_gradient``): every rate of joint
   ``j`` is scaled by ``1 + g (2 (j-1)/(n-1) - 1)``. Smooth.
 
+**Real tubes** (docs/models.md, "Real tubes: mechanics"; parameters in
+:mod:`notchfit.friction_params`): per-joint spring rates and breaks (or the
+material law of :func:`notchfit.springs.material_spring`), rest angles (the
+spring acts on ``θ_j - θ0_j``), per-joint moment arms of each tendon
+(``Geometry.moment_arms``: drive ``a_R,j T_R[j] - a_L,j T_L[j]``, cable speed
+``s_c Σ_{k>j} a_c,k θ̇_k``), one-tendon operation, the capstan law
+(``friction_law = "capstan"``) and damping as a time constant. With the seed
+tube every per-joint value is equal and the kernels take the seed's formulas
+verbatim (results bit for bit as before).
+
 **Cable displacement** (what the actuator draws in, from the cable model):
 ``Δ_L = -r_x Σ_j θ_j + T_L,meas / k_c`` and ``Δ_R = +r_x Σ_j θ_j + T_R,meas / k_c``
 [m], relative to the straight, unloaded cable, with ``k_c = E A / L_0``
@@ -82,7 +92,6 @@ the lumped stretch uses the measured tension).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -90,20 +99,28 @@ import numpy as np
 import pandas as pd
 
 from . import _friction_kernels as _k
-from . import paper
 from .cables import pulled_side
 from .geometry import Geometry, default_geometry
 from .notches import notch_points
 from .shapes import line_fit
-from .springs import PiecewiseLinearSpring, friction_spring
+from .friction_params import (DEFAULT_DAMPING_TIME, FRICTION_LAWS, PARAM_KEYS, PER_JOINT_FIELDS,  # noqa: F401
+                              SPRING_LAWS, FrictionParams, _kernel_inputs, default_params, params_from_mapping,
+                              params_to_mapping)
 from .units import MM
 from .validation import readonly
 
 __all__ = [
+    "DEFAULT_DAMPING_TIME",
     "DEFAULT_DT",
+    "FRICTION_LAWS",
+    "PARAM_KEYS",
+    "PER_JOINT_FIELDS",
+    "SPRING_LAWS",
     "FrictionParams",
     "SimulationResult",
     "cable_displacement",
+    "clip_load_cell",
+    "default_params",
     "params_from_mapping",
     "params_to_mapping",
     "simulate",
@@ -113,123 +130,6 @@ __all__ = [
 
 #: Default time step of the reference solver [s] (its convergence in dt: docs/history.md).
 DEFAULT_DT = 1e-4
-
-# TOML key (SI, with unit) for each parameter
-PARAM_KEYS = {
-    "k_lin": "k_lin_Nm_per_rad",
-    "k_mid": "k_mid_Nm_per_rad",
-    "k_stop": "k_stop_Nm_per_rad",
-    "theta_mid": "theta_mid_rad",
-    "theta_stop": "theta_stop_rad",
-    "mu_d": "mu_d",
-    "mu_s": "mu_s",
-    "b": "b_Nms_per_rad",
-    "v_thr": "v_thr_m_per_s",
-    "proximal_beta": "proximal_beta",
-    "hysteresis_torque": "hysteresis_torque_Nm",
-    "tip_force_x": "tip_force_x_N",
-    "tip_force_z": "tip_force_z_N",
-    "stiffness_gradient": "stiffness_gradient",
-}
-
-
-@dataclass(frozen=True)
-class FrictionParams:
-    """Parameters of the friction simulator (SI units; defaults = Sec. IV-B, docs/models.md).
-
-    Attributes
-    ----------
-    k_lin, k_mid, k_stop : float
-        Spring rates [N m/rad]: below ``theta_mid`` (0.4829), mid range
-        (0.25, fitted), beyond ``theta_stop`` (slot closure, 10) (Fig. 17).
-    theta_mid, theta_stop : float
-        Breaks of the spring [rad] (0.07, 0.14).
-    mu_d, mu_s : float
-        Sliding and static friction coefficients (0.29, 0.30); ``0 <= mu_d < 1``,
-        ``mu_s >= mu_d``.
-    b : float
-        First-order damping [N m s/rad] (0.03).
-    v_thr : float
-        Cable speed below which a sliding link sticks [m/s] (5e-5).
-    proximal_beta : float
-        Capstan band between load cell and base, ``β = μ × wrap angle`` (>= 0).
-    hysteresis_torque : float
-        Play-operator joint hysteresis ``h`` [N m] (>= 0).
-    tip_force_x, tip_force_z : float
-        Constant manipulator-frame force at the tool point [N].
-    stiffness_gradient : float
-        ``g`` in (-1, 1): joint ``j``'s rates scaled by ``1 + g (2 (j-1)/(n-1) - 1)``.
-    """
-
-    k_lin: float = paper.FRICTION_K_LIN
-    k_mid: float = paper.FRICTION_K_MID
-    k_stop: float = paper.FRICTION_K_STOP
-    theta_mid: float = paper.FRICTION_THETA_MID
-    theta_stop: float = paper.FRICTION_THETA_STOP
-    mu_d: float = paper.MU_D
-    mu_s: float = paper.MU_S
-    b: float = paper.DAMPING
-    v_thr: float = paper.V_THR
-    proximal_beta: float = 0.0
-    hysteresis_torque: float = 0.0
-    tip_force_x: float = 0.0
-    tip_force_z: float = 0.0
-    stiffness_gradient: float = 0.0
-
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
-                raise ValueError(f"friction parameter {f.name} must be a number, got {v!r}")
-            v = float(v)
-            if not math.isfinite(v):
-                raise ValueError(f"friction parameter {f.name} must be finite, got {v}")
-            object.__setattr__(self, f.name, v)
-        for name in ("k_lin", "k_mid", "k_stop", "b", "v_thr", "theta_mid"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"friction parameter {name} must be positive, got {getattr(self, name)}")
-        if self.theta_stop <= self.theta_mid:
-            raise ValueError(f"need theta_mid < theta_stop, got {self.theta_mid} and {self.theta_stop}")
-        if not 0.0 <= self.mu_d < 1.0:
-            raise ValueError(f"mu_d must be in [0, 1), got {self.mu_d}")
-        if self.mu_s < self.mu_d:
-            raise ValueError(f"mu_s must be >= mu_d (static >= sliding), got mu_s={self.mu_s}, mu_d={self.mu_d}")
-        if self.proximal_beta < 0:
-            raise ValueError(f"proximal_beta must be >= 0, got {self.proximal_beta}")
-        if self.hysteresis_torque < 0:
-            raise ValueError(f"hysteresis_torque must be >= 0, got {self.hysteresis_torque}")
-        if not -1.0 < self.stiffness_gradient < 1.0:
-            raise ValueError(f"stiffness_gradient must be in (-1, 1), got {self.stiffness_gradient}")
-
-    def joint_scale(self, n: int) -> np.ndarray:
-        """Per-joint stiffness factor ``1 + g (2 (j-1)/(n-1) - 1)`` (n,)."""
-        if n == 1:
-            return np.ones(1)
-        return 1.0 + self.stiffness_gradient * (2.0 * np.arange(n) / (n - 1) - 1.0)
-
-    def spring(self, n: int | None = None) -> PiecewiseLinearSpring:
-        """The Fig. 17 spring, with the per-joint gradient scale when ``n`` is given."""
-        scale = 1.0 if n is None else self.joint_scale(n)
-        return friction_spring(self.k_lin, self.k_mid, self.k_stop, self.theta_mid, self.theta_stop, scale)
-
-    def replace(self, **changes) -> "FrictionParams":
-        """A copy with some fields changed (validated again)."""
-        return dataclasses.replace(self, **changes)
-
-    def to_dict(self) -> dict:
-        """``{field: value}`` (SI)."""
-        return dataclasses.asdict(self)
-
-    def packed(self, geom: Geometry) -> np.ndarray:
-        """The kernels' parameter vector (``_friction_kernels.P_*``)."""
-        par = np.zeros(_k.N_PAR)
-        par[_k.P_K1], par[_k.P_K2], par[_k.P_K3] = self.k_lin, self.k_mid, self.k_stop
-        par[_k.P_TM], par[_k.P_TS] = self.theta_mid, self.theta_stop
-        par[_k.P_MUD], par[_k.P_MUS], par[_k.P_B], par[_k.P_VTHR] = self.mu_d, self.mu_s, self.b, self.v_thr
-        par[_k.P_BETA], par[_k.P_H] = self.proximal_beta, self.hysteresis_torque
-        par[_k.P_FX], par[_k.P_FZ] = self.tip_force_x, self.tip_force_z
-        par[_k.P_RX], par[_k.P_P] = geom.r_x, geom.p
-        return par
 
 
 @dataclass(frozen=True, eq=False)
@@ -263,6 +163,9 @@ class SimulationResult:
         ``"fast"`` or ``"reference"``.
     n_steps : int
         Time steps the solver took (fast: steps + frozen passes).
+    n_clipped : int
+        Load-cell readings slightly below zero (down to ``-3 σ_T``) that were
+        clipped at zero (:func:`clip_load_cell`); the command logs the count.
     """
 
     time: np.ndarray
@@ -284,6 +187,7 @@ class SimulationResult:
     geom: Geometry
     method: str = "fast"
     n_steps: int = 0
+    n_clipped: int = 0
 
     @property
     def n_samples(self) -> int:
@@ -305,17 +209,26 @@ class SimulationResult:
 def cable_displacement(theta, tension_left, tension_right, geom: Geometry):
     """Cable drawn in by each actuator ``(Δ_L, Δ_R)`` [m] (module docstring).
 
-    ``Δ_L = -r_x Σθ + T_L/k_c``, ``Δ_R = r_x Σθ + T_R/k_c``, ``k_c = E A / L_0``.
+    ``Δ_L = -r_x Σθ + T_L/k_c``, ``Δ_R = r_x Σθ + T_R/k_c``, ``k_c = E A / L_0``;
+    with per-joint moment arms ``Δ_c = s_c Σ_j a_c,j θ_j`` (+ the stretch), and
+    no stretch term when the geometry gives no cable modulus.
 
     Parameters
     ----------
     theta : array_like, shape (..., n) [rad]
     tension_left, tension_right : array_like, shape (...) [N]
     """
-    s = np.asarray(theta, dtype=float).sum(axis=-1)
+    th = np.asarray(theta, dtype=float)
+    aR, aL = geom.moment_arms(+1), geom.moment_arms(-1)
+    if np.all(aR == aR[0]) and np.all(aL == aR[0]):
+        sR = sL = aR[0] * th.sum(axis=-1)
+    else:
+        sR, sL = th @ aR, th @ aL
+    tl, tr = np.asarray(tension_left, float), np.asarray(tension_right, float)
+    if None in (geom.cable_E, geom.cable_A, geom.cable_L0):
+        return -sL, sR
     kc = geom.cable_stiffness
-    return (-geom.r_x * s + np.asarray(tension_left, float) / kc,
-            geom.r_x * s + np.asarray(tension_right, float) / kc)
+    return -sL + tl / kc, sR + tr / kc
 
 
 def stepwise_regimes(tension_left, tension_right, shape, *, tension_tol: float = 0.05,
@@ -405,7 +318,61 @@ def stepwise_regimes(tension_left, tension_right, shape, *, tension_tol: float =
 # =============================================================================
 # the simulator
 # =============================================================================
-def _check_inputs(time, tension_left, tension_right):
+def clip_load_cell(tension, sigma: float = 0.05, name: str = "tension") -> tuple[np.ndarray, int]:
+    """Load-cell readings clipped at zero (docs/models.md, real tubes: load cells).
+
+    A load cell reads slightly below zero at rest (offset and noise). A reading
+    down to ``-3 σ_T`` is a valid measurement of zero tension: it is clipped at
+    zero and counted, so that the run log can say so. Below that it is an
+    input error.
+
+    Parameters
+    ----------
+    tension : array_like [N]
+    sigma : float
+        ``σ_T``, the tension uncertainty [N] (the experiment's, default 0.05 N).
+    name : str
+        Named in the message.
+
+    Returns
+    -------
+    clipped : ndarray [N]
+    count : int
+        Readings that were below zero.
+
+    Raises
+    ------
+    ValueError
+        A reading below ``-3 σ_T`` (its index and value in the message).
+    """
+    a = np.asarray(tension, dtype=float)
+    if not (math.isfinite(sigma) and sigma >= 0):
+        raise ValueError(f"sigma must be >= 0 N, got {sigma}")
+    low = a < -3.0 * sigma
+    if low.any():
+        bad = int(np.flatnonzero(low)[0])
+        raise ValueError(f"{name} must be >= 0 N (cables only pull; readings down to -3 sigma_T = "
+                         f"{-3.0 * sigma:g} N count as zero), got {a[bad]} at sample index {bad}")
+    neg = a < 0
+    return np.where(neg, 0.0, a), int(neg.sum())
+
+
+def _tendon_tension(tension, geom: Geometry, side: str, like):
+    """The tension of one tendon: None or zeros for a tendon the geometry lacks."""
+    if side in geom.tendons:
+        if tension is None:
+            raise ValueError(f"the geometry has a {side} tendon: tension_{side} is required")
+        return tension
+    if tension is None:
+        return np.zeros(np.shape(like))
+    a = np.asarray(tension, dtype=float)
+    if np.any(a != 0):
+        raise ValueError(f"the geometry has no {side} tendon (tendons = {list(geom.tendons)}): "
+                         f"tension_{side} must be absent or zero")
+    return a
+
+
+def _check_inputs(time, tension_left, tension_right, sigma=None):
     t = np.asarray(time, dtype=float)
     tl = np.asarray(tension_left, dtype=float)
     tr = np.asarray(tension_right, dtype=float)
@@ -418,14 +385,20 @@ def _check_inputs(time, tension_left, tension_right):
         if not np.isfinite(a).all():
             bad = int(np.flatnonzero(~np.isfinite(a))[0])
             raise ValueError(f"{name} contains NaN or inf (first at sample index {bad})")
-    for name, a in (("tension_left", tl), ("tension_right", tr)):
-        if (a < 0).any():
-            bad = int(np.flatnonzero(a < 0)[0])
-            raise ValueError(f"{name} must be >= 0 N (cables only pull), got {a[bad]} at sample index {bad}")
+    clipped = 0
+    if sigma is None:
+        for name, a in (("tension_left", tl), ("tension_right", tr)):
+            if (a < 0).any():
+                bad = int(np.flatnonzero(a < 0)[0])
+                raise ValueError(f"{name} must be >= 0 N (cables only pull), got {a[bad]} at sample index {bad}")
+    else:
+        tl, cl = clip_load_cell(tl, sigma, "tension_left")
+        tr, cr = clip_load_cell(tr, sigma, "tension_right")
+        clipped = cl + cr
     if t.size > 1 and not (np.diff(t) > 0).all():
         bad = int(np.flatnonzero(np.diff(t) <= 0)[0])
         raise ValueError(f"time must increase strictly, got {t[bad]} then {t[bad + 1]} s at sample index {bad + 1}")
-    return (np.ascontiguousarray(t), np.ascontiguousarray(tl), np.ascontiguousarray(tr))
+    return (np.ascontiguousarray(t), np.ascontiguousarray(tl), np.ascontiguousarray(tr), clipped)
 
 
 def _check_protocol(t, ramp_time, settle_time) -> float:
@@ -439,7 +412,7 @@ def _check_protocol(t, ramp_time, settle_time) -> float:
     return settle_time
 
 
-def _fast(t, tl, tr, par, scale, ramp_time, settle_time, *, n, h_min, h_max, growth, dtheta_max, order,
+def _fast(t, tl, tr, par, J, ramp_time, settle_time, *, n, h_min, h_max, growth, dtheta_max, order,
           land_sticks, max_events, max_micro, settle_tol, settle_maxiter):
     """Check the fast solver's options and run it (:func:`simulate` documents them)."""
     for name, v in (("h_min", h_min), ("h_max", h_max)):
@@ -453,7 +426,7 @@ def _fast(t, tl, tr, par, scale, ramp_time, settle_time, *, n, h_min, h_max, gro
     mm = max(1000, 40 * n) if max_micro is None else int(max_micro)
     if me < 0 or mm < 0:
         raise ValueError("max_events and max_micro must be >= 0")
-    return _k.fast_kernel(t, tl, tr, par, scale, ramp_time, settle_time,
+    return _k.fast_kernel(t, tl, tr, par, J, ramp_time, settle_time,
                           float(h_min), float(h_max), float(growth), me, mm,
                           float(settle_tol), int(settle_maxiter), bool(land_sticks), float(dtheta_max),
                           int(order))
@@ -466,18 +439,21 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
              land_sticks: bool = True,
              max_events: int | None = None, max_micro: int | None = None,
              settle_tol: float = 1e-13, settle_maxiter: int = 200,
-             tension_tol: float = 0.05, hold_fraction: float = 0.25) -> SimulationResult:
+             tension_tol: float = 0.05, hold_fraction: float = 0.25,
+             tension_sigma: float | None = None) -> SimulationResult:
     """Simulate a tension history with the friction model (Sec. IV-B).
 
     Parameters
     ----------
     time : array_like, shape (S,) [s]
         Sample times, strictly increasing.
-    tension_left, tension_right : array_like, shape (S,) [N]
+    tension_left, tension_right : array_like, shape (S,) [N], or None
         Measured (load-cell) tensions, >= 0. Between samples: the protocol
-        of the module docstring.
+        of the module docstring. A tendon the geometry lacks
+        (``geom.tendons``) carries no tension: None or zeros.
     params : FrictionParams, optional
-        The paper's values by default.
+        Default :func:`default_params` of the geometry (the paper's values for
+        the seed tube; the material and capstan laws for a one-sided wrist).
     geom : Geometry, optional
         The default manipulator by default (``n_joints``, ``r_x``, ``p``, cable).
     method : {"fast", "reference"}
@@ -511,6 +487,10 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         Fast solver: fixed point of the closed-form rest state (tip load) [rad].
     tension_tol, hold_fraction :
         Passed to :func:`stepwise_regimes`.
+    tension_sigma : float, optional
+        ``σ_T`` of the load cells [N]: readings down to ``-3 σ_T`` are clipped at
+        zero and counted (:func:`clip_load_cell`, ``n_clipped``). None (default):
+        every reading must be >= 0.
 
     Returns
     -------
@@ -519,31 +499,36 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
     Raises
     ------
     ValueError
-        Bad input (shapes, NaN, negative tension, time not increasing) or options.
+        Bad input (shapes, NaN, negative tension, a tension on a missing
+        tendon, time not increasing) or options.
     """
-    params = FrictionParams() if params is None else params
     geom = default_geometry() if geom is None else geom
+    params = default_params(geom) if params is None else params
     if not isinstance(params, FrictionParams):
         raise ValueError(f"params must be a FrictionParams, got {type(params).__name__}")
-    t, tl, tr = _check_inputs(time, tension_left, tension_right)
+    t, tl, tr, n_clipped = _check_inputs(time, _tendon_tension(tension_left, geom, "left", time),
+                                         _tendon_tension(tension_right, geom, "right", time), tension_sigma)
     settle_time = _check_protocol(t, ramp_time, settle_time)
-    n = geom.n_joints
-    par = params.packed(geom)
-    scale = np.ascontiguousarray(params.joint_scale(n), dtype=float)
+    J, par = _kernel_inputs(params, geom)
     if method == "reference":
         dt = DEFAULT_DT if dt is None else float(dt)
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be > 0 s, got {dt}")
-        out = _k.reference_kernel(t, tl, tr, par, scale, dt, float(ramp_time), float(settle_time))
+        out = _k.reference_kernel(t, tl, tr, par, J, dt, float(ramp_time), float(settle_time))
     elif method == "fast":
         if order is None:
             order = 2 if (params.tip_force_x != 0.0 or params.tip_force_z != 0.0) else 1
-        out = _fast(t, tl, tr, par, scale, float(ramp_time), float(settle_time), n=n, h_min=h_min,
+        out = _fast(t, tl, tr, par, J, float(ramp_time), float(settle_time), n=geom.n_joints, h_min=h_min,
                     h_max=h_max, growth=growth, dtheta_max=dtheta_max, order=order, land_sticks=land_sticks,
                     max_events=max_events, max_micro=max_micro, settle_tol=settle_tol,
                     settle_maxiter=settle_maxiter)
     else:
         raise ValueError(f"method must be 'fast' or 'reference', got {method!r}")
+    return _result(out, t, tl, tr, params, geom, method, n_clipped, tension_tol, hold_fraction)
+
+
+def _result(out, t, tl, tr, params, geom, method, n_clipped, tension_tol, hold_fraction) -> SimulationResult:
+    """The :class:`SimulationResult` of a kernel's output."""
     theta, TL, TR, bL, bR, sL, sR, nsteps = out
     dl, dr = cable_displacement(theta, tl, tr, geom)
     a, b = line_fit(theta)
@@ -555,7 +540,7 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         base_tension_right=readonly(bR), state_left=readonly(sL, np.int8), state_right=readonly(sR, np.int8),
         displacement_left=readonly(dl), displacement_right=readonly(dr), a=readonly(a), b=readonly(b),
         regime=readonly(regime, regime.dtype), params=params, geom=geom, method=method,
-        n_steps=int(nsteps))
+        n_steps=int(nsteps), n_clipped=n_clipped)
 
 
 def simulation_table(result: SimulationResult, sample_ids=None):
@@ -590,54 +575,6 @@ def simulation_table(result: SimulationResult, sample_ids=None):
     })
     return pd.DataFrame(cols)
 
-
-# =============================================================================
-# parameter files (the mapping of model.toml; notchfit.io reads and writes the file)
-# =============================================================================
-def params_from_mapping(data: dict, origin: str = "<dict>") -> FrictionParams:
-    """Friction parameters from a parameter-file mapping (keys with units, :data:`PARAM_KEYS`).
-
-    Parameters
-    ----------
-    data : dict
-        Missing keys take the paper's values; a ``metadata`` table is ignored.
-        Plain field names (``k_lin``) are accepted too.
-    origin : str
-        Where the mapping came from, at the start of every message.
-
-    Returns
-    -------
-    FrictionParams
-
-    Raises
-    ------
-    ValueError
-        ``"<origin>: <problem>"`` for an unknown key, a key given twice, a
-        non-number or an invalid value.
-    """
-    by_key = {v: k for k, v in PARAM_KEYS.items()}
-    kw = {}
-    for key, val in data.items():
-        if key == "metadata" and isinstance(val, dict):
-            continue
-        field = by_key.get(key, key if key in PARAM_KEYS else None)
-        if field is None:
-            raise ValueError(f"{origin}: unknown friction parameter {key!r} "
-                             f"(known: {', '.join(PARAM_KEYS.values())})")
-        if field in kw:
-            raise ValueError(f"{origin}: parameter {field} given twice")
-        if isinstance(val, bool) or not isinstance(val, (int, float)):
-            raise ValueError(f"{origin}: {key} must be a number, got {val!r}")
-        kw[field] = float(val)
-    try:
-        return FrictionParams(**kw)
-    except ValueError as exc:
-        raise ValueError(f"{origin}: {exc}") from None
-
-
-def params_to_mapping(params: FrictionParams) -> dict:
-    """``{file key: value}`` of ``params`` (SI keys with units, :data:`PARAM_KEYS`), in file order."""
-    return {key: getattr(params, f) for f, key in PARAM_KEYS.items()}
 
 
 def __getattr__(name):

@@ -14,6 +14,20 @@ Both spring laws of the seed paper are instances of
 Per-joint springs: ``breaks`` and ``rates`` broadcast against the joint axis,
 and ``scale`` (shape ``(n,)`` or scalar) multiplies every rate of a joint
 (a stiffness gradient along the backbone is a ``scale`` vector).
+
+Springs from material and section (real tubes, :func:`material_spring`): each
+notch is a short beam of length ``h_j`` (the slot height) bending as a circular
+arc of its neutral axis, so ``M = E I_j κ = E I_j θ / h_j`` and the linear rate
+is ``k_j = E I_j / h_j`` (the Euler–Bernoulli moment–curvature relation, e.g.
+Gere & Timoshenko, Mechanics of Materials; the asymmetric-notch wrist of York,
+Swaney, Gilbert & Webster, ICRA 2015, uses the same). A superelastic (nitinol)
+tube softens to a plateau modulus ``E_se`` once its most strained fibre,
+``c_j`` from the neutral axis, passes the strain ``ε_lower``: with
+``ε = c_j θ / h_j`` (:mod:`notchfit.section`) that is at
+``θ = ε_lower h_j / c_j`` — a section-level bilinear law (the whole section
+softens at once; the gradual spread of the plateau through the wall is not
+modelled). The slot closes at the closure angle of
+:attr:`notchfit.geometry.Geometry.closure_angles`, where a stop takes over.
 """
 
 from __future__ import annotations
@@ -23,9 +37,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import paper
+from .geometry import Geometry
 from .validation import readonly
 
-__all__ = ["PiecewiseLinearSpring", "dual_rate_spring", "friction_spring"]
+__all__ = ["PiecewiseLinearSpring", "dual_rate_spring", "friction_spring", "material_spring"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,7 +50,8 @@ class PiecewiseLinearSpring:
     Parameters
     ----------
     breaks : array_like, shape (m,) or (n, m)
-        Increasing angles where the rate changes [rad], all > 0.
+        Non-decreasing angles where the rate changes [rad], all > 0 (two equal
+        breaks: the piece between them is skipped).
     rates : array_like, shape (m + 1,) or (n, m + 1)
         Rate on each interval ``[0, b_1), [b_1, b_2), …, [b_m, ∞)`` [N m/rad], > 0.
     scale : float or array_like, shape (n,)
@@ -54,7 +70,7 @@ class PiecewiseLinearSpring:
             raise ValueError(f"need one more rate than breaks, got breaks {b.shape} rates {r.shape}")
         if not (np.isfinite(b).all() and np.isfinite(r).all() and np.isfinite(s).all()):
             raise ValueError("spring breaks, rates and scale must be finite")
-        if (b <= 0).any() or (np.diff(b, axis=-1) <= 0).any():
+        if (b <= 0).any() or (np.diff(b, axis=-1) < 0).any():
             raise ValueError(f"spring breaks must be positive and increasing, got {b}")
         if (r <= 0).any() or (s <= 0).any():
             raise ValueError("spring rates and scale must be positive")
@@ -130,3 +146,48 @@ def friction_spring(k_lin: float = paper.FRICTION_K_LIN, k_mid: float = paper.FR
     the hard stop ``k_stop``.
     """
     return PiecewiseLinearSpring([theta_mid, theta_stop], [k_lin, k_mid, k_stop], scale)
+
+
+def material_spring(geom: Geometry, E_lin: float, E_se: float, strain_lower: float,
+                    stop_ratio: float = paper.FRICTION_K_STOP / paper.FRICTION_K_LIN) -> PiecewiseLinearSpring:
+    """Per-joint spring of a notched tube from its material and section (module docstring).
+
+    Joint ``j`` (deflection ``δ = θ_j - θ0_j`` from its rest angle; the law is odd in ``δ``):
+
+    * ``k_j = E_lin I_j / h_j`` for ``|δ| < ε_lower h_j / c_j`` (``c_j`` = distance of the
+      most strained fibre from the neutral axis, the larger of the back and cut fibres);
+    * ``E_se I_j / h_j`` beyond, up to slot closure ``θ_c,j - σ_j θ0_j`` (the slot on side
+      ``σ_j`` closes at ``θ_j = σ_j θ_c,j``; a rest angle toward the slot uses some of the gap);
+    * ``stop_ratio k_j`` once the slot is closed (default: the seed paper's
+      ``k_stop / k_lin`` = 10 / 0.4829, Fig. 17, so the stop is as stiff relative
+      to the flexure as on the seed tube).
+
+    A softening threshold beyond closure gives no plateau piece (two equal breaks).
+
+    Parameters
+    ----------
+    geom : Geometry
+        Needs ``inner_radius`` (:attr:`Geometry.section`).
+    E_lin, E_se : float
+        Linear (austenite) and plateau moduli [Pa], > 0.
+    strain_lower : float
+        Outer-fibre strain where the plateau starts [-], > 0.
+    stop_ratio : float
+        Stop rate over linear rate [-], > 0.
+
+    Returns
+    -------
+    PiecewiseLinearSpring
+        breaks (n, 2) [rad], rates (n, 3) [N m/rad].
+    """
+    for name, v in (("E_lin", E_lin), ("E_se", E_se), ("strain_lower", strain_lower), ("stop_ratio", stop_ratio)):
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"material parameter {name} must be positive, got {v!r}")
+    sec = geom.section
+    h = geom.slot_widths
+    fibre = np.maximum(sec.back_fibre, sec.cut_fibre)
+    stop = geom.closure_angles - geom.sides * geom.rest_angles
+    mid = np.minimum(strain_lower * h / fibre, stop)
+    k = E_lin * sec.second_moment / h
+    rates = np.stack([k, E_se * sec.second_moment / h, stop_ratio * k], axis=-1)
+    return PiecewiseLinearSpring(np.stack([mid, stop], axis=-1), rates)

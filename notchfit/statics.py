@@ -29,6 +29,15 @@ Cable-position input (Eqs. 13-14): ``d = L(θ) - L_0 + u`` and
 quadratic ``T = K d²`` of Sec. III-C3). A cable cannot push: ``d ≤ 0`` means
 a slack cable with ``T = 0``.
 
+Real tubes (docs/models.md, "Real tubes: mechanics"): the spring acts on the
+deflection from each joint's rest angle, ``τ_j(θ_j - θ0_j)`` (``geom.rest_angles``);
+with ``coupling = "simple"`` the columns of ``P`` are the tendons' moment arms
+about each joint's bending axis, ``P[:, R] = -a_R``, ``P[:, L] = +a_L``
+(:meth:`~notchfit.geometry.Geometry.moment_arms`; ``±r_x`` for the seed tube,
+Eq. 5), and a tendon the geometry lacks must carry no tension. With the
+spring of :meth:`notchfit.friction.FrictionParams.joint_spring` and no friction
+the rest state is ``τ_j(θ_j - θ0_j) = a_R,j T_R - a_L,j T_L`` per joint.
+
 Stiffness (Sec. III-C): ``K_m = K_θ + P K_c P^T`` (Eq. 17 ff.),
 ``K_w = (J_X K_m^{-1} J_X^T)^{-1}`` (Eq. 23), the Lagrange system (Eq. 22),
 ``δθ`` (Eq. 24), whose energy ``½ δθᵀ K_m δθ = ½ δXᵀ K_w δX`` is Eq. (25).
@@ -51,6 +60,7 @@ from .validation import as_finite, as_joint_angles
 
 __all__ = [
     "CableLaw",
+    "arm_coupling",
     "ConstantCurvature",
     "Equilibrium",
     "FEAReference",
@@ -185,6 +195,19 @@ class CableLaw:
         return 2.0 * self.coefficient * np.maximum(d, 0.0)
 
 
+def arm_coupling(geom: Geometry) -> np.ndarray:
+    """``P`` (n, 2) [m/rad] of tendons with per-joint moment arms (Eq. 5 generalised).
+
+    Columns (R, L): ``-a_R,j`` and ``+a_L,j`` (:meth:`Geometry.moment_arms`), so
+    ``-P T`` is the drive torque ``a_R,j T_R - a_L,j T_L``; for the seed tube
+    ``a = r_x`` at every joint and this is Eq. (5) exactly.
+    """
+    P = np.empty((geom.n_joints, 2))
+    P[:, 0] = -geom.moment_arms(+1)
+    P[:, 1] = geom.moment_arms(-1)
+    return P
+
+
 # --------------------------------------------------------------------------
 # The model
 # --------------------------------------------------------------------------
@@ -200,9 +223,11 @@ class QuasiStaticModel:
     damping : float
         ``B`` [N m s/rad] (0.03, the value of Sec. IV-B; it sets only the time scale).
     coupling : {"simple", "exact"}
-        ``P`` from Eq. (5) (the paper's Sec. III) or the exact derivative.
+        ``P`` from Eq. (5) with each joint's moment arms (the paper's Sec. III;
+        module docstring) or the exact derivative of the channel cable lengths.
     cable_law : CableLaw, optional
-        For cable-position input; default linear ``k_c = EA/L_0``.
+        For cable-position input; default linear ``k_c = EA/L_0`` (None when the
+        geometry gives no cable modulus: tensions only).
     cable_offset : float, optional
         Cable length outside the manipulator [m] (:func:`cables.rest_lengths`).
     load_offset : float
@@ -225,7 +250,7 @@ class QuasiStaticModel:
             raise ValueError(f"coupling must be 'simple' or 'exact', got {self.coupling!r}")
         if not math.isfinite(self.load_offset):
             raise ValueError("load_offset must be finite")
-        if self.cable_law is None:
+        if self.cable_law is None and None not in (self.geom.cable_E, self.geom.cable_A, self.geom.cable_L0):
             object.__setattr__(self, "cable_law", CableLaw.linear(self.geom))
 
     # ------------------------------------------------------------ pieces
@@ -241,11 +266,16 @@ class QuasiStaticModel:
 
     def coupling_matrix(self, theta) -> np.ndarray:
         """``P(θ)`` (n, 2) [m/rad]."""
+        if self.coupling == "simple":
+            th = as_joint_angles(theta, self.geom.n_joints)
+            return np.broadcast_to(arm_coupling(self.geom), th.shape + (2,)).copy()
         return cables.coupling_matrix(theta, self.geom, self.coupling)
 
     def elongation(self, theta, positions) -> np.ndarray:
         """``d = L(θ) - L_0 + u`` (Eq. 13) [m]."""
         u = as_finite(positions, "cable positions")
+        if self.cable_law is None:
+            raise ValueError(f"geometry {self.geom.name!r} gives no cable modulus: give cable tensions, not positions")
         if u.shape[-1:] != (2,):
             raise ValueError(f"cable positions must be (u_R, u_L) [m], got shape {u.shape}")
         return self.lengths(theta) - self.rest_lengths + u
@@ -287,7 +317,7 @@ class QuasiStaticModel:
         (u_R, u_L) [m] (Eqs. 13-14), and optionally ``tip_load``.
         """
         th = as_joint_angles(theta, self.geom.n_joints)
-        G = self.spring.torque(th)
+        G = self.spring.torque(th - self.geom.rest_angles)
         T = self._T(th, tensions, positions)
         if T is not None:
             G = G + self.coupling_matrix(th) @ T
@@ -299,7 +329,11 @@ class QuasiStaticModel:
         if tensions is not None and positions is not None:
             raise ValueError("give cable tensions or cable positions, not both")
         if tensions is not None:
-            return _tensions(tensions)
+            T = _tensions(tensions)
+            for k, side in enumerate(("right", "left")):
+                if side not in self.geom.tendons and np.any(T[..., k] != 0):
+                    raise ValueError(f"the geometry has no {side} tendon: its tension must be 0")
+            return T
         if positions is not None:
             return self.tensions_from_positions(th, positions)
         return None
@@ -307,7 +341,7 @@ class QuasiStaticModel:
     def residual_jacobian(self, theta, tensions=None, tip_load=None, positions=None) -> np.ndarray:
         """``∂G/∂θ`` (n, n) [N m/rad]: tangent spring stiffness, cable and load terms."""
         th = as_joint_angles(theta, self.geom.n_joints)
-        Jg = np.diag(self.spring.stiffness(th) * np.ones(self.geom.n_joints))
+        Jg = np.diag(self.spring.stiffness(th - self.geom.rest_angles) * np.ones(self.geom.n_joints))
         T = self._T(th, tensions, positions)
         if T is not None:
             if self.coupling == "exact":

@@ -38,7 +38,19 @@ The joint angles are produced by :func:`notchfit.friction.simulate` with
 ``method="reference"`` driven by the *true* tensions, while the files hold
 the noisy measured ones. The reference integrator is a different solver from
 the ``fast`` one that analyses fit with, so a diagnosis cannot win by
-reproducing the generator's discretisation.
+reproducing the generator's discretisation. A frictionless truth (``μ_d =
+μ_s = 0``, no band, hysteresis or tip load) has an independent formulation:
+each sample's rest state is the quasi-static equilibrium
+:func:`notchfit.statics.equilibrium` of the same springs, rest angles and
+moment arms, solved directly (``truth.json`` says ``"truth_solver"``).
+
+Real tubes (``datasets/recipes/wrist_*.toml``): the recipe's ``geometry``
+names a geometry file, ``[fixed]`` holds the model's laws and parameters
+(strings for ``spring_law``/``friction_law``, lists for per-joint values), and
+``[base]`` may draw the material parameters ``E_lin``, ``E_se``,
+``strain_lower`` (away from notchfit's defaults). A tendon the geometry
+lacks must have ``counter_N = 0``; its ``samples.csv`` columns are written
+empty (docs/data-formats.md, real tubes).
 
 :func:`synthesize` returns the study in memory with its ground truth;
 :func:`write_study` writes it per docs/data-formats.md, plus ``truth.json`` at
@@ -57,10 +69,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import io
+from . import io, statics
 from .batch import run_batch
+from .cables import pulled_side
 from .fitting.results import as_transform
-from .friction import FrictionParams, simulate
+from .friction import FrictionParams, cable_displacement, simulate, stepwise_regimes
 from .geometry import Geometry
 from .io import TomlError, datasets_dir, load_geometry, load_toml
 from .notches import notch_points, to_plane
@@ -97,11 +110,13 @@ EFFECT_FIELDS = {
     "calibration_error": ("scale_error", "k_radial"),
 }
 CAUSES = tuple(c for c in EFFECT_FIELDS if c != "none")
-_BASE_FIELDS = ("k_lin", "k_mid", "mu_d")
+_BASE_FIELDS = ("k_lin", "k_mid", "mu_d", "E_lin", "E_se", "strain_lower")
 #: Old names of effect fields, still read (recipe files and :meth:`Recipe.replace`).
 EFFECT_ALIASES = {"static_excess": "mu_s_excess"}
 #: The paper's values of the drawn base parameters (Sec. IV-B, docs/models.md).
 PAPER_VALUES = {"k_lin": FRICTION_K_LIN, "k_mid": FRICTION_K_MID, "mu_d": MU_D}
+#: What drawn base parameters are kept away from: the paper's values, notchfit's material defaults.
+_REFERENCE_VALUES = {**PAPER_VALUES, **{k: getattr(FrictionParams(), k) for k in ("E_lin", "E_se", "strain_lower")}}
 #: The paper's μ_s − μ_d (0.30 − 0.29), rounded off the float subtraction's last bits.
 _PAPER_MU_S_EXCESS = round(MU_S - MU_D, 12)
 
@@ -416,6 +431,7 @@ class SynthStudy:
     effect: dict                   # the drawn effect fields (empty for "none")
     warp: dict | None              # calibration_error: scale_error, k_radial, center [m], radius [m]
     experiments: tuple
+    truth_solver: str = "reference"  # "reference", "fast" or "statics" (frictionless truth)
 
     @property
     def cause(self) -> str:
@@ -423,7 +439,7 @@ class SynthStudy:
 
     def truth(self) -> dict:
         """The ground truth as written to ``truth.json`` (file units)."""
-        params = dataclasses.asdict(self.params) if dataclasses.is_dataclass(self.params) else dict(self.params)
+        params = self.params.to_dict() if isinstance(self.params, FrictionParams) else dict(self.params)
         warp = None
         if self.warp is not None:
             warp = {"scale_error": self.warp["scale_error"], "k_radial": self.warp["k_radial"],
@@ -449,6 +465,8 @@ class SynthStudy:
                       "displacement_step_mm": self.recipe.displacement_step_mm,
                       "missing_points": self.recipe.missing_points},
             "warp": warp, "experiments": exps,
+            # how the true angles were computed, written when not the default reference solver
+            **({"truth_solver": self.truth_solver} if self.truth_solver != "reference" else {}),
         }
 
 
@@ -469,8 +487,8 @@ def _draw_truth(recipe: Recipe, rng):
     for k in _BASE_FIELDS:
         if k in recipe.base:
             lo, hi = recipe.base[k]
-            values[k] = _draw_away(rng, lo, hi, PAPER_VALUES[k], recipe.min_rel_offset)
-    values.update({k: float(v) for k, v in recipe.fixed.items()})
+            values[k] = _draw_away(rng, lo, hi, _REFERENCE_VALUES[k], recipe.min_rel_offset)
+    values.update({k: _fixed_value(v) for k, v in recipe.fixed.items()})
     effect = {}
     for k in EFFECT_FIELDS[recipe.cause]:
         lo, hi = recipe.effect[k]
@@ -495,11 +513,80 @@ def _draw_truth(recipe: Recipe, rng):
     return params, effect
 
 
+def _geometry_source(name: str) -> str:
+    """A recipe's ``geometry``: ``"default"``, a path, or the name of a shipped geometry
+    file (``"wrist_asymmetric"`` for ``datasets/geometry/wrist_asymmetric.toml``)."""
+    if name == "default" or Path(name).is_file():
+        return name
+    shipped = datasets_dir() / "geometry" / f"{name}.toml"
+    return str(shipped) if shipped.is_file() else name
+
+
+def _fixed_value(v):
+    """A ``[fixed]`` value: a law's name, a per-joint list, or a number."""
+    if isinstance(v, str):
+        return v
+    if isinstance(v, list):
+        return tuple(float(x) for x in v)
+    return float(v)
+
+
+def _frictionless(params: FrictionParams) -> bool:
+    """No friction, band, hysteresis or tip load: the rest states are quasi-static equilibria."""
+    return (params.mu_d == 0.0 and params.mu_s == 0.0 and params.proximal_beta == 0.0
+            and params.hysteresis_torque == 0.0 and params.tip_force_x == 0.0 and params.tip_force_z == 0.0)
+
+
+@dataclass(frozen=True)
+class _StaticsTruth:
+    """Rest states from the quasi-static equilibrium (the fields ``_observe`` reads)."""
+
+    theta: np.ndarray
+    displacement_left: np.ndarray
+    displacement_right: np.ndarray
+    regime: np.ndarray
+
+
+def statics_truth(time, tension_left, tension_right, params: FrictionParams, geom: Geometry, *,
+                  tol: float = 1e-13) -> _StaticsTruth:
+    """Frictionless rest state of every sample by :func:`notchfit.statics.equilibrium`.
+
+    ``τ_j(θ_j - θ0_j) = a_R,j T_R - a_L,j T_L`` with the springs of
+    :meth:`FrictionParams.joint_spring` (the same law the friction simulator
+    uses at μ = 0, solved by Newton's method instead of by time stepping), each
+    sample started from the previous rest state.
+
+    Parameters
+    ----------
+    time : array_like (S,) [s]
+    tension_left, tension_right : array_like (S,) [N]
+    params : FrictionParams
+    geom : Geometry
+    tol : float
+        Residual torque tolerance [N m].
+    """
+    tl, tr = np.asarray(tension_left, float), np.asarray(tension_right, float)
+    model = statics.QuasiStaticModel(geom, spring=params.joint_spring(geom))
+    th = geom.rest_angles
+    out = []
+    for a, b in zip(tr, tl):
+        eq = statics.equilibrium(model, tensions=(a, b), theta0=th, tol=tol)
+        if not eq.success:
+            raise ValueError(f"statics truth: {eq.message}")
+        th = eq.theta
+        out.append(th)
+    theta = np.array(out)
+    dl, dr = cable_displacement(theta, tl, tr, geom)
+    return _StaticsTruth(theta, dl, dr, stepwise_regimes(tl, tr, theta.sum(axis=1) * pulled_side(tl, tr)))
+
+
 def _simulate_one(args):
     """Truth simulation of one experiment (module level: runs in worker processes)."""
     time, tl, tr, params, geom, method = args
-    res = simulate(time, tl, tr, params, geom, method=method)
-    return res
+    if method == "statics":
+        return statics_truth(time, tl, tr, params, geom)
+    return simulate(time, tl if "left" in geom.tendons else None, tr if "right" in geom.tendons else None,
+                    params, geom, method=method)
 
 
 def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: int = 1,
@@ -527,7 +614,7 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
     if not isinstance(recipe, Recipe):
         recipe = load_recipe(recipe)
     seed = recipe.seed if seed is None else int(seed)
-    geom = load_geometry(recipe.geometry)
+    geom = load_geometry(_geometry_source(recipe.geometry))
     ss = np.random.SeedSequence(seed)
     kids = ss.spawn(2 + len(recipe.experiments))
     rng_params, rng_warp = np.random.default_rng(kids[0]), np.random.default_rng(kids[1])
@@ -553,7 +640,12 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
                  "mirror": bool(recipe.mirror)}
         plans.append((spec, rng, peak, np.asarray(time, float), np.asarray(tl, float),
                       np.asarray(tr, float), plane))
-    items = [(p[3], p[4], p[5], params, geom, method) for p in plans]
+    truth_method = "statics" if _frictionless(params) else method
+    for spec in recipe.experiments:
+        if spec.counter_N != 0 and ("left" if spec.pull == "right" else "right") not in geom.tendons:
+            raise ValueError(f"recipe {recipe.name!r}: experiment {spec.name}: the geometry has only the "
+                             f"{spec.pull} tendon, so counter_N must be 0")
+    items = [(p[3], p[4], p[5], params, geom, truth_method) for p in plans]
     if jobs > 1 and len(items) > 1:
         res = run_batch(_simulate_one, items, jobs=jobs, keys=[p[0].name for p in plans],
                         desc="truth simulation")
@@ -566,13 +658,23 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
     for (spec, rng, peak, time, tl, tr, plane), sim in zip(plans, results):
         exps.append(_observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp))
     return SynthStudy(recipe=recipe, seed=seed, geometry=geom, params=params, effect=effect, warp=warp,
-                      experiments=tuple(exps))
+                      experiments=tuple(exps), truth_solver=truth_method)
+
+
+def _projector_geometry(geom: Geometry) -> Geometry:
+    """The geometry as the notch-point projector takes it: equal spacings written as a list
+    become the one number they are (the same tube; the projector of this version takes a
+    scalar spacing)."""
+    if isinstance(geom.p, tuple) and len(set(geom.p)) == 1:
+        return geom.replace(p=geom.p[0])
+    return geom
 
 
 def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp) -> SynthExperiment:
     """Measurement model: points in the plane frame (+warp, noise, occlusion), noisy tensions."""
     theta = np.asarray(sim.theta, dtype=float)
-    true_pts = to_plane(notch_points(theta, geom), plane["tx"], plane["ty"], plane["phi"], plane["mirror"])
+    true_pts = to_plane(notch_points(theta, _projector_geometry(geom)), plane["tx"], plane["ty"], plane["phi"],
+                        plane["mirror"])
     pts = true_pts
     if warp is not None:
         pts = apply_point_warp(pts, warp["scale_error"], warp["k_radial"], warp["center"], warp["radius"])
@@ -590,6 +692,10 @@ def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp) -> S
         step = recipe.displacement_step_mm
         return np.round(d / step) * step if step > 0 else d
 
+    for side, meas, d in (("left", meas_l, "displacement_left"), ("right", meas_r, "displacement_right")):
+        if side not in geom.tendons:       # a tendon the geometry lacks: empty columns
+            meas[:] = np.nan
+            sim = dataclasses.replace(sim, **{d: np.full(S, np.nan)}) if dataclasses.is_dataclass(sim) else sim
     samples = pd.DataFrame({
         "sample": np.arange(1, S + 1, dtype=np.int64),
         "time_s": time,
@@ -649,7 +755,7 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
                                 points=None if images else e.points,
                                 mirror=e.plane["mirror"], description=e.description,
                                 geometry=("default" if r.geometry == "default"
-                                          else str(Path(r.geometry).resolve())),
+                                          else str(Path(_geometry_source(r.geometry)).resolve())),
                                 calibration=calib_rel, point_sigma=r.point_sigma_mm * MM if
                                 (r.point_sigma_mm > 0 and not images) else None,
                                 tension_sigma=r.tension_sigma_N if r.tension_sigma_N > 0 else None,

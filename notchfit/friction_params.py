@@ -1,0 +1,426 @@
+"""Parameters of the friction model (Sec. IV-B and real tubes) and their model-file mapping.
+
+:class:`FrictionParams` holds the seed paper's parameters and extensions and
+the real-tube laws (per-joint rates, the material law, the capstan law,
+damping as a time constant; docs/models.md); :meth:`FrictionParams.joint_table`
+and :meth:`FrictionParams.packed` turn them, with a geometry, into the arrays
+the kernels of :mod:`notchfit._friction_kernels` read. :func:`params_from_mapping`
+and :func:`params_to_mapping` convert to and from the ``model.toml`` mapping
+(:mod:`notchfit.io` reads and writes the file). :mod:`notchfit.friction`
+re-exports every public name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _friction_kernels as _k
+from . import paper
+from .geometry import Geometry
+from .springs import PiecewiseLinearSpring, friction_spring, material_spring
+from .validation import readonly
+
+__all__ = [
+    "DEFAULT_DAMPING_TIME",
+    "FRICTION_LAWS",
+    "FrictionParams",
+    "PARAM_KEYS",
+    "PER_JOINT_FIELDS",
+    "SPRING_LAWS",
+    "default_params",
+    "params_from_mapping",
+    "params_to_mapping",
+]
+
+# TOML key (SI, with unit) for each parameter
+PARAM_KEYS = {
+    "k_lin": "k_lin_Nm_per_rad",
+    "k_mid": "k_mid_Nm_per_rad",
+    "k_stop": "k_stop_Nm_per_rad",
+    "theta_mid": "theta_mid_rad",
+    "theta_stop": "theta_stop_rad",
+    "mu_d": "mu_d",
+    "mu_s": "mu_s",
+    "b": "b_Nms_per_rad",
+    "v_thr": "v_thr_m_per_s",
+    "proximal_beta": "proximal_beta",
+    "hysteresis_torque": "hysteresis_torque_Nm",
+    "tip_force_x": "tip_force_x_N",
+    "tip_force_z": "tip_force_z_N",
+    "stiffness_gradient": "stiffness_gradient",
+    # real tubes (docs/models.md, "Real tubes: mechanics"); written only when not at their defaults
+    "spring_law": "spring_law",
+    "friction_law": "friction_law",
+    "damping_time": "damping_time_s",
+    "E_lin": "E_lin_Pa",
+    "E_se": "E_se_Pa",
+    "strain_lower": "strain_lower",
+    "stop_ratio": "stop_ratio",
+}
+#: the keys every model file holds (the seed paper's model and its extensions)
+_SEED_KEYS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop", "mu_d", "mu_s", "b", "v_thr",
+              "proximal_beta", "hysteresis_torque", "tip_force_x", "tip_force_z", "stiffness_gradient")
+#: fields that may be one value per joint (a tuple, base to tip)
+PER_JOINT_FIELDS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop")
+SPRING_LAWS = ("rates", "material")
+FRICTION_LAWS = ("channel", "capstan")
+#: The seed tube's damping as a time constant, ``b / k_lin`` = 0.03 / 0.4829 s (Sec. IV-B):
+#: ``DEFAULT_DAMPING_TIME * 0.4829 == 0.03`` exactly in floating point (tested).
+DEFAULT_DAMPING_TIME = paper.DAMPING / paper.FRICTION_K_LIN
+
+
+@dataclass(frozen=True)
+class FrictionParams:
+    """Parameters of the friction simulator (SI units; defaults = Sec. IV-B, docs/models.md).
+
+    Attributes
+    ----------
+    k_lin, k_mid, k_stop : float or tuple of n floats
+        Spring rates [N m/rad]: below ``theta_mid`` (0.4829), mid range
+        (0.25, fitted), beyond ``theta_stop`` (slot closure, 10) (Fig. 17);
+        one value for every joint or one per joint, base to tip
+        (``spring_law = "rates"``).
+    theta_mid, theta_stop : float or tuple of n floats
+        Breaks of the spring [rad] (0.07, 0.14), measured from the rest angle.
+    mu_d, mu_s : float
+        Sliding and static friction coefficients (0.29, 0.30); ``0 <= mu_d < 1``,
+        ``mu_s >= mu_d``.
+    b : float
+        First-order damping [N m s/rad] (0.03).
+    v_thr : float
+        Cable speed below which a sliding link sticks [m/s] (5e-5).
+    proximal_beta : float
+        Capstan band between load cell and base, ``β = μ × wrap angle`` (>= 0).
+    hysteresis_torque : float
+        Play-operator joint hysteresis ``h`` [N m] (>= 0).
+    tip_force_x, tip_force_z : float
+        Constant manipulator-frame force at the tool point [N].
+    stiffness_gradient : float
+        ``g`` in (-1, 1): joint ``j``'s rates scaled by ``1 + g (2 (j-1)/(n-1) - 1)``.
+    spring_law : {"rates", "material"}
+        ``"rates"``: the paper's law with the rates and breaks above.
+        ``"material"``: :func:`notchfit.springs.material_spring` from the
+        geometry's section and ``E_lin``, ``E_se``, ``strain_lower``,
+        ``stop_ratio`` (one set for every tube cut from the same stock).
+    friction_law : {"channel", "capstan"}
+        The seed's per-link channel law, or the capstan law of a tendon free
+        in the lumen (tension ``e^{-μ Σ|θ|}`` along the tendon in full sliding).
+    damping_time : float
+        ``τ_b`` [s]: joint ``j``'s damping is ``b_j = τ_b k_j`` (``k_j`` its
+        linear rate, scale included), so every joint settles on the same time
+        scale on any tube. 0 (default): the absolute ``b`` for the rates law
+        (the paper), :data:`DEFAULT_DAMPING_TIME` (the seed tube's ``b/k_lin``)
+        for the material law.
+    E_lin, E_se : float
+        Linear and superelastic-plateau moduli [Pa] (material law; 40 and 4 GPa,
+        superelastic nitinol, fitted).
+    strain_lower : float
+        Outer-fibre strain where the plateau starts (material law; 0.015).
+    stop_ratio : float
+        Slot-closure stop rate over the linear rate (material law; the seed's
+        ``k_stop / k_lin``).
+    """
+
+    k_lin: float = paper.FRICTION_K_LIN
+    k_mid: float = paper.FRICTION_K_MID
+    k_stop: float = paper.FRICTION_K_STOP
+    theta_mid: float = paper.FRICTION_THETA_MID
+    theta_stop: float = paper.FRICTION_THETA_STOP
+    mu_d: float = paper.MU_D
+    mu_s: float = paper.MU_S
+    b: float = paper.DAMPING
+    v_thr: float = paper.V_THR
+    proximal_beta: float = 0.0
+    hysteresis_torque: float = 0.0
+    tip_force_x: float = 0.0
+    tip_force_z: float = 0.0
+    stiffness_gradient: float = 0.0
+    spring_law: str = "rates"
+    friction_law: str = "channel"
+    damping_time: float = 0.0
+    E_lin: float = 40e9
+    E_se: float = 4e9
+    strain_lower: float = 0.015
+    stop_ratio: float = paper.FRICTION_K_STOP / paper.FRICTION_K_LIN
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if f.name in ("spring_law", "friction_law"):
+                continue
+            if f.name in PER_JOINT_FIELDS and isinstance(v, (tuple, list, np.ndarray)):
+                v = tuple(_number(f.name, x) for x in v)
+                if not v:
+                    raise ValueError(f"friction parameter {f.name} needs at least one value")
+            else:
+                v = _number(f.name, v)
+            object.__setattr__(self, f.name, v)
+        if self.spring_law not in SPRING_LAWS:
+            raise ValueError(f"spring_law must be one of {SPRING_LAWS}, got {self.spring_law!r}")
+        if self.friction_law not in FRICTION_LAWS:
+            raise ValueError(f"friction_law must be one of {FRICTION_LAWS}, got {self.friction_law!r}")
+        for name in ("k_lin", "k_mid", "k_stop", "b", "v_thr", "theta_mid", "E_lin", "E_se", "strain_lower",
+                     "stop_ratio"):
+            v = getattr(self, name)
+            if (min(v) if isinstance(v, tuple) else v) <= 0:
+                raise ValueError(f"friction parameter {name} must be positive, got {getattr(self, name)}")
+        if self.damping_time < 0:
+            raise ValueError(f"damping_time must be >= 0 s (0: the default damping), got {self.damping_time}")
+        lengths = {len(getattr(self, f)) for f in PER_JOINT_FIELDS if isinstance(getattr(self, f), tuple)}
+        if len(lengths) > 1:
+            raise ValueError(f"per-joint parameters must all have one length, got {sorted(lengths)}")
+        if self.n_per_joint is None:
+            bad = self.theta_stop <= self.theta_mid
+        else:
+            bad = np.any(np.asarray(self.theta_stop) <= np.asarray(self.theta_mid))
+        if bad:
+            raise ValueError(f"need theta_mid < theta_stop, got {self.theta_mid} and {self.theta_stop}")
+        if not 0.0 <= self.mu_d < 1.0:
+            raise ValueError(f"mu_d must be in [0, 1), got {self.mu_d}")
+        if self.mu_s < self.mu_d:
+            raise ValueError(f"mu_s must be >= mu_d (static >= sliding), got mu_s={self.mu_s}, mu_d={self.mu_d}")
+        if self.proximal_beta < 0:
+            raise ValueError(f"proximal_beta must be >= 0, got {self.proximal_beta}")
+        if self.hysteresis_torque < 0:
+            raise ValueError(f"hysteresis_torque must be >= 0, got {self.hysteresis_torque}")
+        if not -1.0 < self.stiffness_gradient < 1.0:
+            raise ValueError(f"stiffness_gradient must be in (-1, 1), got {self.stiffness_gradient}")
+
+    @property
+    def n_per_joint(self) -> int | None:
+        """Number of joints the per-joint parameters are given for (None: all scalar)."""
+        for f in PER_JOINT_FIELDS:
+            v = getattr(self, f)
+            if isinstance(v, tuple):
+                return len(v)
+        return None
+
+    def joint_scale(self, n: int) -> np.ndarray:
+        """Per-joint stiffness factor ``1 + g (2 (j-1)/(n-1) - 1)`` (n,)."""
+        if n == 1:
+            return np.ones(1)
+        return 1.0 + self.stiffness_gradient * (2.0 * np.arange(n) / (n - 1) - 1.0)
+
+    def spring(self, n: int | None = None) -> PiecewiseLinearSpring:
+        """The Fig. 17 spring, with the per-joint gradient scale when ``n`` is given.
+
+        Per-joint rates or breaks give a spring with breaks (n, 2), rates (n, 3).
+        """
+        scale = 1.0 if n is None else self.joint_scale(n)
+        if self.n_per_joint is None:
+            return friction_spring(self.k_lin, self.k_mid, self.k_stop, self.theta_mid, self.theta_stop, scale)
+        m = self.n_per_joint
+        if n is not None and n != m:
+            raise ValueError(f"per-joint friction parameters are given for {m} joints, the geometry has {n}")
+        col = lambda v: np.broadcast_to(np.asarray(v, dtype=float), (m,))  # noqa: E731
+        breaks = np.stack([col(self.theta_mid), col(self.theta_stop)], axis=-1)
+        rates = np.stack([col(self.k_lin), col(self.k_mid), col(self.k_stop)], axis=-1)
+        return PiecewiseLinearSpring(breaks, rates, scale)
+
+    def joint_spring(self, geom: Geometry) -> PiecewiseLinearSpring:
+        """The spring of every joint of ``geom`` (breaks (n, 2), rates (n, 3), scale (n,)).
+
+        The rates law (:meth:`spring`) or the material law
+        (:func:`notchfit.springs.material_spring`), with the gradient scale. The
+        spring acts on the deflection from the rest angle, ``θ_j - θ0_j``.
+        """
+        n = geom.n_joints
+        if self.spring_law == "material":
+            sp = material_spring(geom, self.E_lin, self.E_se, self.strain_lower, self.stop_ratio)
+            return sp.with_scale(self.joint_scale(n))
+        sp = self.spring(n)
+        b = np.broadcast_to(sp.breaks, (n, 2))
+        r = np.broadcast_to(sp.rates, (n, 3))
+        return PiecewiseLinearSpring(b, r, sp.scale)
+
+    def joint_damping(self, spring: PiecewiseLinearSpring) -> np.ndarray:
+        """``b_j`` [N m s/rad] (n,): ``τ_b k_j`` or the absolute ``b`` (see ``damping_time``)."""
+        tau = self.damping_time
+        if tau == 0.0 and self.spring_law == "material":
+            tau = DEFAULT_DAMPING_TIME
+        n = spring.rates.shape[0]
+        if tau == 0.0:
+            return np.full(n, self.b)
+        return tau * (spring.rates[:, 0] * np.broadcast_to(spring.scale, (n,)))
+
+    def replace(self, **changes) -> "FrictionParams":
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        """``{field: value}`` (SI): the seed model's fields, and the real-tube fields
+        (laws, damping time, material) where they differ from their defaults.
+        Per-joint values are lists."""
+        default = FrictionParams()
+        out = {}
+        for f in PARAM_KEYS:
+            v = getattr(self, f)
+            if f in _SEED_KEYS or v != getattr(default, f):
+                out[f] = list(v) if isinstance(v, tuple) else v
+        return out
+
+    def joint_table(self, geom: Geometry) -> np.ndarray:
+        """The kernels' per-joint table (``_friction_kernels.J_*`` rows, n columns), read-only.
+
+        Spring rates, breaks and scale (:meth:`joint_spring`), damping
+        (:meth:`joint_damping`), rest angles ``θ0_j`` and the moment arms of the
+        right and left tendons about each joint's bending axis
+        (:meth:`Geometry.moment_arms`). Cached per (parameters, geometry).
+        """
+        return _joint_table(self, geom)
+
+    def _build_joint_table(self, geom: Geometry) -> np.ndarray:
+        sp = self.joint_spring(geom)
+        n = geom.n_joints
+        J = np.empty((_k.N_J, n))
+        J[_k.J_K1], J[_k.J_K2], J[_k.J_K3] = sp.rates[:, 0], sp.rates[:, 1], sp.rates[:, 2]
+        J[_k.J_TM], J[_k.J_TS] = sp.breaks[:, 0], sp.breaks[:, 1]
+        J[_k.J_S] = np.broadcast_to(sp.scale, (n,))
+        J[_k.J_B] = self.joint_damping(sp)
+        J[_k.J_TH0] = geom.rest_angles
+        J[_k.J_AR], J[_k.J_AL] = geom.moment_arms(+1), geom.moment_arms(-1)
+        return readonly(J)
+
+    def packed(self, geom: Geometry, table: np.ndarray | None = None) -> np.ndarray:
+        """The kernels' parameter vector (``_friction_kernels.P_*``).
+
+        The spring and damping entries hold joint 1's values; ``P_UNI`` says
+        whether every joint has the same law and damping, ``P_ARMU`` whether
+        both tendons have one moment arm ``P_RX`` at every joint (the seed tube).
+        """
+        J = self.joint_table(geom) if table is None else table
+        par = np.zeros(_k.N_PAR)
+        par[_k.P_K1], par[_k.P_K2], par[_k.P_K3] = J[_k.J_K1, 0], J[_k.J_K2, 0], J[_k.J_K3, 0]
+        par[_k.P_TM], par[_k.P_TS], par[_k.P_B] = J[_k.J_TM, 0], J[_k.J_TS, 0], J[_k.J_B, 0]
+        par[_k.P_MUD], par[_k.P_MUS], par[_k.P_VTHR] = self.mu_d, self.mu_s, self.v_thr
+        par[_k.P_BETA], par[_k.P_H] = self.proximal_beta, self.hysteresis_torque
+        par[_k.P_FX], par[_k.P_FZ] = self.tip_force_x, self.tip_force_z
+        rows = [_k.J_K1, _k.J_K2, _k.J_K3, _k.J_TM, _k.J_TS, _k.J_B]
+        par[_k.P_UNI] = float(np.all(J[rows] == J[rows, :1]))
+        arms = J[[_k.J_AR, _k.J_AL]]
+        par[_k.P_ARMU] = float(np.all(arms == arms[0, 0]))
+        par[_k.P_RX] = arms[0, 0]
+        par[_k.P_LAW] = _k.LAW_CAPSTAN if self.friction_law == "capstan" else _k.LAW_CHANNEL
+        pitches = geom.pitches
+        if (self.tip_force_x != 0.0 or self.tip_force_z != 0.0) and (
+                not np.all(pitches == pitches[0]) or geom.backbone != "axis"):
+            raise ValueError("a tip force needs equal joint spacings and backbone = 'axis' "
+                             "(the tip-load torques of the section backbone come with its kinematics)")
+        par[_k.P_P] = pitches[0]
+        return par
+
+
+@functools.lru_cache(maxsize=64)
+def _joint_table(params: FrictionParams, geom: Geometry) -> np.ndarray:
+    return params._build_joint_table(geom)
+
+
+@functools.lru_cache(maxsize=64)
+def _kernel_inputs(params: FrictionParams, geom: Geometry) -> tuple[np.ndarray, np.ndarray]:
+    """The kernels' per-joint table and parameter vector (read-only, cached)."""
+    J = params.joint_table(geom)
+    return J, readonly(params.packed(geom, J))
+
+
+@functools.lru_cache(maxsize=1)
+def _paper_params() -> FrictionParams:
+    return FrictionParams()
+
+
+def default_params(geom: Geometry) -> FrictionParams:
+    """The model a geometry gets when none is given.
+
+    The seed paper's parameters (Sec. IV-B) for a tube bending about its axis;
+    for a section backbone (a real asymmetric-notch tube) the material law from
+    its section (:func:`notchfit.springs.material_spring`, damping as a time
+    constant), and for a tendon free in the lumen the capstan law.
+    """
+    changes = {}
+    if geom.backbone == "section" and geom.inner_radius is not None:
+        changes["spring_law"] = "material"
+    if geom.tendon_path == "lumen":
+        changes["friction_law"] = "capstan"
+    return _paper_params().replace(**changes) if changes else _paper_params()
+
+
+def _number(name: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+        raise ValueError(f"friction parameter {name} must be a number, got {v!r}")
+    v = float(v)
+    if not math.isfinite(v):
+        raise ValueError(f"friction parameter {name} must be finite, got {v}")
+    return v
+
+
+
+
+# =============================================================================
+# parameter files (the mapping of model.toml; notchfit.io reads and writes the file)
+# =============================================================================
+def params_from_mapping(data: dict, origin: str = "<dict>") -> FrictionParams:
+    """Friction parameters from a parameter-file mapping (keys with units, :data:`PARAM_KEYS`).
+
+    Parameters
+    ----------
+    data : dict
+        Missing keys take the paper's values; a ``metadata`` table is ignored.
+        Plain field names (``k_lin``) are accepted too.
+    origin : str
+        Where the mapping came from, at the start of every message.
+
+    Returns
+    -------
+    FrictionParams
+
+    Raises
+    ------
+    ValueError
+        ``"<origin>: <problem>"`` for an unknown key, a key given twice, a
+        non-number or an invalid value.
+    """
+    by_key = {v: k for k, v in PARAM_KEYS.items()}
+    kw = {}
+    for key, val in data.items():
+        if key == "metadata" and isinstance(val, dict):
+            continue
+        field = by_key.get(key, key if key in PARAM_KEYS else None)
+        if field is None:
+            raise ValueError(f"{origin}: unknown friction parameter {key!r} "
+                             f"(known: {', '.join(PARAM_KEYS.values())})")
+        if field in kw:
+            raise ValueError(f"{origin}: parameter {field} given twice")
+        kw[field] = _mapping_value(field, key, val, origin)
+    try:
+        return FrictionParams(**kw)
+    except ValueError as exc:
+        raise ValueError(f"{origin}: {exc}") from None
+
+
+def _mapping_value(field: str, key: str, val, origin: str):
+    """One parameter-file value: a string law, a number, or a list for a per-joint field."""
+    if field in ("spring_law", "friction_law"):
+        if not isinstance(val, str):
+            raise ValueError(f"{origin}: {key} must be a string, got {val!r}")
+        return val
+    if field in PER_JOINT_FIELDS and isinstance(val, list):
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in val):
+            raise ValueError(f"{origin}: {key} must be a number or a list of numbers, got {val!r}")
+        return tuple(float(v) for v in val)
+    if isinstance(val, bool) or not isinstance(val, (int, float)):
+        raise ValueError(f"{origin}: {key} must be a number, got {val!r}")
+    return float(val)
+
+
+def params_to_mapping(params: FrictionParams) -> dict:
+    """``{file key: value}`` of ``params`` (SI keys with units, :data:`PARAM_KEYS`), in file order.
+
+    The seed model's keys always; the real-tube keys (laws, damping time,
+    material) only where they differ from their defaults, so a seed model file
+    is as before. Per-joint values are lists.
+    """
+    return {PARAM_KEYS[f]: v for f, v in params.to_dict().items()}
