@@ -661,19 +661,10 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
                       experiments=tuple(exps), truth_solver=truth_method)
 
 
-def _projector_geometry(geom: Geometry) -> Geometry:
-    """The geometry as the notch-point projector takes it: equal spacings written as a list
-    become the one number they are (the same tube; the projector of this version takes a
-    scalar spacing)."""
-    if isinstance(geom.p, tuple) and len(set(geom.p)) == 1:
-        return geom.replace(p=geom.p[0])
-    return geom
-
-
 def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp) -> SynthExperiment:
     """Measurement model: points in the plane frame (+warp, noise, occlusion), noisy tensions."""
     theta = np.asarray(sim.theta, dtype=float)
-    true_pts = to_plane(notch_points(theta, _projector_geometry(geom)), plane["tx"], plane["ty"], plane["phi"],
+    true_pts = to_plane(notch_points(theta, geom), plane["tx"], plane["ty"], plane["phi"],
                         plane["mirror"])
     pts = true_pts
     if warp is not None:
