@@ -447,6 +447,10 @@ def scan_study(path, *, missing_images: str = "error") -> StudyScan:
                              path=path)
     if is_experiment_dir(path):
         return StudyScan([read_experiment(path, missing_images=missing_images)], {}, [], False)
+    held = [f for f in _EXPERIMENT_FILES if (path / f).exists()]
+    if held:
+        raise InputFileError(f"{path}: not an experiment folder: no experiment.toml (the folder holds "
+                             f"{', '.join(held)})", path=path)
     exps, problems, ignored = [], {}, []
     for folder in _subfolders(path):
         _scan_one(folder, missing_images, problems, exps, ignored)
