@@ -10,7 +10,14 @@ A tqdm progress bar is shown on a terminal (disabled when stderr is not a
 TTY).
 
 ``func`` must be picklable (a module-level function) for ``jobs>1`` and for
-Dask. Image batches load their images with :func:`notchfit.io.load_image`, which turns a
+Dask.
+
+Interrupts: worker processes ignore SIGINT (Ctrl-C reaches the whole
+process group; the parent decides) and die on SIGTERM. When the parent is
+interrupted (``KeyboardInterrupt``, :class:`notchfit.io.interrupts.Interrupted`)
+or fails, the pool's queued items are cancelled and its workers terminated
+before the exception goes on, and a Dask run cancels its futures and closes
+its client: no orphan process is left (docs/reliability.md). Image batches load their images with :func:`notchfit.io.load_image`, which turns a
 missing or unreadable file into an exception with the reason.
 
 Example (the image helper's ``detect`` calls it the same way)::
@@ -25,6 +32,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing
 import os
+import signal
 import sys
 import threading
 import time
@@ -35,7 +43,7 @@ from typing import Any, Callable, Sequence
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
-__all__ = ["BatchResult", "ItemResult", "run_batch", "single_threaded_worker"]
+__all__ = ["BatchResult", "ItemResult", "run_batch", "single_threaded_worker", "worker_init"]
 
 
 def single_threaded_worker(threads: int = 1) -> None:
@@ -50,6 +58,29 @@ def single_threaded_worker(threads: int = 1) -> None:
     child whose parent already used that pool never returns.
     """
     threadpool_limits(limits=threads)
+
+
+def worker_init() -> None:
+    """Initializer of the pool's worker processes: Ctrl-C is the parent's to handle (ignored here),
+    SIGTERM ends the worker (the default action, not a handler inherited through fork), one
+    thread per native library (:func:`single_threaded_worker`)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    single_threaded_worker()
+
+
+def _stop_pool(pool: cf.ProcessPoolExecutor) -> None:
+    """Cancel what is queued and terminate the workers now (the parent was interrupted or failed)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=5)
+        if p.is_alive():
+            p.kill()
+            p.join(timeout=5)
 
 
 @dataclass(frozen=True)
@@ -204,7 +235,7 @@ def _run_pool(func, items, jobs, desc, progress, ctx):
     todo = list(range(len(items)))[::-1]
     with _progress(len(items), desc, progress) as bar:
         while todo:
-            pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=single_threaded_worker)
+            pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=worker_init)
             inflight: dict = {}
             broken = False
             try:
@@ -226,6 +257,9 @@ def _run_pool(func, items, jobs, desc, progress, ctx):
                         bar.update(1)
                     if broken:
                         break
+            except BaseException:
+                _stop_pool(pool)
+                raise
             finally:
                 pool.shutdown(wait=True, cancel_futures=True)
             if broken:
@@ -240,7 +274,7 @@ def _run_pool(func, items, jobs, desc, progress, ctx):
 
 
 def _run_isolated(func, item, ctx):
-    with cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=single_threaded_worker) as pool:
+    with cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=worker_init) as pool:
         try:
             return pool.submit(_call, func, item).result()
         except BrokenProcessPool:
@@ -248,6 +282,9 @@ def _run_isolated(func, item, ctx):
                                  "(a crash in native code, or out of memory)", 0.0)
         except Exception as exc:
             return (False, None, _describe(exc), 0.0)
+        except BaseException:
+            _stop_pool(pool)
+            raise
 
 
 def _run_dask(func, items, scheduler, desc, progress):
@@ -260,6 +297,7 @@ def _run_dask(func, items, scheduler, desc, progress):
         client = Client(scheduler) if own else scheduler
     except OSError as exc:
         raise ValueError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None
+    futures = []
     try:
         futures = [client.submit(_call, func, it, pure=False) for it in items]
         index = {f.key: i for i, f in enumerate(futures)}
@@ -273,6 +311,12 @@ def _run_dask(func, items, scheduler, desc, progress):
                     out[i] = (False, None, _describe(exc), 0.0)
                 bar.update(1)
         return out
+    except BaseException:
+        try:                        # interrupted: nothing of this run keeps running on the cluster
+            client.cancel(futures)
+        except Exception:  # noqa: BLE001 - a lost scheduler: the original exception matters
+            pass
+        raise
     finally:
         if own:
             client.close()

@@ -13,7 +13,10 @@ commands. The listing (``notchfit --help``) reads ``NAME``, ``HELP`` and
 ``ORDER`` from the modules' source, and :func:`main` imports only the command
 it runs, so that start-up does not pay for every command's libraries. Exit
 codes: 0 ok, 1 some items failed (listed by the command), 2 usage or input
-error (a clear message on stderr).
+error (one line on stderr naming the file and the problem), 130/143
+interrupted by Ctrl-C/SIGTERM, 141 a closed pipe (``notchfit figure --list |
+head -1``) — docs/reliability.md. ``--debug`` (or ``NOTCHFIT_DEBUG=1``)
+shows the traceback of an error.
 """
 
 from __future__ import annotations
@@ -22,11 +25,14 @@ import argparse
 import ast
 import importlib
 import importlib.util
+import os
 import pkgutil
 import sys
 
 from . import __version__, commands
-from .commands._common import EXIT_INPUT_ERROR, add_command, execute
+from .commands._common import (EXIT_BROKEN_PIPE, EXIT_INPUT_ERROR, OneLineParser, add_command, debug_enabled,
+                               error_exit, execute)
+from .io.interrupts import handle_interrupts
 
 
 def _source_metadata(modname: str) -> dict | None:
@@ -87,13 +93,15 @@ def build_parser(load=None) -> argparse.ArgumentParser:
         Commands whose modules are imported and whose options are added; the
         others get a listing entry only. Default: every command.
     """
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="notchfit",
         description="Kinematics, friction simulation, calibrated image processing and "
                     "model diagnosis for cable-driven notched-tube manipulators.",
         epilog="Run `notchfit COMMAND --help` for a command's options and examples.",
     )
     parser.add_argument("--version", action="version", version=f"notchfit {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="show the traceback of an error (also NOTCHFIT_DEBUG=1)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for _, name, help_, modname in _command_specs():
         if load is None or name in load:
@@ -103,15 +111,42 @@ def build_parser(load=None) -> argparse.ArgumentParser:
     return parser
 
 
+def _requested_command_name(argv) -> str | None:
+    return _requested_command([a for a in argv if a != "--debug"])
+
+
+def _quiet_stdout() -> None:
+    """Send what is left of stdout to /dev/null (the reader of a pipe is gone; no second error at exit)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv=None) -> int:
-    """Run ``notchfit`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    """Run ``notchfit`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code.
+
+    SIGINT and SIGTERM are handled while the command runs (exit 130/143 and
+    one line, :mod:`notchfit.io.interrupts`); an error before the command
+    starts (an unimportable module) is one line as well.
+    """
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
-    parser = build_parser(load={_requested_command(argv)})
-    args = parser.parse_args(argv)
-    if not getattr(args, "_run", None):
-        parser.print_help()
-        return EXIT_INPUT_ERROR
-    return execute(args)
+    name = _requested_command_name(argv) or "CLI"
+    with handle_interrupts():
+        try:
+            parser = build_parser(load={name})
+            args = parser.parse_args(argv)
+            if not getattr(args, "_run", None):
+                parser.print_help()
+                return EXIT_INPUT_ERROR
+            code = execute(args)
+            sys.stdout.flush()
+        except (Exception, KeyboardInterrupt) as exc:  # noqa: BLE001 - start-up and flush errors
+            code = error_exit(name, exc, debug=debug_enabled())
+    if code == EXIT_BROKEN_PIPE:
+        _quiet_stdout()
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

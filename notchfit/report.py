@@ -459,6 +459,18 @@ def summary_lines(out_dir) -> list[str]:
 
 
 # ----------------------------------------------------------------------------- build
+def _refuse_input_folder(out_dir: Path) -> None:
+    """An experiment or study folder is input data, not an output folder: refuse it with a hint."""
+    try:
+        subs = [p for p in out_dir.iterdir() if p.is_dir() and not p.name.startswith(".")]
+    except OSError:
+        subs = []
+    if nio.is_experiment_dir(out_dir) or any(nio.is_experiment_dir(p) for p in subs):
+        raise ValueError(f"{out_dir}: is an input study or experiment (it holds experiment.toml), not an "
+                         "output folder; run `notchfit report OUT --study "
+                         f"{out_dir}` on the --out folder of fit/simulate/diagnose")
+
+
 def build_report(out_dir, *, study=None, title: str | None = None, filename: str = "report.html",
                  force: bool = False) -> Path:
     """Write ``out_dir/report.html``: one self-contained HTML file.
@@ -480,6 +492,7 @@ def build_report(out_dir, *, study=None, title: str | None = None, filename: str
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         raise FileNotFoundError(f"{out_dir}: output folder not found")
+    _refuse_input_folder(out_dir)
     target = out_dir / filename
     if target.exists() and not force:
         raise FileExistsError(f"{target}: exists; use --force to replace it")

@@ -26,11 +26,12 @@ def _check_image_batch(res, paths):
     assert [r.key for r in res.items] == [p.name for p in paths]
     assert res.n_ok == 3 and [r.ok for r in res.items] == [True, False, True, False, True]
     assert res.items[0].value["width"] == 60 and res.items[4].value["height"] == 40
-    assert res.items[1].error.startswith("ValueError: corrupt or unreadable image")
-    assert res.items[3].error.startswith("FileNotFoundError: image missing")
+    # the readers' one error type (notchfit.io.InputFileError; a missing file is InputFileNotFoundError)
+    assert res.items[1].error.startswith("InputFileError: corrupt or unreadable image")
+    assert res.items[3].error.startswith("InputFileNotFoundError: image missing")
     s = res.summary("detect")
     assert s.startswith("detect: 3 of 5 ok")
-    assert "img1.png: ValueError: corrupt" in s and "gone.png: FileNotFoundError: image missing" in s
+    assert "img1.png: InputFileError: corrupt" in s and "gone.png: InputFileNotFoundError: image missing" in s
 
 
 @pytest.mark.parametrize("jobs", [1, 2])

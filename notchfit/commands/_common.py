@@ -7,28 +7,122 @@ cycle.
 
 Exit codes: 0 ok, :data:`EXIT_ITEMS_FAILED` (1) some items failed (listed by
 the command), :data:`EXIT_INPUT_ERROR` (2) a usage or input error (a one-line
-message on stderr).
+message on stderr), 128 + the signal number when interrupted (130 Ctrl-C,
+143 SIGTERM). :func:`error_exit` is the one place that maps an exception to
+its message and exit code (docs/reliability.md); ``--debug`` or
+``NOTCHFIT_DEBUG=1`` adds the traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
+import os
+import signal
 import sys
+import traceback
 from pathlib import Path
 
-__all__ = ["EXIT_INPUT_ERROR", "EXIT_ITEMS_FAILED", "INPUT_ERRORS", "InputError", "add_batch_options",
-           "add_command", "add_points_option", "call", "execute"]
+from ..io.errors import InputFileError
+from ..io.interrupts import received_signal
+
+__all__ = ["EXIT_INPUT_ERROR", "EXIT_ITEMS_FAILED", "INPUT_ERRORS", "InputError", "OneLineParser",
+           "add_batch_options", "add_command", "add_points_option", "call", "check_out_dir",
+           "debug_enabled", "error_exit", "execute", "list_failures"]
 
 EXIT_ITEMS_FAILED = 1
 EXIT_INPUT_ERROR = 2
+EXIT_BROKEN_PIPE = 128 + 13
 
 
 class InputError(Exception):
     """A usage or input problem that the user must fix (exit code 2)."""
 
 
-#: Exceptions that a command reports as ``notchfit NAME: error: ...`` with exit code 2.
-INPUT_ERRORS = (InputError, ValueError, FileNotFoundError, FileExistsError)
+#: Exceptions that a command reports as ``notchfit NAME: error: ...`` with exit code 2 (their
+#: message is the explanation). Every other exception is reported too, in one line with its type.
+INPUT_ERRORS = (InputError, InputFileError, ValueError, FileNotFoundError, FileExistsError)
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr (exit code 2)."""
+
+    def error(self, message):
+        self.exit(EXIT_INPUT_ERROR, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
+
+
+def debug_enabled(args=None) -> bool:
+    """``--debug`` was given or ``NOTCHFIT_DEBUG`` is set (not empty or 0): show tracebacks."""
+    return bool(getattr(args, "debug", False)) or os.environ.get("NOTCHFIT_DEBUG", "") not in ("", "0")
+
+
+def _interrupt_signal(exc: BaseException) -> int | None:
+    """The signal behind ``exc``: one received during the run, or a KeyboardInterrupt in its chain."""
+    sig = received_signal()
+    if sig is not None:
+        return sig
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, KeyboardInterrupt):
+            return getattr(exc, "signum", signal.SIGINT)
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _os_message(exc: OSError) -> str:
+    what = f"{exc.filename}: " if exc.filename else ""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"{what}no space left on the device (disk full or quota reached); nothing of this run was kept"
+    if exc.filename and exc.strerror:
+        return f"{what}{exc.strerror[0].lower()}{exc.strerror[1:]}"
+    return str(exc)
+
+
+def _message(exc: BaseException) -> str:
+    """The one-line explanation of ``exc``."""
+    if isinstance(exc, OSError) and not isinstance(exc, InputFileError) and exc.errno is not None:
+        text = _os_message(exc)
+    elif isinstance(exc, INPUT_ERRORS):
+        text = str(exc)
+    elif isinstance(exc, MemoryError):
+        text = "out of memory (an input too large for this machine?)"
+    elif isinstance(exc, RecursionError):
+        text = "input nested too deeply (RecursionError)"
+    else:
+        text = f"unexpected {type(exc).__name__}: {exc} (a notchfit bug or an unchecked input; " \
+               "rerun with --debug for the traceback)"
+    lines = [ln.strip() for ln in str(text).splitlines() if ln.strip()]
+    return "; ".join(lines) or type(exc).__name__
+
+
+def error_exit(command: str, exc: BaseException, *, debug: bool = False) -> int:
+    """Report ``exc`` raised by command ``command`` on stderr in one line; returns the exit code.
+
+    ================================  ===========  ==========================================
+    exception                         exit code    message
+    ================================  ===========  ==========================================
+    SIGINT / SIGTERM (also a numba    130 / 143    ``interrupted (SIGINT); ...``
+    SystemError caused by one)
+    BrokenPipeError (``| head``)      141          none
+    anything else                     2            its message (input errors), or its type and
+                                                   message (OS errors name the file)
+    ================================  ===========  ==========================================
+    """
+    if isinstance(exc, SystemExit):
+        raise exc
+    if debug:
+        traceback.print_exception(exc)
+    sig = _interrupt_signal(exc)
+    if sig is not None:
+        name = signal.Signals(sig).name
+        print(f"notchfit {command}: interrupted ({name}); the outputs of this run were discarded, "
+              "earlier outputs are unchanged", file=sys.stderr)
+        return 128 + int(sig)
+    if isinstance(exc, BrokenPipeError):
+        return EXIT_BROKEN_PIPE
+    print(f"notchfit {command}: error: {_message(exc)}", file=sys.stderr)
+    return EXIT_INPUT_ERROR
 
 
 def add_command(subparsers, mod) -> argparse.ArgumentParser:
@@ -48,21 +142,29 @@ def add_command(subparsers, mod) -> argparse.ArgumentParser:
     kw = dict(description=getattr(mod, "DESCRIPTION", mod.HELP),
               formatter_class=argparse.RawDescriptionHelpFormatter)
     if subparsers is None:
-        parser = argparse.ArgumentParser(prog=f"notchfit {mod.NAME}", **kw)
+        parser = OneLineParser(prog=f"notchfit {mod.NAME}", **kw)
     else:
         parser = subparsers.add_parser(mod.NAME, help=mod.HELP, **kw)
     mod.add_arguments(parser)
+    # also accepted after the command; SUPPRESS keeps a global `notchfit --debug CMD` from being reset
+    parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show the traceback of an error (also NOTCHFIT_DEBUG=1)")
     parser.set_defaults(_run=mod.run, command=mod.NAME)
     return parser
 
 
 def execute(args) -> int:
-    """Run the parsed command ``args._run(args)``; an input error becomes a message and exit code 2."""
+    """Run the parsed command ``args._run(args)``; any exception becomes one line and an exit code.
+
+    See :func:`error_exit` (exit 2 for an input error, 130/143 when
+    interrupted, 141 on a broken pipe).
+    """
     try:
         return int(args._run(args) or 0)
-    except INPUT_ERRORS as exc:
-        print(f"notchfit {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_INPUT_ERROR
+    except Exception as exc:  # noqa: BLE001 - the one place that maps exceptions to exit codes
+        return error_exit(args.command, exc, debug=debug_enabled(args))
+    except KeyboardInterrupt as exc:
+        return error_exit(args.command, exc, debug=debug_enabled(args))
 
 
 def call(mod, argv) -> int:
@@ -84,3 +186,38 @@ def add_points_option(parser, *aliases, help: str) -> None:
     ``"--detections"``). The value is ``args.points`` (a Path or None).
     """
     parser.add_argument("--points", *aliases, dest="points", type=Path, default=None, metavar="DIR", help=help)
+
+
+def check_out_dir(out, *inputs) -> Path:
+    """Check ``--out`` before anything is read or written; returns it as a Path.
+
+    Refused (:class:`InputError`): ``--out`` equal to or inside an input
+    folder (outputs would mix with the raw data, and a study would see the
+    output folder as a broken experiment), a file where the folder should be,
+    or a path through a file (``afile/x``).
+    """
+    out = Path(out)
+    for parent in [out, *out.parents]:
+        if parent.exists():
+            if not parent.is_dir():
+                what = "is a file" if parent == out else f"cannot be created: {parent} is a file"
+                raise InputError(f"--out {out}: {what}, not a folder")
+            break
+    target = out.resolve()
+    for inp in inputs:
+        if inp is None:
+            continue
+        src = Path(inp).resolve()
+        if src.is_dir() and (target == src or src in target.parents):
+            where = "is the input folder" if target == src else f"is inside the input folder {inp}"
+            raise InputError(f"--out {out} {where}; outputs would mix with the data: choose a folder "
+                             "outside it")
+    return out
+
+
+def list_failures(failed: dict, *, limit: int = 20) -> None:
+    """Print ``  FAILED key: reason`` for each failure (stdout; the command exits 1)."""
+    for k, v in list(failed.items())[:limit]:
+        print(f"  FAILED {k}: {v}")
+    if len(failed) > limit:
+        print(f"  ... and {len(failed) - limit} more")

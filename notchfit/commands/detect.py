@@ -9,7 +9,7 @@ import pandas as pd
 
 from .. import io
 from ..batch import run_batch
-from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options
+from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options, check_out_dir, list_failures
 
 NAME = "detect"
 ORDER = 30
@@ -68,9 +68,10 @@ def detect_one(item: dict) -> dict:
 
 
 def run(args) -> int:
-    exps = io.read_study(args.input, missing_images="keep")
-    study = not io.is_experiment_dir(args.input)
-    failed: dict[str, str] = {}
+    check_out_dir(args.out, args.input)
+    scan = io.scan_study(args.input, missing_images="keep")
+    exps, study = scan.experiments, scan.study
+    failed: dict[str, str] = dict(scan.problems)
     plan = []           # (experiment, items, keys)
     for e in exps:
         if e.image_paths is None:
@@ -124,6 +125,5 @@ def run(args) -> int:
     n_done = sum(r.ok for r in res.items)
     print(f"detect: {n_done} of {n_total} images processed ({n_ok_images} with every point ok) "
           f"in {res.seconds:.1f} s; outputs in {args.out}")
-    for k, v in failed.items():
-        print(f"  FAILED {k}: {v}")
+    list_failures(failed, limit=len(failed))
     return EXIT_ITEMS_FAILED if failed else 0

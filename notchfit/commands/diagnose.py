@@ -9,7 +9,9 @@ from .. import io
 from ..diagnosis import CAUSES, Diagnosis, diagnose_study
 from ..figures.diagnosis import write_diagnosis_figures
 from ..friction import save_params
-from ._common import InputError, add_batch_options, add_points_option
+from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
+                      list_failures)
+from ._points import points_file, points_problem
 
 NAME = "diagnose"
 ORDER = 60
@@ -77,14 +79,22 @@ def write_diagnosis(diag: Diagnosis, out_dir, *, figures: bool = True) -> dict:
     return data
 
 
-def _experiments(args) -> list:
-    """The study's experiments, each with notch points (its own, or detect's)."""
-    exps = io.read_study(args.study, missing_images="keep")
-    exps, problems = io.attach_detections(exps, args.points if args.points is not None else args.out,
-                                          require=False)
+def _experiments(args) -> tuple[list, dict]:
+    """The study's experiments, each with notch points (its own, or detect's), and the sub-folders
+    that are not valid experiments ``{name: reason}`` (listed; the run goes on without them).
+
+    An experiment without usable notch points is an input error naming it and its points file.
+    """
+    scan = io.scan_study(args.study, missing_images="keep")
+    points_dir = args.points if args.points is not None else args.out
+    exps, problems = io.attach_detections(scan.experiments, points_dir, require=False)
     if problems:
         raise InputError("no notch points for " + "; ".join(f"{k}: {v}" for k, v in problems.items()))
-    return exps
+    bad = {e.name: points_problem(e, points_file(e, points_dir), "the diagnosis") for e in exps}
+    bad = {k: v for k, v in bad.items() if v is not None}
+    if bad:
+        raise InputError("; ".join(f"experiment {k}: {v}" for k, v in bad.items()))
+    return exps, scan.problems
 
 
 def run(args) -> int:
@@ -94,7 +104,8 @@ def run(args) -> int:
         raise InputError(f"unknown cause(s) {', '.join(bad)}; known: {', '.join(CAUSES)}")
     if args.jobs < 0:
         raise InputError("--jobs must be at least 0 (0: one per CPU)")
-    exps = _experiments(args)
+    check_out_dir(args.out, args.study)
+    exps, unread = _experiments(args)
     with io.OutputRun(args.out, outputs=list(OUTPUTS), force=args.force, name="diagnose") as run_:
         diag = diagnose_study(exps, jobs=args.jobs, scheduler=args.scheduler, seed=args.seed,
                               causes=causes, max_folds=args.max_folds,
@@ -105,4 +116,8 @@ def run(args) -> int:
     print(f"held-out rms: baseline {g['baseline']:.3f} mm, extended {g['extended']:.3f} mm "
           f"({g['reduction_pct']:.1f}% lower)")
     print(f"wrote {Path(args.out) / 'diagnosis.json'}")
+    if unread:
+        print(f"diagnosed {len(exps)} experiments; {len(unread)} sub-folder(s) of the study left out:")
+        list_failures(unread, limit=len(unread))
+        return EXIT_ITEMS_FAILED
     return 0

@@ -7,6 +7,8 @@ import tempfile
 from pathlib import Path
 
 from ..figures import discover
+from ..io import atomic_write
+from ..io.interrupts import deferred_interrupts
 from ._common import EXIT_ITEMS_FAILED, InputError
 
 NAME = "figure"
@@ -61,9 +63,9 @@ def run(args) -> int:
             clash = [str(t) for t in targets if t.exists()]
             if clash and not args.force:
                 raise FileExistsError(f"{', '.join(clash)} already exist(s); use --force to overwrite")
-            for src, dst in zip(written, targets):
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                shutil.move(str(src), dst)
+            with deferred_interrupts():     # a figure's PNG and CSV arrive together, each file whole
+                for src, dst in zip(written, targets):
+                    atomic_write(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
             print(f"{name}: " + ", ".join(str(t) for t in targets))
     if failed:
         print(f"failed: {', '.join(failed)}")

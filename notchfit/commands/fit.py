@@ -12,7 +12,9 @@ from ..figures.fitting import experiment_figures, fig12_sample_index
 from ..fitting import failed_fits, fit_experiment, fit_summary, fits_table, pointwise_table
 from ..shapes import get_model
 from ..units import MM
-from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option
+from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
+                      list_failures)
+from ._points import points_file, points_problem
 
 NAME = "fit"
 ORDER = 40
@@ -106,12 +108,30 @@ def _check_models(models, n_joints: int) -> None:
             raise InputError(f"--models: {exc}") from None
 
 
+def _fittable(args, models) -> tuple[list, dict, bool]:
+    """The experiments to fit, ``{name: reason}`` for those that cannot be, and whether it is a study."""
+    scan = io.scan_study(args.input)
+    _check_models(models, scan.experiments[0].geometry.n_joints)
+    points_dir = args.points if args.points is not None else args.out
+    exps, problems = io.attach_detections(scan.experiments, points_dir, require=False)
+    problems = {**scan.problems, **problems}
+    what = f"fitting --models {','.join(models)}"
+    keep = []
+    for e in exps:
+        why = points_problem(e, points_file(e, points_dir), what)
+        if why is None:
+            keep.append(e)
+        else:
+            problems[e.name] = why
+    if not keep:
+        raise InputError("nothing to fit: " + "; ".join(f"{k}: {v}" for k, v in problems.items()))
+    return keep, problems, scan.study
+
+
 def run(args) -> int:
     models = _model_names(args.models)
-    exps = io.read_study(args.input)
-    _check_models(models, exps[0].geometry.n_joints)
-    study = not io.is_experiment_dir(args.input)
-    exps, problems = io.attach_detections(exps, args.points if args.points is not None else args.out)
+    check_out_dir(args.out, args.input)
+    exps, problems, study = _fittable(args, models)
     sigma_cli = None if args.sigma_mm is None else args.sigma_mm * MM
     items = [{"points": e.points, "geometry": e.geometry, "models": models, "mirror": e.mirror,
               "sigma": sigma_cli if sigma_cli is not None else e.point_sigma, "loss": args.loss,
@@ -153,8 +173,7 @@ def _print_summary(res, n_total, failed, bad_samples, out):
                   f"over {row.n_samples} samples")
     n_ok = sum(r.ok for r in res.items)
     print(f"fit: {n_ok} of {n_total} experiments fitted in {res.seconds:.1f} s; outputs in {out}")
-    for k, v in failed.items():
-        print(f"  FAILED {k}: {v}")
+    list_failures(failed, limit=len(failed))
     for s in bad_samples[:20]:
         print(f"  FAILED {s}")
     if len(bad_samples) > 20:

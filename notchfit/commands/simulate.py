@@ -12,7 +12,7 @@ from ..batch import run_batch
 from ..comparison import compare_simulation, comparison_table
 from ..figures.friction import plot_fig18, plot_fig19
 from ..friction import FrictionParams, simulate, simulation_table
-from ._common import EXIT_ITEMS_FAILED, add_batch_options, add_points_option
+from ._common import EXIT_ITEMS_FAILED, add_batch_options, add_points_option, check_out_dir, list_failures
 
 NAME = "simulate"
 ORDER = 50
@@ -111,9 +111,10 @@ def _items(exps, params, args) -> list[dict]:
 def run(args) -> int:
     if args.method not in ("fast", "reference"):
         raise ValueError(f"--method must be fast or reference, got {args.method!r}")
+    check_out_dir(args.out, args.input)
     params = parse_params(args.model, args.param)
-    exps = io.read_study(args.input)
-    study = not io.is_experiment_dir(args.input)
+    scan = io.scan_study(args.input)
+    exps, study = scan.experiments, scan.study
     items = _items(exps, params, args)
     names = [e.name for e in exps]
     outputs = ["simulate_run.json"] + [str(io.experiment_output_dir("", n, study) / "simulation.csv")
@@ -121,7 +122,7 @@ def run(args) -> int:
     with io.OutputRun(args.out, outputs=outputs, force=args.force, name="simulate") as run_:
         res = run_batch(simulate_one, items, keys=names, jobs=args.jobs, scheduler=args.scheduler,
                         desc="simulate")
-        failed = {r.key: r.error for r in res.failures}
+        failed = {**scan.problems, **{r.key: r.error for r in res.failures}}
         for e, r in zip(exps, res.items):
             if not r.ok:
                 continue
@@ -140,11 +141,11 @@ def run(args) -> int:
                                            model_file=str(args.model) if args.model else None,
                                            method=args.method, experiments=names, failures=failed),
                              run_.path("simulate_run.json"))
-    _print_summary(exps, res, failed, args.out)
+    _print_summary(exps, res, failed, args.out, len(scan.problems))
     return EXIT_ITEMS_FAILED if failed else 0
 
 
-def _print_summary(exps, res, failed, out) -> None:
+def _print_summary(exps, res, failed, out, n_unread: int = 0) -> None:
     for e, r in zip(exps, res.items):
         if r.ok and "compare" in r.value:
             c = r.value["compare"]
@@ -154,6 +155,5 @@ def _print_summary(exps, res, failed, out) -> None:
             print(f"  {e.name:10s} prediction rms {txt} over {v.size} of {len(c)} samples")
         elif r.ok:
             print(f"  {e.name:10s} simulated ({len(r.value['table'])} samples; no measured points)")
-    print(f"simulate: {res.n_ok} of {len(exps)} experiments in {res.seconds:.1f} s; outputs in {out}")
-    for k, v in failed.items():
-        print(f"  FAILED {k}: {v}")
+    print(f"simulate: {res.n_ok} of {len(exps) + n_unread} experiments in {res.seconds:.1f} s; outputs in {out}")
+    list_failures(failed, limit=len(failed))

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..camera import DIST_LENGTHS, Board, CameraModel
 from ..units import MM
+from .errors import InputFileError, InputFileNotFoundError, read_input_bytes
 from .outputs import atomic_write
 from .resources import calibration_dir
 from .toml import TomlError, TomlFile, load_toml
@@ -35,8 +36,8 @@ def _board_path(source) -> Path:
     cand = folder / (path.name if path.suffix == ".toml" else path.name + ".toml")
     if not cand.is_file():
         known = sorted(p.stem for p in folder.glob("*.toml")) if folder.is_dir() else []
-        raise FileNotFoundError(f"board definition not found: {source} (shipped boards: "
-                                f"{', '.join(known) or 'none'})")
+        raise InputFileNotFoundError(f"board definition not found: {source} (shipped boards: "
+                                     f"{', '.join(known) or 'none'})", path=path)
     return cand
 
 
@@ -53,10 +54,20 @@ def _board_from_toml(doc: TomlFile) -> Board:
 
     def num(k):
         v = data[k]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-            raise doc.error(f"{k} must be a positive number, got {v!r}", k)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not 0 < v < 1e6:
+            raise doc.error(f"{k} must be a positive number of mm (below 1e6), got {v!r}", k)
         return float(v)
 
+    for k in ("squares_x", "squares_y"):
+        v = data[k]
+        if isinstance(v, bool) or not isinstance(v, int) or not 2 <= v <= 1000:
+            raise doc.error(f"{k} must be an integer from 2 to 1000, got {v!r}", k)
+    dictionary = data.get("dictionary")
+    if dictionary is not None and not (isinstance(dictionary, str) and dictionary.startswith("DICT_")):
+        raise doc.error(f"dictionary must be a cv2.aruco dictionary name such as DICT_5X5_100, "
+                        f"got {dictionary!r}", "dictionary")
+    if not isinstance(data.get("legacy", False), bool):
+        raise doc.error(f"legacy must be true or false, got {data['legacy']!r}", "legacy")
     try:
         return Board(name=str(data.get("name", doc.path.stem)), kind=str(kind),
                      squares_x=data["squares_x"], squares_y=data["squares_y"],
@@ -65,8 +76,8 @@ def _board_from_toml(doc: TomlFile) -> Board:
                      dictionary=data.get("dictionary"), legacy=bool(data.get("legacy", False)))
     except TomlError:
         raise
-    except ValueError as exc:
-        raise doc.error(str(exc)) from None
+    except (ValueError, TypeError, OverflowError, cv2.error) as exc:
+        raise doc.error(f"invalid board: {exc}") from None
 
 
 def load_board(source) -> Board:
@@ -138,15 +149,19 @@ def write_camera(model: CameraModel, path, *, extra: dict | None = None) -> Path
 
 
 def _open_storage(path: Path):
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)   # the error below is the message
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
         opened = fs.isOpened()
     except (cv2.error, SystemError) as exc:
         text = str(exc.__cause__ or exc).strip()
         msg = text.splitlines()[-1] if text else "parse error"
-        raise ValueError(f"{path}: not an OpenCV FileStorage camera file ({msg})") from None
+        raise InputFileError(f"{path}: not an OpenCV FileStorage camera file ({msg})", path=path) from None
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if not opened:
-        raise ValueError(f"{path}: not an OpenCV FileStorage camera file")
+        raise InputFileError(f"{path}: not an OpenCV FileStorage camera file", path=path)
     return fs
 
 
@@ -186,7 +201,7 @@ def _camera_from_storage(fs, path: Path) -> CameraModel:
     if d.size not in DIST_LENGTHS:
         raise ValueError(f"{path}: distortion_coefficients must hold 4, 5, 8, 12 or 14 values, got {d.size}")
     w, h = _number(fs, path, "image_width"), _number(fs, path, "image_height")
-    if w != int(w) or h != int(h) or w <= 0 or h <= 0:
+    if not (0 < w <= 1e6 and 0 < h <= 1e6) or w != int(w) or h != int(h):
         raise ValueError(f"{path}: image_width/image_height must be positive integers, got {w}, {h}")
     rms = _number(fs, path, "avg_reprojection_error", required=False)
     rv, tv = _matrix(fs, path, "plane_rvec", required=False), _matrix(fs, path, "plane_tvec", required=False)
@@ -217,17 +232,25 @@ def read_camera(path) -> CameraModel:
 
     Raises
     ------
-    FileNotFoundError
-        The file does not exist.
-    ValueError
-        Not an OpenCV FileStorage file, or a key missing or malformed
-        (the message names the file and the key).
+    InputFileNotFoundError
+        The file does not exist (also a ``FileNotFoundError``).
+    InputFileError
+        A folder, an unreadable file, not an OpenCV FileStorage file, or a
+        key missing or malformed (the message names the file and the key).
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"camera file not found: {path}")
+    try:
+        read_input_bytes(path, what="camera file")
+    except InputFileNotFoundError:
+        raise InputFileNotFoundError(f"camera file not found: {path}", path=path) from None
     fs = _open_storage(path)
     try:
         return _camera_from_storage(fs, path)
+    except InputFileError:
+        raise
+    except (ValueError, TypeError, OverflowError, cv2.error, SystemError) as exc:
+        msg = str(exc).strip().splitlines()
+        text = msg[-1] if msg else type(exc).__name__
+        raise InputFileError(text if text.startswith(str(path)) else f"{path}: {text}", path=path) from None
     finally:
         fs.release()

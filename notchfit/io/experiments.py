@@ -20,6 +20,7 @@ import pandas as pd
 
 from ..geometry import Geometry
 from ..units import MM
+from .errors import InputFileError, InputFileNotFoundError
 from .models import load_geometry
 from .outputs import find_output, read_detections, write_table_atomic, write_text_atomic
 from .tables import POINT_COLUMNS, SAMPLE_COLUMNS, Problems, check_point_rows, read_csv_table
@@ -37,6 +38,8 @@ __all__ = [
     "read_points_table",
     "read_samples",
     "read_study",
+    "scan_study",
+    "StudyScan",
     "with_points",
     "write_experiment",
 ]
@@ -167,6 +170,9 @@ def read_experiment_toml(path) -> dict:
             v = data[key]
             if not isinstance(v, str) or (key != "description" and not v.strip()):
                 probs.add(doc.line_of(key), f"{key} must be a non-empty string, got {v!r}")
+            elif key == "name" and not _plain_name(v):
+                probs.add(doc.line_of(key), f"name {v!r} must be usable as a folder name (no '/', '\\', "
+                                            "control characters, leading '.' or leading/trailing spaces)")
             else:
                 out[key] = v
     if "mirror" in data:
@@ -178,6 +184,12 @@ def read_experiment_toml(path) -> dict:
         _uncertainty(doc, data["uncertainty"], probs, out)
     probs.raise_if_any()
     return out
+
+
+def _plain_name(name: str) -> bool:
+    """``name`` can be an output sub-folder ``OUT/<name>``: one path component, not hidden, no controls."""
+    return (0 < len(name) <= 200 and name == name.strip() and not name.startswith(".")
+            and not any(c in name for c in "/\\") and all(c.isprintable() for c in name))
 
 
 # ----------------------------------------------------------------------------- samples and points
@@ -333,10 +345,10 @@ def read_experiment(path, *, missing_images: str = "error") -> Experiment:
     if path.is_file() and path.name == "experiment.toml":
         path = path.parent
     if not path.is_dir():
-        raise FileNotFoundError(f"{path}: experiment folder not found")
+        raise InputFileNotFoundError(f"{path}: experiment folder not found", path=path)
     meta_path = path / "experiment.toml"
-    if not meta_path.is_file():
-        raise FileNotFoundError(f"{path}: not an experiment folder (no experiment.toml)")
+    if not meta_path.exists():
+        raise InputFileNotFoundError(f"{path}: not an experiment folder (no experiment.toml)", path=path)
     meta = read_experiment_toml(meta_path)
     geom = _experiment_geometry(path, meta_path, meta["geometry"])
     samples, image_paths = read_samples(path / "samples.csv", folder=path, missing_images=missing_images)
@@ -348,8 +360,8 @@ def read_experiment(path, *, missing_images: str = "error") -> Experiment:
         df = read_points_table(pts_path, n_points=geom.n_points, sample_ids=samples["sample"])
         points = points_from_table(df, samples["sample"], geom.n_points)
     elif not has_images:
-        raise ValueError(f"{path}: no notch_points.csv and no images: an experiment needs measured "
-                         "notch points or one image per sample")
+        raise InputFileError(f"{path}: no notch_points.csv and no images: an experiment needs measured "
+                             "notch points or one image per sample", path=path)
     return Experiment(name=meta["name"], path=path, description=meta["description"], geometry=geom,
                       mirror=meta["mirror"], calibration_path=calib, point_sigma=meta["point_sigma"],
                       tension_sigma=meta["tension_sigma"], samples=samples, points=points,
@@ -361,30 +373,125 @@ def is_experiment_dir(path) -> bool:
     return (Path(path) / "experiment.toml").is_file()
 
 
-def read_study(path, *, missing_images: str = "error") -> list[Experiment]:
-    """Every experiment of a study folder (sorted by folder name), or ``[one]`` for an experiment folder.
+#: Files whose presence makes a sub-folder of a study an experiment that lost its experiment.toml.
+_EXPERIMENT_FILES = ("samples.csv", "notch_points.csv")
+
+
+@dataclass(frozen=True)
+class StudyScan:
+    """What a study folder holds: the experiments read, those that could not be, the other folders.
+
+    Attributes
+    ----------
+    experiments : list of Experiment
+        Valid experiments, sorted by folder name.
+    problems : dict
+        ``{folder name: reason}`` for each sub-folder that is an experiment
+        but cannot be read (the reason names the file and the line), or that
+        holds experiment files but no ``experiment.toml``.
+    ignored : list of str
+        Sub-folders holding no experiment file (e.g. ``calibration/``);
+        hidden folders are not listed.
+    study : bool
+        The path is a study (False: one experiment folder).
+    """
+
+    experiments: list
+    problems: dict
+    ignored: list
+    study: bool
+
+
+def _subfolders(path: Path) -> list[Path]:
+    try:
+        return sorted(p for p in path.iterdir() if p.is_dir() and not p.name.startswith("."))
+    except OSError as exc:
+        raise InputFileError(f"{path}: cannot list the folder: {exc.strerror or exc}", path=path) from None
+
+
+def _scan_one(folder: Path, missing_images: str, problems: dict, exps: list, ignored: list) -> None:
+    """Read sub-folder ``folder`` of a study into ``exps``, or record why not."""
+    if not is_experiment_dir(folder):
+        held = [f for f in _EXPERIMENT_FILES if (folder / f).exists()]
+        if held:
+            problems[folder.name] = (f"{folder}: not an experiment: no experiment.toml "
+                                     f"(the folder holds {', '.join(held)})")
+        else:
+            ignored.append(folder.name)
+        return
+    try:
+        exps.append(read_experiment(folder, missing_images=missing_images))
+    except (ValueError, OSError) as exc:
+        problems[folder.name] = str(exc)
+
+
+def scan_study(path, *, missing_images: str = "error") -> StudyScan:
+    """Read every experiment of a study, recording (not raising) what is wrong with each.
+
+    A command runs on the valid experiments and lists the others with their
+    reason (nothing is skipped in silence). For one experiment folder, an
+    error in it is raised (nothing could be done).
 
     Raises
     ------
-    FileNotFoundError, ValueError
-        No such folder; no experiments in it; two experiments with one name.
+    InputFileError
+        No such folder; a file given for a folder; neither an experiment
+        folder nor a study; a study none of whose experiments can be read
+        (listing why).
     """
     path = Path(path)
+    if not path.exists():
+        raise InputFileNotFoundError(f"{path}: folder not found", path=path)
     if not path.is_dir():
-        raise FileNotFoundError(f"{path}: folder not found")
+        raise InputFileError(f"{path}: is a file, not a folder (expected an experiment or a study folder)",
+                             path=path)
     if is_experiment_dir(path):
-        return [read_experiment(path, missing_images=missing_images)]
-    folders = sorted(p for p in path.iterdir() if p.is_dir() and is_experiment_dir(p))
-    if not folders:
-        raise ValueError(f"{path}: neither an experiment folder (experiment.toml) nor a study "
-                         "(sub-folders with experiment.toml)")
-    exps = [read_experiment(f, missing_images=missing_images) for f in folders]
+        return StudyScan([read_experiment(path, missing_images=missing_images)], {}, [], False)
+    held = [f for f in _EXPERIMENT_FILES if (path / f).exists()]
+    if held:
+        raise InputFileError(f"{path}: not an experiment folder: no experiment.toml (the folder holds "
+                             f"{', '.join(held)})", path=path)
+    exps, problems, ignored = [], {}, []
+    for folder in _subfolders(path):
+        _scan_one(folder, missing_images, problems, exps, ignored)
     seen: dict[str, Path] = {}
-    for e in exps:
+    for e in list(exps):
         if e.name in seen:
-            raise ValueError(f"{path}: two experiments named {e.name!r}: {seen[e.name]} and {e.path}")
-        seen[e.name] = e.path
-    return exps
+            problems[e.path.name] = f"{e.path}: two experiments named {e.name!r}: {seen[e.name]} and {e.path}"
+            exps.remove(e)
+        else:
+            seen[e.name] = e.path
+    if not exps:
+        if problems:
+            raise InputFileError(f"{path}: no experiment can be read: " + _joined(problems), path=path)
+        raise InputFileError(f"{path}: neither an experiment folder (experiment.toml) nor a study "
+                             "(sub-folders with experiment.toml)", path=path)
+    return StudyScan(exps, problems, ignored, True)
+
+
+def _joined(problems: dict) -> str:
+    return "; ".join(f"{k}: {v}" for k, v in problems.items())
+
+
+def read_study(path, *, missing_images: str = "error") -> list[Experiment]:
+    """Every experiment of a study folder (sorted by folder name), or ``[one]`` for an experiment folder.
+
+    Strict: any sub-folder that is an experiment but cannot be read is an
+    error (:func:`scan_study` reads the valid ones and lists the others).
+
+    Raises
+    ------
+    InputFileError (a ValueError; a FileNotFoundError when the folder is missing)
+        No such folder; no experiments in it; an experiment that cannot be
+        read; two experiments with one name.
+    """
+    scan = scan_study(path, missing_images=missing_images)
+    if scan.problems:
+        if len(scan.problems) == 1:
+            raise InputFileError(next(iter(scan.problems.values())), path=path)
+        raise InputFileError(f"{path}: {len(scan.problems)} experiments cannot be read: "
+                             + _joined(scan.problems), path=path)
+    return scan.experiments
 
 
 def with_points(exp: Experiment, points) -> Experiment:

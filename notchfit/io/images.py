@@ -1,13 +1,55 @@
-"""Image files: read one, or summarise it, with the reason when it cannot be used."""
+"""Image files: read one, or summarise it, with the reason when it cannot be used.
+
+Every problem is an :class:`~notchfit.io.errors.InputFileError` naming the
+file: a missing file, a folder, no permission, zero bytes, a truncated or
+corrupt file, a format OpenCV does not decode, or dimensions above
+:data:`MAX_IMAGE_PIXELS` (checked from the PNG or JPEG header before
+decoding, so a forged header cannot exhaust the memory). OpenCV's own log
+lines are silenced while decoding: the error message is the one line.
+"""
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-__all__ = ["image_info", "load_image"]
+from .errors import InputFileError, InputFileNotFoundError, read_input_bytes
+
+__all__ = ["MAX_IMAGE_PIXELS", "image_info", "load_image"]
+
+#: Largest image accepted [pixels] (100 Mpx: above any camera of a bench set-up).
+MAX_IMAGE_PIXELS = 100_000_000
+
+
+def _header_size(data: bytes) -> tuple[int, int] | None:
+    """``(width, height)`` from a PNG or JPEG header, None for other formats or a damaged header."""
+    if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24 and data[12:16] == b"IHDR":
+        return struct.unpack(">II", data[16:24])
+    if data[:2] == b"\xff\xd8":
+        i = 2
+        while i + 9 <= len(data) and data[i] == 0xFF:
+            marker, length = data[i + 1], struct.unpack(">H", data[i + 2:i + 4])[0]
+            if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+                h, w = struct.unpack(">HH", data[i + 5:i + 9])
+                return w, h
+            i += 2 + length
+    return None
+
+
+def _decode(path: Path, data: np.ndarray, flags: int) -> np.ndarray | None:
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        return cv2.imdecode(data, flags)
+    except cv2.error as exc:
+        text = str(exc).strip().splitlines()
+        why = "too many pixels" if "MAX_IMAGE_PIXELS" in str(exc) else (text[-1] if text else "decode error")
+        raise InputFileError(f"corrupt or unreadable image (OpenCV: {why}): {path}", path=path) from None
+    finally:
+        cv2.utils.logging.setLogLevel(level)
 
 
 def load_image(path, flags=None) -> np.ndarray:
@@ -26,21 +68,28 @@ def load_image(path, flags=None) -> np.ndarray:
 
     Raises
     ------
-    FileNotFoundError
-        ``image missing: <path>``.
-    ValueError
-        ``corrupt or unreadable image: <path>`` (OpenCV cannot decode it) or
-        an empty image.
+    InputFileNotFoundError
+        ``image missing: <path>`` (also a ``FileNotFoundError``).
+    InputFileError
+        ``corrupt or unreadable image (...): <path>``: OpenCV cannot decode
+        it, an empty file, a folder, no permission, too many pixels.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"image missing: {path}")
-    data = np.fromfile(path, dtype=np.uint8)
-    if data.size == 0:
-        raise ValueError(f"corrupt or unreadable image (empty file): {path}")
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED if flags is None else flags)
+    try:
+        raw = read_input_bytes(path, what="image")
+    except InputFileNotFoundError:
+        raise InputFileNotFoundError(f"image missing: {path}", path=path) from None
+    if not raw:
+        raise InputFileError(f"corrupt or unreadable image (empty file): {path}", path=path)
+    size = _header_size(raw)
+    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+        raise InputFileError(f"image too large ({size[0]} x {size[1]} pixels, at most {MAX_IMAGE_PIXELS:,} "
+                             f"accepted): {path}", path=path)
+    img = _decode(path, np.frombuffer(raw, dtype=np.uint8), cv2.IMREAD_UNCHANGED if flags is None else flags)
     if img is None or img.size == 0:
-        raise ValueError(f"corrupt or unreadable image (OpenCV cannot decode it): {path}")
+        raise InputFileError(f"corrupt or unreadable image (OpenCV cannot decode it): {path}", path=path)
+    if img.shape[0] * img.shape[1] > MAX_IMAGE_PIXELS:
+        raise InputFileError(f"image too large ({img.shape[1]} x {img.shape[0]} pixels): {path}", path=path)
     return img
 
 

@@ -23,6 +23,9 @@ from .toml import TomlError, load_toml, toml_dumps
 
 __all__ = ["load_fea_reference", "load_geometry", "load_params", "save_params"]
 
+#: Most joints a geometry file may declare (a notched tube has tens; more is a corrupted value).
+MAX_JOINTS = 10_000
+
 _PARAMS_HEADER = ("# notchfit friction-model parameters (Sec. IV-B), SI units; "
                   "read by notchfit.friction.load_params\n")
 
@@ -51,10 +54,18 @@ def load_geometry(source: str | os.PathLike | None = "default") -> Geometry:
     else:
         path = Path(source)
     doc = load_toml(path, what="geometry file")
+    n = doc.data.get("n_joints")
+    if isinstance(n, int) and not isinstance(n, bool) and n > MAX_JOINTS:
+        # checked here because geometry_from_dict would first build an n-long tuple (memory, time)
+        raise doc.error(f"n_joints must be at most {MAX_JOINTS}, got {n}", "n_joints")
     try:
         return geometry_from_dict(doc.data, origin=str(path), line_of=doc.line_of)
     except ValueError as exc:
-        raise TomlError(str(exc)) from None
+        raise TomlError(str(exc), path=path) from None
+    except (TypeError, OverflowError, ArithmeticError, KeyError, IndexError) as exc:
+        # geometry_from_dict checks types and signs; what it lets through fails later in Geometry
+        raise TomlError(f"{path}: invalid geometry ({type(exc).__name__}: {exc}); see docs/geometry.md",
+                        path=path) from None
 
 
 def load_params(path) -> FrictionParams:
@@ -75,7 +86,10 @@ def load_params(path) -> FrictionParams:
     try:
         return params_from_mapping(doc.data, origin=str(doc.path))
     except ValueError as exc:
-        raise TomlError(str(exc)) from None
+        raise TomlError(str(exc), path=doc.path) from None
+    except (TypeError, OverflowError, ArithmeticError) as exc:     # e.g. an integer too large for a float
+        raise TomlError(f"{doc.path}: invalid friction parameters ({type(exc).__name__}: {exc})",
+                        path=doc.path) from None
 
 
 def save_params(params: FrictionParams, path, **metadata) -> Path:
@@ -124,6 +138,8 @@ def load_fea_reference(path: str | os.PathLike | None = None) -> FEAReference:
             source=str(d.get("source", "")))
     except KeyError as exc:
         raise doc.error(f"missing key {exc}") from None
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise doc.error(f"invalid value ({exc})") from None
     for table, a in (("moment", out.theta_moment), ("transverse", out.theta_transverse)):
         if a.shape != (out.n_joints,):
             raise doc.error(f"joint-angle lists must have n_joints={out.n_joints} entries", table, "theta_rad")

@@ -6,9 +6,17 @@ Writers are atomic: a file is written to a temporary file in the same folder
 whole run through :class:`OutputRun`: every output is first written into a
 hidden staging folder inside ``--out`` and moved into place only once the
 run has succeeded, so a crash or an error mid-way leaves the previous
-results untouched (a crash *during* the final moves, a loop of renames, can
-leave a mix of old and new files; each file is still whole). An existing
-output is never replaced without ``force``.
+results untouched. Ctrl-C or SIGTERM during the final moves is held until
+they are done (:func:`~notchfit.io.interrupts.deferred_interrupts`), so the
+results are either all old or all new; only a hard crash (SIGKILL, power)
+during that loop of renames can leave a mix of old and new files, each still
+whole. An existing output is never replaced without ``force``.
+
+Only one run writes into a folder at a time: :class:`OutputRun` holds the
+lock file ``.notchfit-lock`` (created with ``O_EXCL``, holding the pid and
+host) from start to end; a second run into the same ``--out`` fails with
+:class:`OutputLockedError` (a ``FileExistsError``: exit code 2). A lock
+left by a process that no longer runs is removed.
 
 Layout of outputs: a command given one experiment writes into ``DIR``; given a
 study it writes the per-experiment tables into ``DIR/<experiment name>/`` and
@@ -26,18 +34,24 @@ import math
 import os
 import re
 import shutil
+import socket
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .._version import __version__
+from .errors import InputFileError, InputFileNotFoundError, decode_text, read_input_bytes
+from .interrupts import deferred_interrupts
 from .tables import (DETECTION_COLUMNS, FITS_COLUMNS, POINTWISE_COLUMNS, SIMULATION_COLUMNS,
                      check_point_rows, read_csv_table)
 
 __all__ = [
+    "LOCK_NAME",
+    "OutputLockedError",
     "OutputRun",
     "STAGE_PREFIX",
     "atomic_write",
@@ -57,6 +71,7 @@ __all__ = [
 ]
 
 STAGE_PREFIX = ".notchfit-stage-"
+LOCK_NAME = ".notchfit-lock"
 _DIAG_KEYS = ("experiments", "baseline", "discrepancies", "candidates", "cause", "explanation", "gain")
 
 
@@ -239,6 +254,62 @@ def prepare_output_dir(path, force: bool = False, outputs=None) -> Path:
     return path
 
 
+class OutputLockedError(FileExistsError):
+    """Another live notchfit run is writing into the output folder."""
+
+
+def _lock_holder(lock: Path) -> tuple[int, str] | None:
+    """``(pid, host)`` written in a lock file; None when unreadable or being written."""
+    try:
+        pid, host = lock.read_text(encoding="utf-8").split()[:2]
+        return int(pid), host
+    except (OSError, ValueError):
+        return None
+
+
+def _lock_is_stale(lock: Path, *, grace_s: float = 10.0) -> bool:
+    holder = _lock_holder(lock)
+    if holder is None:       # empty: created a moment ago, or its writer died before writing
+        try:
+            return time.time() - lock.stat().st_mtime > grace_s
+        except OSError:
+            return True
+    pid, host = holder
+    return host == socket.gethostname() and not _pid_alive(pid)
+
+
+def acquire_output_lock(out_dir: Path) -> Path:
+    """Create ``out_dir/.notchfit-lock`` exclusively (removing a stale one); returns its path.
+
+    Raises
+    ------
+    OutputLockedError
+        A live process holds the lock (the message names its pid).
+    """
+    lock = Path(out_dir) / LOCK_NAME
+    for _ in range(3):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            if _lock_is_stale(lock):
+                lock.unlink(missing_ok=True)
+                continue
+            holder = _lock_holder(lock)
+            who = f"pid {holder[0]} on {holder[1]}" if holder else "a process starting up"
+            raise OutputLockedError(f"{out_dir}: another notchfit run ({who}) is writing into this folder; "
+                                    f"wait for it to finish or choose another --out (a stale lock is "
+                                    f"{lock})") from None
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(f"{os.getpid()} {socket.gethostname()}\n")
+        return lock
+    raise OutputLockedError(f"{out_dir}: could not take the lock {lock}")
+
+
+def _release_lock(lock: Path | None) -> None:
+    if lock is not None and _lock_holder(lock) == (os.getpid(), socket.gethostname()):
+        lock.unlink(missing_ok=True)
+
+
 class OutputRun:
     """Write a command's outputs into a staging folder, then move them into place.
 
@@ -259,11 +330,20 @@ class OutputRun:
 
     def __init__(self, out_dir, *, outputs=None, force: bool = False, name: str = "run",
                  whole_dirs: bool = False):
-        self.out_dir = prepare_output_dir(out_dir, force=force, outputs=outputs)
+        out = Path(out_dir)
+        if out.exists() and not out.is_dir():
+            raise FileExistsError(f"{out}: exists and is not a folder")
+        out.mkdir(parents=True, exist_ok=True)
+        self.lock = acquire_output_lock(out)
+        try:
+            self.out_dir = prepare_output_dir(out, force=force, outputs=outputs)
+            self.stage = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{name}-{os.getpid()}-",
+                                               dir=self.out_dir))
+        except BaseException:
+            _release_lock(self.lock)
+            raise
         self.force = force
         self.whole_dirs = whole_dirs
-        self.stage = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{name}-{os.getpid()}-",
-                                           dir=self.out_dir))
         self.committed: list[Path] = []
 
     def path(self, rel) -> Path:
@@ -273,7 +353,15 @@ class OutputRun:
         return p
 
     def commit(self) -> list[Path]:
-        """Move every staged output into ``out_dir``; returns the paths written."""
+        """Move every staged output into ``out_dir``; returns the paths written.
+
+        Ctrl-C and SIGTERM wait until every move is done (the results are all
+        old or all new).
+        """
+        with deferred_interrupts():
+            return self._commit()
+
+    def _commit(self) -> list[Path]:
         files = sorted(p for p in self.stage.rglob("*") if p.is_file())
         if not self.force:
             clash = [str(p.relative_to(self.stage)) for p in files
@@ -307,8 +395,11 @@ class OutputRun:
                 shutil.rmtree(old, ignore_errors=True)
 
     def abort(self) -> None:
-        """Remove the staging folder (nothing in ``out_dir`` changes)."""
-        shutil.rmtree(self.stage, ignore_errors=True)
+        """Remove the staging folder (nothing in ``out_dir`` changes) and release the folder's lock."""
+        with deferred_interrupts():
+            shutil.rmtree(self.stage, ignore_errors=True)
+            _release_lock(self.lock)
+            self.lock = None
 
     def __enter__(self):
         return self
@@ -357,20 +448,28 @@ def read_simulation(path) -> pd.DataFrame:
 
 
 def read_json(path) -> dict:
-    """Read a JSON file; a syntax error names the file and line."""
+    """Read a JSON file; every problem is an :class:`InputFileError` (a syntax error names the line)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: file not found")
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        text = decode_text(path, read_input_bytes(path, what="JSON file"))
+    except InputFileNotFoundError:
+        raise InputFileNotFoundError(f"{path}: file not found", path=path) from None
+    try:
+        return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: line {exc.lineno}: bad JSON: {exc.msg}") from None
+        raise InputFileError(f"{path}: line {exc.lineno}: bad JSON: {exc.msg} at column {exc.colno}",
+                             path=path, line=exc.lineno, column=exc.colno) from None
+    except RecursionError:
+        raise InputFileError(f"{path}: bad JSON: nested too deeply", path=path) from None
 
 
 def read_diagnosis(path) -> dict:
     """Read ``diagnosis.json`` and check its top-level keys (docs/data-formats.md)."""
     d = read_json(path)
+    if not isinstance(d, dict):
+        raise InputFileError(f"{path}: expected a JSON object (diagnosis.json schema), got "
+                             f"{type(d).__name__}", path=path)
     missing = [k for k in _DIAG_KEYS if k not in d]
     if missing:
-        raise ValueError(f"{path}: missing key(s) {', '.join(missing)} (diagnosis.json schema)")
+        raise InputFileError(f"{path}: missing key(s) {', '.join(missing)} (diagnosis.json schema)", path=path)
     return d

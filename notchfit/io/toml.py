@@ -5,7 +5,9 @@ friction-model parameter files, board definitions, synthetic-study recipes,
 reference values; docs/data-formats.md) goes through :func:`load_toml`.
 A problem is reported as ``<file>: line <n>: <problem>``, or
 ``<file>: <problem>`` when no line applies (a missing key), always as a
-:class:`TomlError` (a ``ValueError``) — the same form the CSV readers use.
+:class:`TomlError` (an :class:`~notchfit.io.errors.InputFileError`, so a
+``ValueError``) — the same form the CSV readers use. A folder, an unreadable
+file, text that is not UTF-8 and nesting too deep to parse are TomlErrors too.
 """
 
 from __future__ import annotations
@@ -19,20 +21,17 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import InputFileError, InputFileNotFoundError, decode_text, located, read_input_bytes
+
 __all__ = ["TomlError", "TomlFile", "TomlFileNotFoundError", "load_toml", "located", "toml_dumps"]
 
 
-class TomlError(ValueError):
+class TomlError(InputFileError):
     """A problem in a TOML file; the message names the file and, where known, the line."""
 
 
-class TomlFileNotFoundError(TomlError, FileNotFoundError):
+class TomlFileNotFoundError(TomlError, InputFileNotFoundError):
     """A TOML file that does not exist (both a :class:`TomlError` and a ``FileNotFoundError``)."""
-
-
-def located(path, line: int | None, problem: str) -> str:
-    """``"<path>: line <line>: <problem>"``, or ``"<path>: <problem>"`` when ``line`` is None."""
-    return f"{path}: line {line}: {problem}" if line is not None else f"{path}: {problem}"
 
 
 @dataclass(frozen=True)
@@ -63,7 +62,9 @@ class TomlFile:
 
     def error(self, problem: str, *keys: str) -> TomlError:
         """A :class:`TomlError` for ``problem``, at the line of ``keys`` when it is found."""
-        return TomlError(located(self.path, self.line_of(*keys) if keys else None, problem))
+        line = self.line_of(*keys) if keys else None
+        return TomlError(located(self.path, line, problem), path=self.path, line=line,
+                         key=".".join(str(k) for k in keys) or None)
 
 
 def load_toml(path, *, what: str = "file") -> TomlFile:
@@ -84,26 +85,34 @@ def load_toml(path, *, what: str = "file") -> TomlFile:
     TomlFileNotFoundError
         ``"<path>: <what> not found"``.
     TomlError
-        ``"<path>: line <n>: bad TOML: ..."`` for a syntax error.
+        ``"<path>: line <n>: bad TOML: ..."`` for a syntax error; a folder,
+        an unreadable file, text that is not UTF-8 (a byte-order mark is
+        accepted), nesting too deep.
     """
     path = Path(path)
-    if not path.is_file():
-        raise TomlFileNotFoundError(f"{path}: {what} not found")
-    text = path.read_bytes().decode("utf-8", errors="replace")
+    try:
+        text = decode_text(path, read_input_bytes(path, what=what))
+    except InputFileNotFoundError as exc:
+        raise TomlFileNotFoundError(str(exc), path=path) from None
+    except InputFileError as exc:
+        raise TomlError(str(exc), path=path, line=exc.line, column=exc.column) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise TomlError(_syntax_message(path, str(exc))) from None
+        raise _syntax_error(path, str(exc)) from None
+    except RecursionError:
+        raise TomlError(located(path, None, "bad TOML: arrays or tables nested too deeply"),
+                        path=path) from None
     return TomlFile(path=path, data=data, text=text)
 
 
-def _syntax_message(path: Path, msg: str) -> str:
+def _syntax_error(path: Path, msg: str) -> TomlError:
     m = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", msg)
     if m is None:
-        return located(path, None, f"bad TOML: {msg}; the file is not valid TOML")
-    reason = msg[:m.start()]
-    return located(path, int(m.group(1)), f"bad TOML: {reason} at column {m.group(2)}; "
-                                          "the file is not valid TOML")
+        return TomlError(located(path, None, f"bad TOML: {msg}; the file is not valid TOML"), path=path)
+    reason, line, column = msg[:m.start()], int(m.group(1)), int(m.group(2))
+    return TomlError(located(path, line, f"bad TOML: {reason} at column {column}; the file is not valid TOML"),
+                     path=path, line=line, column=column)
 
 
 # ----------------------------------------------------------------------------- key lines
@@ -115,7 +124,10 @@ _ASSIGN = re.compile(r'^\s*((?:"(?:[^"\\]|\\.)*"|\'[^\']*\'|[A-Za-z0-9_.\s-])+?)
 def _dotted(name: str) -> tuple[str, ...]:
     parts = []
     for tok in _BARE_OR_QUOTED.findall(name):
-        parts.append(json.loads(tok) if tok.startswith('"') else tok.strip("'"))
+        try:
+            parts.append(json.loads(tok) if tok.startswith('"') else tok.strip("'"))
+        except ValueError:      # an escape JSON does not know: only the line lookup is affected
+            parts.append(tok.strip('"'))
     return tuple(parts)
 
 
