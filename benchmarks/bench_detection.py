@@ -94,7 +94,8 @@ def robustness(per_row, seed):
 
 
 WRIST = dict(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
-             slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist")
+             slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist", inner_radius=0.7e-3,
+             tendons=("right",), tendon_path="lumen", r_x=None, r_z=None, cable_radius=None, channel_radius=None)
 SCENES = [  # (name, Scene keywords); blur 2 px (a DSLR at 130 px/mm), chuck 8 mm wide unless said
     ("chuck, dark tube on grey", dict(holder="chuck")),
     ("chuck, plain tube 1.5 mm", dict(holder="chuck", plain_length=1.5e-3)),

@@ -81,7 +81,9 @@ def main():
     from notchfit.geometry import Geometry
     from notchfit.render.scenes import Scene, render_scene, scene_camera
     wrist = Geometry(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
-                     slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist")
+                     slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist", inner_radius=0.7e-3,
+                     tendons=("right",), tendon_path="lumen", r_x=None, r_z=None, cable_radius=None,
+                     channel_radius=None)
     th = np.array([0.2, 0.25, 0.3, 0.3, 0.25])
     for name, sc in (("chuck", Scene(holder_half_width=4e-3)), ("chuck + streak + JPEG",
                      Scene(holder_half_width=4e-3, streak=1.0, jpeg_quality=85))):

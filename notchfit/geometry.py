@@ -55,6 +55,10 @@ _REQUIRED_KEYS = ("n_joints", "p_mm", "outer_radius_mm", "slot_width_mm", "slot_
 _OTHER_KEYS = ("name", "slot_sides", "inner_radius_mm", "rest_angle_rad", "backbone", "tendons", "tendon_path")
 
 BACKBONES = ("axis", "section")
+#: Plausibility bounds: a larger value is a typo or a unit error, not a tube.
+MAX_JOINTS = 10_000
+MAX_LENGTH = 1.0           # [m], any dimension of the tube, its channels and mount
+MAX_CABLE_LENGTH = 100.0   # [m], the cable's free length
 TENDON_PATHS = ("channel", "lumen")
 _TENDON_SIDES = {"left": -1, "right": +1}
 #: fields that a channel-routed tendon needs (Sec. II-B)
@@ -164,8 +168,8 @@ class Geometry:
 
     def __post_init__(self) -> None:
         n = self.n_joints
-        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
-            raise ValueError(f"n_joints must be a positive integer, got {n!r}")
+        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or not 1 <= n <= MAX_JOINTS:
+            raise ValueError(f"n_joints must be an integer from 1 to {MAX_JOINTS}, got {n!r}")
         self._normalise(n)
         self._check_dimensions()
         self._check_tendons()
@@ -175,6 +179,8 @@ class Geometry:
         set_ = functools.partial(object.__setattr__, self)
         if not self.slot_sides:
             set_("slot_sides", alternating_sides(n))
+        if any(isinstance(s, bool) or not isinstance(s, (int, np.integer)) for s in self.slot_sides):
+            raise ValueError(f"slot_sides entries must be the integers -1 or +1, got {self.slot_sides!r}")
         sides = tuple(int(s) for s in self.slot_sides)
         if len(sides) != n:
             raise ValueError(f"slot_sides must have n_joints={n} entries, got {len(sides)}")
@@ -203,6 +209,7 @@ class Geometry:
         for f in ("base_edge_z", "mount_bottom_z", "tip_face_z"):
             if getattr(self, f) is not None:
                 _finite_positive(f, getattr(self, f), positive=False)
+        self._check_magnitudes()
         if np.any(self.slot_depths >= 2 * R):
             raise ValueError("slot_depth must be smaller than the tube diameter 2*outer_radius")
         w = self.slot_widths
@@ -227,6 +234,22 @@ class Geometry:
             raise ValueError("backbone = 'section' needs inner_radius (0 for a solid rod)")
         if np.any(np.abs(self.rest_angles) >= self.closure_angles):
             raise ValueError("rest_angle must be smaller in magnitude than the slot's closure angle")
+
+    def _check_magnitudes(self) -> None:
+        """Lengths within :data:`MAX_LENGTH` (the cable's within :data:`MAX_CABLE_LENGTH`), channels and mount
+        consistent with the tube."""
+        for f in ("p", "outer_radius", "slot_width", "slot_depth", "inner_radius", "r_x", "r_z", "cable_radius",
+                  "channel_radius", "mount_half_width", "base_edge_z", "mount_bottom_z", "tip_face_z"):
+            v = getattr(self, f)
+            if v is not None and np.any(np.abs(np.asarray(v, dtype=float)) > MAX_LENGTH):
+                raise ValueError(f"geometry field {f!r} is larger than {MAX_LENGTH} m: a unit error?")
+        if self.cable_L0 is not None and self.cable_L0 > MAX_CABLE_LENGTH:
+            raise ValueError(f"cable_L0 is larger than {MAX_CABLE_LENGTH} m: a unit error?")
+        R = self.outer_radius
+        if self.r_x is not None and self.r_x > R:
+            raise ValueError("r_x must not exceed outer_radius (the channels run inside the tube wall)")
+        if self.mount_half_width is not None and self.mount_half_width <= R:
+            raise ValueError("mount_half_width must be larger than outer_radius (the tube enters the mount)")
 
     def _check_tendons(self) -> None:
         if self.tendon_path not in TENDON_PATHS:
@@ -416,8 +439,8 @@ def geometry_from_dict(data: dict, origin: str = "<dict>", *, line_of=None) -> G
     if unknown:
         raise fail(f"unknown geometry field(s) {', '.join(unknown)}", unknown[0])
     n = data["n_joints"]
-    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-        raise fail(f"n_joints must be a positive integer, got {n!r}", "n_joints")
+    if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_JOINTS:
+        raise fail(f"n_joints must be an integer from 1 to {MAX_JOINTS}, got {n!r}", "n_joints")
     kw: dict = {"name": str(data.get("name", Path(origin).stem)), "n_joints": n}
 
     def number(key, positive, scale=1.0):

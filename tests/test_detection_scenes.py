@@ -14,7 +14,8 @@ from notchfit.geometry import Geometry, default_geometry
 from notchfit.render.scenes import Scene, render_scene, scene_camera
 
 WRIST = Geometry(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
-                 slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist")
+                 slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist", inner_radius=0.7e-3,
+                 tendons=("right",), tendon_path="lumen", r_x=None, r_z=None, cable_radius=None, channel_radius=None)
 BEND = np.array([0.2, 0.25, 0.3, 0.3, 0.25])
 MM_PER_PX = 1 / 40
 

@@ -117,3 +117,23 @@ def test_geometry_file_lists_and_messages():
         geometry_from_dict({**base, "tendons": "right"}, "w.toml")
     with pytest.raises(ValueError, match="missing geometry field"):
         geometry_from_dict({k: v for k, v in base.items() if k != "slot_width_mm"}, "w.toml")
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"slot_sides": (1.5, 1, 1, 1, 1)}, "integers -1 or \\+1"),
+    ({"slot_sides": (True, 1, 1, 1, 1)}, "integers -1 or \\+1"),
+    ({"p": 1e300}, "unit error"),
+    ({"slot_width": 2.0}, "unit error"),
+    ({"n_joints": 10**6, "slot_sides": ()}, "from 1 to"),
+])
+def test_implausible_values_are_refused(change, message):
+    with pytest.raises(ValueError, match=message):
+        Geometry(**{**WRIST, **change})
+
+
+def test_channels_and_mount_must_fit_the_tube():
+    g = default_geometry()
+    with pytest.raises(ValueError, match="r_x must not exceed"):
+        g.replace(r_x=3.5e-3)
+    with pytest.raises(ValueError, match="mount_half_width must be larger"):
+        g.replace(mount_half_width=2e-3)

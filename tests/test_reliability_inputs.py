@@ -83,7 +83,7 @@ CASES = [
     ("experiment-toml-missing", lambda e, t: (e / "experiment.toml").unlink(), ["no experiment.toml"]),
     # --- geometry values (checked by geometry_from_dict; the reader names the file)
     ("geometry-slot-sides-nested", lambda e, t: _geometry(e, slot_sides="[[1, -1]]"),
-     ["geom.toml", "invalid geometry"]),
+     ["geom.toml", "slot_sides must be"]),
     ("geometry-negative-radius", lambda e, t: _geometry(e, outer_radius_mm="-3.0"),
      ["geom.toml", "outer_radius_mm", "positive"]),
     ("geometry-slot-deeper-than-tube", lambda e, t: _geometry(e, slot_depth_mm="7.0"),

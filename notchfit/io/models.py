@@ -23,8 +23,6 @@ from .toml import TomlError, load_toml, toml_dumps
 
 __all__ = ["load_fea_reference", "load_geometry", "load_params", "save_params"]
 
-#: Most joints a geometry file may declare (a notched tube has tens; more is a corrupted value).
-MAX_JOINTS = 10_000
 
 _PARAMS_HEADER = ("# notchfit friction-model parameters (Sec. IV-B), SI units; "
                   "read by notchfit.friction.load_params\n")
@@ -54,10 +52,6 @@ def load_geometry(source: str | os.PathLike | None = "default") -> Geometry:
     else:
         path = Path(source)
     doc = load_toml(path, what="geometry file")
-    n = doc.data.get("n_joints")
-    if isinstance(n, int) and not isinstance(n, bool) and n > MAX_JOINTS:
-        # checked here because geometry_from_dict would first build an n-long tuple (memory, time)
-        raise doc.error(f"n_joints must be at most {MAX_JOINTS}, got {n}", "n_joints")
     try:
         return geometry_from_dict(doc.data, origin=str(path), line_of=doc.line_of)
     except ValueError as exc:
