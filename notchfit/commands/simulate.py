@@ -11,7 +11,7 @@ from .. import io
 from ..batch import run_batch
 from ..comparison import compare_simulation, comparison_table
 from ..figures.friction import plot_fig18, plot_fig19
-from ..friction import FrictionParams, simulate, simulation_table
+from ..friction import FrictionParams, default_params, simulate, simulation_table
 from ._common import EXIT_ITEMS_FAILED, add_batch_options, add_points_option, check_out_dir, list_failures
 
 NAME = "simulate"
@@ -50,9 +50,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--force", action="store_true", help="replace existing outputs in --out")
 
 
-def parse_params(model_file, overrides):
-    """FrictionParams from a model file and ``NAME=VALUE`` overrides (raises ValueError on a bad one)."""
-    params = io.load_params(model_file) if model_file is not None else FrictionParams()
+def parse_params(model_file, overrides, base: FrictionParams | None = None):
+    """FrictionParams from a model file (else ``base``, else the paper's) and ``NAME=VALUE`` overrides.
+
+    Raises ValueError on a bad override.
+    """
+    params = io.load_params(model_file) if model_file is not None else (base or FrictionParams())
     fields = {f.name for f in dataclasses.fields(FrictionParams)}
     changes = {}
     for text in overrides:
@@ -97,13 +100,27 @@ def simulation_figures(value: dict, out_dir: Path) -> list[Path]:
                          name="fig19_shape_parameters", point_rms_mm=value["compare"]["point_rms_mm"]))
 
 
-def _items(exps, params, args) -> list[dict]:
+def _experiment_params(exps, args) -> dict:
+    """The model of each experiment: the model file, or the default for its geometry
+    (:func:`notchfit.friction.default_params`: the paper's for the seed tube), then the overrides."""
+    return {e.name: parse_params(args.model, args.param, base=default_params(e.geometry)) for e in exps}
+
+
+def _params_record(params: dict) -> dict:
+    """The run record's ``params``: one table when every experiment shares it, else one per experiment."""
+    first = next(iter(params.values()), None)
+    if all(p == first for p in params.values()):
+        return {"params": first.to_dict() if first is not None else None}
+    return {"params": None, "params_by_experiment": {n: p.to_dict() for n, p in params.items()}}
+
+
+def _items(exps, params: dict, args) -> list[dict]:
     """One batch item per experiment: the measured tensions (clipped at 0 N) and the points, if any."""
     with_pts, _ = io.attach_detections(exps, args.points if args.points is not None else args.out,
                                        require=False)
     pts = {e.name: e.points for e in with_pts}
-    return [{"time": e.time, "tension_left": np.maximum(e.tension_left, 0.0),
-             "tension_right": np.maximum(e.tension_right, 0.0), "params": params, "geometry": e.geometry,
+    return [{"time": e.time, "tension_left": e.tension_left,
+             "tension_right": e.tension_right, "params": params[e.name], "geometry": e.geometry,
              "method": args.method, "samples": [int(s) for s in e.sample_ids], "points": pts.get(e.name),
              "mirror": e.mirror, "sigma": e.point_sigma} for e in exps]
 
@@ -112,9 +129,13 @@ def run(args) -> int:
     if args.method not in ("fast", "reference"):
         raise ValueError(f"--method must be fast or reference, got {args.method!r}")
     check_out_dir(args.out, args.input)
-    params = parse_params(args.model, args.param)
     scan = io.scan_study(args.input)
     exps, study = scan.experiments, scan.study
+    params = _experiment_params(exps, args)
+    for e in exps:
+        if e.n_clipped:
+            print(f"  {e.name}: {e.n_clipped} tension reading(s) slightly below 0 N (load-cell offset, within "
+                  f"3 sigma_T) taken as 0 N")
     items = _items(exps, params, args)
     names = [e.name for e in exps]
     outputs = ["simulate_run.json"] + [str(io.experiment_output_dir("", n, study) / "simulation.csv")
@@ -137,7 +158,9 @@ def run(args) -> int:
                         simulation_figures(r.value, run_.path(sub / "x").parent)
                     except Exception as exc:  # noqa: BLE001 - a figure must not lose the simulation
                         failed[f"{e.name} figures"] = f"{type(exc).__name__}: {exc}"
-        io.write_json_atomic(io.provenance("simulate", args.input, params=dataclasses.asdict(params),
+        io.write_json_atomic(io.provenance("simulate", args.input,
+                                           **_params_record(params),
+                                           clipped_tensions={e.name: e.n_clipped for e in exps if e.n_clipped},
                                            model_file=str(args.model) if args.model else None,
                                            method=args.method, experiments=names, failures=failed),
                              run_.path("simulate_run.json"))

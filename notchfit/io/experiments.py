@@ -46,6 +46,8 @@ __all__ = [
 
 _TOML_KEYS = {"name", "description", "geometry", "mirror", "calibration", "uncertainty"}
 _UNCERTAINTY_KEYS = {"point_mm": "point_sigma", "tension_N": "tension_sigma"}
+#: Load-cell uncertainty when experiment.toml gives none [N] (docs/data-formats.md).
+DEFAULT_TENSION_SIGMA = 0.05
 
 
 @dataclass(frozen=True)
@@ -96,25 +98,48 @@ class Experiment:
         """Sample times (S,) [s]."""
         return self.samples["time_s"].to_numpy(dtype=float)
 
+    def _tension(self, side: str) -> np.ndarray:
+        col = f"tension_{side}_N"
+        if side not in self.geometry.tendons or col not in self.samples:
+            return np.zeros(self.n_samples)              # a tendon the tube lacks carries nothing
+        return np.maximum(self.samples[col].to_numpy(dtype=float), 0.0)
+
     @property
     def tension_left(self) -> np.ndarray:
-        """Left cable tension at the load cell (S,) [N]."""
-        return self.samples["tension_left_N"].to_numpy(dtype=float)
+        """Left tendon tension at the load cell, the model's input (S,) [N].
+
+        Readings slightly below zero (load-cell offset, down to ``-3 σ_T``: the
+        reader refuses lower ones) are clipped at zero (:attr:`n_clipped` counts
+        them); zeros for a tube without a left tendon.
+        """
+        return self._tension("left")
 
     @property
     def tension_right(self) -> np.ndarray:
-        """Right cable tension at the load cell (S,) [N]."""
-        return self.samples["tension_right_N"].to_numpy(dtype=float)
+        """Right tendon tension at the load cell, the model's input (S,) [N] (see :attr:`tension_left`)."""
+        return self._tension("right")
+
+    @property
+    def n_clipped(self) -> int:
+        """Tension readings below zero that the model takes as zero (load-cell offset)."""
+        cols = [f"tension_{t}_N" for t in self.geometry.tendons if f"tension_{t}_N" in self.samples]
+        return int(sum((self.samples[c].to_numpy(dtype=float) < 0).sum() for c in cols))
 
     @property
     def displacement_left(self) -> np.ndarray:
         """Left cable displacement (S,) [m], NaN where not measured."""
-        return self.samples["displacement_left_mm"].to_numpy(dtype=float) * MM
+        return self._displacement("left")
 
     @property
     def displacement_right(self) -> np.ndarray:
         """Right cable displacement (S,) [m], NaN where not measured."""
-        return self.samples["displacement_right_mm"].to_numpy(dtype=float) * MM
+        return self._displacement("right")
+
+    def _displacement(self, side: str) -> np.ndarray:
+        col = f"displacement_{side}_mm"
+        if col not in self.samples:
+            return np.full(self.n_samples, np.nan)
+        return self.samples[col].to_numpy(dtype=float) * MM
 
     @property
     def n_samples(self) -> int:
@@ -206,14 +231,18 @@ def _image_paths(df: pd.DataFrame, lines, folder: Path, missing_images: str, pro
     return tuple(out)
 
 
-def read_samples(path, *, folder=None, missing_images: str = "error") -> tuple[pd.DataFrame, tuple | None]:
+def read_samples(path, *, folder=None, missing_images: str = "error", tendons=("left", "right"),
+                 tension_sigma: float | None = None) -> tuple[pd.DataFrame, tuple | None]:
     """Read and validate ``samples.csv``.
 
-    Checks: every column of docs/data-formats.md present; integer, unique
-    sample ids; finite numeric times and tensions (displacements may be
-    empty); strictly increasing ``time_s``; every named image exists (unless
-    ``missing_images="keep"``, which keeps the path of a missing image for a
-    batch to report).
+    Checks: every column of docs/data-formats.md present (the tension column of
+    a tendon the tube lacks may be absent or empty, and so may the
+    displacements); integer, unique sample ids; finite numeric times and
+    tensions; no tension below ``-3 σ_T`` (``σ_T = tension_sigma``, default
+    :data:`DEFAULT_TENSION_SIGMA`: a load cell reads slightly below zero at
+    rest, lower is an error); strictly increasing ``time_s``; every named
+    image exists (unless ``missing_images="keep"``, which keeps the path of a
+    missing image for a batch to report).
 
     Returns
     -------
@@ -224,13 +253,20 @@ def read_samples(path, *, folder=None, missing_images: str = "error") -> tuple[p
     folder = Path(folder) if folder is not None else path.parent
     if missing_images not in ("error", "keep"):
         raise ValueError(f"missing_images must be 'error' or 'keep', got {missing_images!r}")
+    present = tuple(f"tension_{t}_N" for t in ("left", "right") if t in tendons)
+    absent = tuple(f"tension_{t}_N" for t in ("left", "right") if t not in tendons)
     df, lines = read_csv_table(
-        path, required=SAMPLE_COLUMNS, integer=("sample",),
-        numeric=("time_s", "tension_left_N", "tension_right_N"),
-        optional_numeric=("displacement_left_mm", "displacement_right_mm"), text=("image",))
+        path, required=("sample", "time_s") + present, integer=("sample",), numeric=("time_s",) + present,
+        optional_numeric=("displacement_left_mm", "displacement_right_mm") + absent, text=("image",))
     probs = Problems(path)
     if len(df) == 0:
         probs.add(None, "no samples (the file has only a header)")
+    floor = -3.0 * (DEFAULT_TENSION_SIGMA if tension_sigma is None else tension_sigma)
+    for col in present:
+        for v, ln in zip(df[col].to_numpy(dtype=float), lines):
+            if v < floor:
+                probs.add(ln, f"{col} {v:g} is below -3 sigma_T = {floor:g} N (a load-cell offset is at most "
+                              "that; set [uncertainty] tension_N in experiment.toml if the cell is noisier)")
     first: dict[int, int] = {}
     for s, ln in zip(df["sample"].to_numpy(), lines):
         if s in first:
@@ -351,7 +387,8 @@ def read_experiment(path, *, missing_images: str = "error") -> Experiment:
         raise InputFileNotFoundError(f"{path}: not an experiment folder (no experiment.toml)", path=path)
     meta = read_experiment_toml(meta_path)
     geom = _experiment_geometry(path, meta_path, meta["geometry"])
-    samples, image_paths = read_samples(path / "samples.csv", folder=path, missing_images=missing_images)
+    samples, image_paths = read_samples(path / "samples.csv", folder=path, missing_images=missing_images,
+                                        tendons=geom.tendons, tension_sigma=meta["tension_sigma"])
     has_images = image_paths is not None and any(p is not None for p in image_paths)
     calib = _calibration_path(path, meta_path, meta, has_images)
     pts_path = path / "notch_points.csv"
