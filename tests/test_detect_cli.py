@@ -91,3 +91,31 @@ def test_calibrate_cli(tmp_path, capsys):
     assert np.allclose(got.plane_tvec, tvp, atol=2e-3)
     assert main(["calibrate", *paths, "--board", "charuco_a4", "--out", str(out)]) == 2     # exists
     assert main(["calibrate", *paths, "--board", "no_such_board", "--out", str(tmp_path / "x.yml")]) == 2
+
+
+def test_detect_cli_photo_without_calibration_and_stated_base(tmp_path, capsys):
+    """A lab photo of a one-sided wrist in a chuck, no camera file, `base = "top"` in experiment.toml:
+    the scale comes from the tube's diameter (within 1 %), stated in the log and in detect_run.json."""
+    from notchfit.render.scenes import Scene, render_scene, scene_camera
+
+    geom = io.load_geometry(io.datasets_dir() / "geometry" / "wrist_asymmetric.toml")
+    th = np.array([0.2, 0.25, 0.3, 0.3, 0.25])
+    cam, plane = scene_camera(th, geom, image_size=(700, 500), mm_per_px=1 / 40, angle_deg=90)
+    r = render_scene(th, geom, cam, plane=plane, scene=Scene(holder="chuck"), rng=np.random.default_rng(8))
+    folder = tmp_path / "exp"
+    (folder / "images").mkdir(parents=True)
+    cv2.imwrite(str(folder / "images" / "0001.png"), r.image)
+    pd.DataFrame([{"sample": 1, "time_s": 1.0, "tension_right_N": 0.5, "image": "images/0001.png"}]) \
+        .to_csv(folder / "samples.csv", index=False)
+    (folder / "experiment.toml").write_text(
+        f'name = "exp"\ngeometry = "{io.datasets_dir() / "geometry" / "wrist_asymmetric.toml"}"\nbase = "top"\n')
+    out = tmp_path / "out"
+    assert main(["detect", str(folder), "--out", str(out)]) == 0
+    assert "outer diameter" in capsys.readouterr().out
+    run = io.read_json(out / "detect_run.json")["samples"]["exp"]["sample 1"]
+    assert run["base_side"] == "top" and run["assumption"]
+    assert abs(run["scale_mm_per_px"] - 1 / 40) < 0.01 / 40
+    det = pd.read_csv(out / "detections.csv")
+    assert (det["status"] == "ok").sum() == r.visible.sum()
+    ov = cv2.imread(str(out / "overlays" / "0001.png"))
+    assert ov.shape[0] == 1000                      # readable at any photo size: the composed view

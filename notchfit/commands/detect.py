@@ -9,6 +9,7 @@ import pandas as pd
 
 from .. import io
 from ..batch import run_batch
+from ..units import MM
 from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options, check_out_dir, list_failures
 
 NAME = "detect"
@@ -16,7 +17,10 @@ ORDER = 30
 HELP = "find the notch corners in the images of an experiment or a study (detections.csv + overlays)"
 DESCRIPTION = """Find the 4 + 2n numbered notch corners (docs/geometry.md) in every sample image of an
 experiment, or of every experiment of a study, with the experiment's camera file
-(experiment.toml `calibration`, written by `notchfit calibrate`). The detector works on the
+(experiment.toml `calibration`, written by `notchfit calibrate`; without one, the scale comes
+from the tube's outer diameter, stated in the log and in detect_run.json with its uncertainty).
+experiment.toml `base = "top" | "bottom" | "left" | "right"` states where the tube enters the
+photographs (found from the holder or the image border otherwise). The detector works on the
 silhouette only (no kinematic model): sharp corners of the outline in the calibrated plane,
 slots recognised by their width and depth, sub-pixel line fits to edge profiles.
 
@@ -56,15 +60,17 @@ def detect_one(item: dict) -> dict:
     from ..figures.detection import detection_overlay
 
     img = io.load_image(item["image"])
-    cam = _camera(str(item["calibration"]))
-    det = detect_notches(img, cam, item["geometry"], mirror=item["mirror"])
+    cam = _camera(str(item["calibration"])) if item["calibration"] is not None else None
+    det = detect_notches(img, cam, item["geometry"], mirror=item["mirror"], base=item["base"])
     if item["overlay"] is not None:
         ov = detection_overlay(img, det, item["sample"])
         Path(item["overlay"]).parent.mkdir(parents=True, exist_ok=True)
         if not cv2.imwrite(str(item["overlay"]), ov):
             raise OSError(f"could not write {item['overlay']}")
     return {"table": detections_table(item["sample"], det), "image_status": det.image_status,
-            "message": det.message, "n_ok": det.n_ok}
+            "message": det.message, "n_ok": det.n_ok, "base_side": det.base_side,
+            "scale_mm_per_px": det.scale_mm_per_px, "scale_sigma_mm_per_px": det.scale_sigma,
+            "assumption": det.assumption or None}
 
 
 def run(args) -> int:
@@ -78,7 +84,10 @@ def run(args) -> int:
             failed[e.name] = "samples.csv has no image column"
             continue
         if e.calibration_path is None:
-            failed[e.name] = "experiment.toml has no `calibration` (camera file) for its images"
+            print(f"  {e.name}: no camera file: the scale comes from the tube's outer diameter "
+                  f"({2 * e.geometry.outer_radius / MM:g} mm) in a fronto-parallel view, x_mm/y_mm in the "
+                  "image axes (x right, y up); detect_run.json gives the scale and its uncertainty")
+            plan.append(e)
             continue
         if not Path(e.calibration_path).is_file():
             failed[e.name] = f"camera file not found: {e.calibration_path}"
@@ -102,6 +111,7 @@ def run(args) -> int:
             for s, img in zip(e.sample_ids, e.image_paths):
                 ov = None if args.no_overlays else run_.path(sub / "overlays" / f"{int(s):04d}.png")
                 items.append({"image": img, "calibration": e.calibration_path, "geometry": e.geometry,
+                              "base": e.base,
                               "mirror": e.mirror, "sample": int(s), "overlay": ov})
                 keys.append(f"{e.name}/{int(s)}" if study else f"sample {int(s)}")
                 owners.append(e.name)
@@ -114,9 +124,8 @@ def run(args) -> int:
             df = (pd.concat(tables, ignore_index=True) if tables
                   else pd.DataFrame(columns=list(io.DETECTION_COLUMNS)))
             io.write_table_atomic(df, run_.path(sub / "detections.csv"))
-            summary[e.name] = {r.key: ({"image_status": r.value["image_status"], "n_ok": r.value["n_ok"],
-                                        "message": r.value["message"]} if r.ok else {"error": r.error})
-                               for r in rows}
+            summary[e.name] = {r.key: ({k: v for k, v in r.value.items() if k != "table"} if r.ok
+                                       else {"error": r.error}) for r in rows}
             n_ok_images += sum(1 for r in rows if r.ok and r.value["image_status"] == "ok")
         for r in res.failures:
             failed[r.key] = r.error

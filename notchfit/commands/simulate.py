@@ -18,8 +18,9 @@ NAME = "simulate"
 ORDER = 50
 HELP = "simulate an experiment or a study from its measured tensions (friction model)"
 DESCRIPTION = """Run the cable-friction simulator (Sec. IV-B) on the measured tension history of
-each experiment: after each sample the tensions step to the next sample's values and the
-manipulator comes to rest before that sample is taken. Parameters are the paper's values, or
+each experiment: after each sample the tensions move to the next sample's values over
+[protocol] ramp_time_s of experiment.toml (a step when it is absent or 0; the log says which)
+and the manipulator comes to rest before that sample is taken. Parameters are the paper's values, or
 those of a model file (--model: a TOML file written by notchfit.io.save_params, e.g. the
 extended model that `notchfit diagnose`
 saves), then any --param overrides (SI units: k_lin N m/rad, mu_d, b N m s/rad, ...).
@@ -77,7 +78,7 @@ def parse_params(model_file, overrides, base: FrictionParams | None = None):
 def simulate_one(item: dict) -> dict:
     """Simulate one experiment and compare with its points (a batch item; module level so that it pickles)."""
     res = simulate(item["time"], item["tension_left"], item["tension_right"], item["params"],
-                   item["geometry"], method=item["method"])
+                   item["geometry"], method=item["method"], ramp_time=item["ramp_time"])
     out = {"result": res, "table": simulation_table(res, item["samples"])}
     if item["points"] is not None:
         try:
@@ -122,7 +123,7 @@ def _items(exps, params: dict, args) -> list[dict]:
     return [{"time": e.time, "tension_left": e.tension_left,
              "tension_right": e.tension_right, "params": params[e.name], "geometry": e.geometry,
              "method": args.method, "samples": [int(s) for s in e.sample_ids], "points": pts.get(e.name),
-             "mirror": e.mirror, "sigma": e.point_sigma} for e in exps]
+             "mirror": e.mirror, "sigma": e.point_sigma, "ramp_time": e.ramp_time or 0.0} for e in exps]
 
 
 def run(args) -> int:
@@ -132,6 +133,10 @@ def run(args) -> int:
     scan = io.scan_study(args.input)
     exps, study = scan.experiments, scan.study
     params = _experiment_params(exps, args)
+    no_protocol = [e.name for e in exps if e.ramp_time is None]
+    if no_protocol:
+        print(f"  no [protocol] in experiment.toml of {', '.join(no_protocol)}: assumed a step to each "
+              "sample's tensions, then rest (ramp_time_s = 0)")
     for e in exps:
         if e.n_clipped:
             print(f"  {e.name}: {e.n_clipped} tension reading(s) slightly below 0 N (load-cell offset, within "

@@ -44,7 +44,9 @@ __all__ = [
     "write_experiment",
 ]
 
-_TOML_KEYS = {"name", "description", "geometry", "mirror", "calibration", "uncertainty"}
+_TOML_KEYS = {"name", "description", "geometry", "mirror", "calibration", "uncertainty", "protocol", "base"}
+#: Where the tube's base enters a photograph (``base`` in experiment.toml; absent: found by the detector).
+BASE_SIDES = ("top", "bottom", "left", "right")
 _UNCERTAINTY_KEYS = {"point_mm": "point_sigma", "tension_N": "tension_sigma"}
 #: Load-cell uncertainty when experiment.toml gives none [N] (docs/data-formats.md).
 DEFAULT_TENSION_SIGMA = 0.05
@@ -74,6 +76,13 @@ class Experiment:
         folder has no ``notch_points.csv``.
     image_paths : tuple of (Path or None), or None
         The image of each sample; None when ``samples.csv`` has no ``image`` column.
+    base : str or None
+        Where the tube's base enters the photographs (``top``, ``bottom``,
+        ``left``, ``right``); None: the detector finds it.
+    ramp_time : float or None
+        ``[protocol] ramp_time_s`` [s]: after each sample the tensions moved
+        linearly to the next sample's over this time, then rested (0: a step);
+        None when experiment.toml does not say.
     """
 
     name: str
@@ -87,6 +96,8 @@ class Experiment:
     samples: pd.DataFrame
     points: np.ndarray | None
     image_paths: tuple | None
+    base: str | None = None
+    ramp_time: float | None = None
 
     @property
     def sample_ids(self) -> np.ndarray:
@@ -189,7 +200,7 @@ def read_experiment_toml(path) -> dict:
     for k in sorted(set(data) - _TOML_KEYS):
         probs.add(doc.line_of(k), f"unknown key {k!r} (known: {', '.join(sorted(_TOML_KEYS))})")
     out = {"name": path.parent.name, "description": "", "geometry": "default", "mirror": False,
-           "calibration": None, "point_sigma": None, "tension_sigma": None}
+           "calibration": None, "point_sigma": None, "tension_sigma": None, "base": None, "ramp_time": None}
     for key in ("name", "description", "geometry", "calibration"):
         if key in data:
             v = data[key]
@@ -207,8 +218,30 @@ def read_experiment_toml(path) -> dict:
             out["mirror"] = data["mirror"]
     if "uncertainty" in data:
         _uncertainty(doc, data["uncertainty"], probs, out)
+    if "base" in data:
+        if data["base"] not in BASE_SIDES:
+            probs.add(doc.line_of("base"), f"base must be one of {', '.join(BASE_SIDES)}, got {data['base']!r}")
+        else:
+            out["base"] = data["base"]
+    if "protocol" in data:
+        _protocol(doc, data["protocol"], probs, out)
     probs.raise_if_any()
     return out
+
+
+def _protocol(doc, table, probs, out) -> None:
+    """``[protocol] ramp_time_s``: how the drive moved between samples (0 = a step)."""
+    if not isinstance(table, dict):
+        probs.add(doc.line_of("protocol"), "[protocol] must be a table")
+        return
+    for k in sorted(set(table) - {"ramp_time_s"}):
+        probs.add(doc.line_of("protocol", k), f"unknown key {k!r} in [protocol] (known: ramp_time_s)")
+    if "ramp_time_s" in table:
+        v = table["ramp_time_s"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (v >= 0 and v < 1e6):
+            probs.add(doc.line_of("protocol", "ramp_time_s"), f"ramp_time_s must be a number >= 0 s, got {v!r}")
+        else:
+            out["ramp_time"] = float(v)
 
 
 def _plain_name(name: str) -> bool:
@@ -349,10 +382,9 @@ def _experiment_geometry(folder: Path, meta_path: Path, source: str) -> Geometry
 def _calibration_path(folder: Path, meta_path: Path, meta: dict, has_images: bool) -> Path | None:
     calib = folder / meta["calibration"] if meta["calibration"] is not None else None
     if has_images:
-        if calib is None:
-            raise TomlError(f"{meta_path}: samples.csv names images but there is no `calibration` "
-                            "key (a camera file is required with images)")
-        if not calib.is_file():
+        # images without a camera file are allowed: `detect` then takes the scale from the
+        # tube's outer diameter (a fronto-parallel view) and says so
+        if calib is not None and not calib.is_file():
             line = load_toml(meta_path).line_of("calibration")
             raise TomlError(f"{meta_path}: line {line}: calibration file not found: {meta['calibration']} "
                             f"(looked for {calib})")
@@ -402,7 +434,7 @@ def read_experiment(path, *, missing_images: str = "error") -> Experiment:
     return Experiment(name=meta["name"], path=path, description=meta["description"], geometry=geom,
                       mirror=meta["mirror"], calibration_path=calib, point_sigma=meta["point_sigma"],
                       tension_sigma=meta["tension_sigma"], samples=samples, points=points,
-                      image_paths=image_paths)
+                      image_paths=image_paths, base=meta["base"], ramp_time=meta["ramp_time"])
 
 
 def is_experiment_dir(path) -> bool:
