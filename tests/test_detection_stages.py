@@ -167,7 +167,7 @@ def test_refine_pass_finds_an_l_corner_to_a_twentieth_of_a_pixel():
                                               lim=0.25, min_points=5, contrast=-160.0)
         if ok[0]:
             best = (sgn, Cn[0], blur)
-    assert best is not None
+    assert best is not None, "neither edge polarity refined the corner"
     assert np.linalg.norm(best[1] - X) < 0.05
     assert 0.8 < best[2] < 1.25
 
