@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from .. import io
-from ..diagnosis import diagnose_study
+from .. import diagnosis
 from ..report import build_report, summary_lines
 from ..synth import generate_study, load_recipe
 from . import detect, fit, simulate
@@ -124,4 +124,4 @@ def diagnose(study_dir: Path, out_dir: Path, *, jobs: int = 1, seed: int = 0) ->
     exps, problems = io.attach_detections(io.read_study(study_dir), out_dir)
     for name, why in problems.items():
         print(f"  diagnose: leaving out {name}: {why}")
-    return write_diagnosis(diagnose_study(exps, jobs=jobs, seed=seed), out_dir)
+    return write_diagnosis(diagnosis.diagnose(exps, jobs=jobs, seed=seed), out_dir)

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from .. import io
-from ..diagnosis import CAUSES, Diagnosis, diagnose_study
+from ..diagnosis import CAUSES, Diagnosis, diagnose
 from ..figures.diagnosis import write_diagnosis_figures
 from ..friction import save_params
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
@@ -107,7 +107,7 @@ def run(args) -> int:
     check_out_dir(args.out, args.study)
     exps, unread = _experiments(args)
     with io.OutputRun(args.out, outputs=list(OUTPUTS), force=args.force, name="diagnose") as run_:
-        diag = diagnose_study(exps, jobs=args.jobs, scheduler=args.scheduler, seed=args.seed,
+        diag = diagnose(exps, jobs=args.jobs, scheduler=args.scheduler, seed=args.seed,
                               causes=causes, max_folds=args.max_folds,
                               progress=lambda m: print(f"diagnose: {m}", file=sys.stderr))
         data = write_diagnosis(diag, run_.stage, figures=not args.no_figures)

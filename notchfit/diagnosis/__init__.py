@@ -47,7 +47,7 @@ from .results import CandidateResult, Diagnosis, Gain, Signature
 from .signatures import loading_stalls
 from .specs import (BASELINE, BASELINE_MU_EXCESS, CANDIDATES, CAUSES, REGISTRATION_BOUNDS,
                     WARP_CENTER_RANGE, WARP_RADIUS, ParamSpec)
-from .study import diagnose, diagnose_study
+from .study import diagnose
 
 __all__ = [
     "BASELINE",
@@ -68,7 +68,6 @@ __all__ = [
     "SimulationCache",
     "calibrate",
     "diagnose",
-    "diagnose_study",
     "folds_by_experiment",
     "loading_stalls",
     "peak_regimes",

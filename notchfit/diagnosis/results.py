@@ -188,9 +188,6 @@ class Diagnosis:
             out["figures"] = list(figures)
         return out
 
-    #: Alias of :meth:`to_dict`.
-    to_json = to_dict
-
     def extension_model(self) -> tuple[FrictionParams, dict]:
         """The extended model (for none/unexplained, the baseline) as simulator parameters.
 

@@ -16,7 +16,7 @@ from .results import Diagnosis, Gain
 from .signatures import signatures
 from .specs import CANDIDATES, CAUSES
 
-__all__ = ["diagnose", "diagnose_study"]
+__all__ = ["diagnose"]
 
 
 def _mean_mse(mse) -> float:
@@ -133,6 +133,3 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
                      extended=extended, per_regime=_per_regime(preps, base_mse, ext_mse),
                      noise_rms=noise_rms, seed=seed, heldout={"baseline": base, **held}, prepared=preps)
 
-
-#: The diagnosis of a study's experiments (the name the ``diagnose`` command uses).
-diagnose_study = diagnose
