@@ -33,7 +33,8 @@ import numpy as np
 from ..camera import CameraModel
 from ..geometry import Geometry
 from ..notches import from_plane, notch_points, to_plane
-from . import _illumination, _link_frames, _smooth_field, _subdivide, manipulator_outline, polygon_coverage
+from . import (RenderedManipulator, _illumination, _link_frames, _smooth_field, _subdivide, manipulator_outline,
+               polygon_coverage)
 
 __all__ = ["RenderedScene", "Scene", "holder_outline", "render_scene", "scene_camera", "tube_outline"]
 
@@ -102,19 +103,14 @@ class Scene:
 
 
 @dataclass(frozen=True)
-class RenderedScene:
-    """A rendered scene and its ground truth (as :class:`~notchfit.render.RenderedManipulator`).
+class RenderedScene(RenderedManipulator):
+    """A rendered scene and its ground truth: :class:`~notchfit.render.RenderedManipulator`'s
+    fields, the camera and the scene.
 
     ``visible`` is False for points outside the image and for base points
     that are not corners (plain tube, no holder).
     """
 
-    image: np.ndarray
-    points_px: np.ndarray
-    points_plane: np.ndarray
-    theta: np.ndarray
-    plane: tuple
-    visible: np.ndarray
     camera: CameraModel
     scene: Scene
 
