@@ -190,7 +190,7 @@ def test_error_toml_bad_values(tmp_path, geom):
 def test_error_no_points_no_images(tmp_path, geom):
     folder = _write(tmp_path, geom)
     os.remove(folder / "notch_points.csv")
-    with pytest.raises(ValueError, match="no notch_points.csv and no images"):
+    with pytest.raises(ValueError, match="no notch_points.csv, no angles.csv and no images"):
         io.read_experiment(folder)
 
 

@@ -7,7 +7,7 @@ module                 files
 :mod:`.interrupts`     Ctrl-C/SIGTERM as an exception; sections they cannot cut
 :mod:`.tables`         the CSV core: validated tables, column layouts
 :mod:`.toml`           the TOML loader (errors name file and line), the writer
-:mod:`.experiments`    experiment folders and studies, notch-point tables
+:mod:`.experiments`    experiment folders and studies, notch-point and joint-angle tables
 :mod:`.camera`         camera files (YAML) and calibration-board definitions
 :mod:`.images`         image files
 :mod:`.models`         geometry files, friction-model parameters, FEA reference
@@ -31,8 +31,9 @@ import importlib
 _HOME = {
     "camera": ("load_board", "read_camera", "write_camera"),
     "errors": ("InputFileError", "InputFileNotFoundError"),
-    "experiments": ("Experiment", "StudyScan", "attach_detections", "is_experiment_dir",
-                    "load_detected_points", "points_from_table", "points_table", "read_experiment",
+    "experiments": ("ANGLE_COLUMNS", "Experiment", "StudyScan", "angles_from_table", "angles_table",
+                    "attach_detections", "is_experiment_dir", "load_detected_points", "points_from_table",
+                    "points_table", "read_angles_table", "read_experiment",
                     "read_experiment_toml", "read_points_table", "read_samples", "read_study", "scan_study",
                     "with_points", "write_experiment"),
     "images": ("image_info", "load_image"),

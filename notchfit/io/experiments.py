@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ..geometry import Geometry
-from ..units import MM
+from ..units import DEG, MM
 from .errors import InputFileError, InputFileNotFoundError
 from .models import load_geometry
 from .outputs import find_output, read_detections, write_table_atomic, write_text_atomic
@@ -27,7 +27,10 @@ from .tables import POINT_COLUMNS, SAMPLE_COLUMNS, Problems, check_point_rows, r
 from .toml import TomlError, TomlFile, load_toml, toml_dumps
 
 __all__ = [
+    "ANGLE_COLUMNS",
     "Experiment",
+    "angles_from_table",
+    "angles_table",
     "attach_detections",
     "is_experiment_dir",
     "load_detected_points",
@@ -35,6 +38,7 @@ __all__ = [
     "points_table",
     "read_experiment",
     "read_experiment_toml",
+    "read_angles_table",
     "read_points_table",
     "read_samples",
     "read_study",
@@ -47,7 +51,11 @@ __all__ = [
 _TOML_KEYS = {"name", "description", "geometry", "mirror", "calibration", "uncertainty", "protocol", "base"}
 #: Where the tube's base enters a photograph (``base`` in experiment.toml; absent: found by the detector).
 BASE_SIDES = ("top", "bottom", "left", "right")
-_UNCERTAINTY_KEYS = {"point_mm": "point_sigma", "tension_N": "tension_sigma"}
+_UNCERTAINTY_KEYS = {"point_mm": "point_sigma", "tension_N": "tension_sigma", "angle_deg": "angle_sigma"}
+#: Unit of each ``[uncertainty]`` key, to SI (point_mm -> m, angle_deg -> rad).
+_UNCERTAINTY_UNITS = {"point_mm": MM, "tension_N": 1.0, "angle_deg": DEG}
+#: Columns of ``angles.csv``: ``sample,joint`` and exactly one of the two angle columns.
+ANGLE_COLUMNS = ("sample", "joint", "theta_deg", "theta_rad")
 #: Load-cell uncertainty when experiment.toml gives none [N] (docs/data-formats.md).
 DEFAULT_TENSION_SIGMA = 0.05
 
@@ -69,11 +77,16 @@ class Experiment:
     point_sigma, tension_sigma : float or None
         Measurement uncertainty of a point coordinate [m] and of a tension
         [N] (``[uncertainty] point_mm, tension_N``).
+    angle_sigma : float or None
+        Measurement uncertainty of a joint angle [rad] (``[uncertainty] angle_deg``).
     samples : DataFrame
         ``samples.csv`` as read (file units, one row per sample, time order).
     points : ndarray, shape (S, m, 2) [m], or None
         Notch points in the plane frame, NaN where missing; None when the
         folder has no ``notch_points.csv``.
+    angles : ndarray, shape (S, n) [rad], or None
+        Measured joint angles (``angles.csv``), joint ``j`` in column ``j-1``,
+        NaN where not measured; None when the folder has no ``angles.csv``.
     image_paths : tuple of (Path or None), or None
         The image of each sample; None when ``samples.csv`` has no ``image`` column.
     base : str or None
@@ -98,6 +111,8 @@ class Experiment:
     image_paths: tuple | None
     base: str | None = None
     ramp_time: float | None = None
+    angles: np.ndarray | None = None
+    angle_sigma: float | None = None
 
     @property
     def sample_ids(self) -> np.ndarray:
@@ -175,7 +190,7 @@ def _uncertainty(doc: TomlFile, unc, probs: Problems, out: dict) -> None:
         elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
             probs.add(where, f"[uncertainty] {k} must be a positive number, got {v!r}")
         else:
-            out[_UNCERTAINTY_KEYS[k]] = float(v) * (MM if k == "point_mm" else 1.0)
+            out[_UNCERTAINTY_KEYS[k]] = float(v) * _UNCERTAINTY_UNITS[k]
 
 
 def read_experiment_toml(path) -> dict:
@@ -185,7 +200,7 @@ def read_experiment_toml(path) -> dict:
     -------
     dict
         ``name, description, geometry, mirror, calibration, point_sigma [m],
-        tension_sigma [N]`` (absent optional keys as None; ``name`` defaults
+        tension_sigma [N], angle_sigma [rad], base, ramp_time [s]`` (absent optional keys as None; ``name`` defaults
         to the folder name, ``geometry`` to "default", ``mirror`` to false).
 
     Raises
@@ -200,7 +215,8 @@ def read_experiment_toml(path) -> dict:
     for k in sorted(set(data) - _TOML_KEYS):
         probs.add(doc.line_of(k), f"unknown key {k!r} (known: {', '.join(sorted(_TOML_KEYS))})")
     out = {"name": path.parent.name, "description": "", "geometry": "default", "mirror": False,
-           "calibration": None, "point_sigma": None, "tension_sigma": None, "base": None, "ramp_time": None}
+           "calibration": None, "point_sigma": None, "tension_sigma": None, "angle_sigma": None, "base": None,
+           "ramp_time": None}
     for key in ("name", "description", "geometry", "calibration"):
         if key in data:
             v = data[key]
@@ -368,6 +384,84 @@ def points_table(points, sample_ids) -> pd.DataFrame:
                          "x_mm": flat[keep, 0], "y_mm": flat[keep, 1]})
 
 
+#: The largest joint angle an ``angles.csv`` may hold [rad]: a notch turns far less than half a turn.
+MAX_JOINT_ANGLE = math.pi
+
+
+def read_angles_table(path, *, n_joints: int | None = None, sample_ids=None,
+                      max_angle: float = MAX_JOINT_ANGLE) -> pd.DataFrame:
+    """Read and validate ``angles.csv`` (``sample,joint,theta_deg`` or ``sample,joint,theta_rad``).
+
+    Measured joint angles, joint ``j`` in ``1..n`` from the base (docs/data-formats.md).
+    Checks: exactly one of ``theta_deg`` / ``theta_rad``; integer sample and
+    joint ids; joint in ``1..n_joints`` (when given); the sample present in
+    ``sample_ids`` (when given); no (sample, joint) twice; angles finite with
+    ``|θ| <= max_angle`` or missing (an empty cell or ``nan``). Every problem
+    names its line.
+
+    Returns
+    -------
+    DataFrame
+        Columns ``sample, joint, theta`` with ``theta`` in radians (NaN = missing).
+    """
+    path = Path(path)
+    df, lines = read_csv_table(path, required=("sample", "joint"), integer=("sample", "joint"),
+                               nan_ok=("theta_deg", "theta_rad"))
+    probs = Problems(path)
+    cols = [c for c in ("theta_deg", "theta_rad") if c in df.columns]
+    if len(cols) != 1:
+        probs.add(1, "both theta_deg and theta_rad: give the angle in exactly one of them" if cols else
+                  "missing column theta_deg or theta_rad (expected sample,joint,theta_deg)")
+        probs.raise_if_any()
+    unit = DEG if cols[0] == "theta_deg" else 1.0
+    theta = df[cols[0]].to_numpy(dtype=float) * unit
+    known = set(int(s) for s in sample_ids) if sample_ids is not None else None
+    seen: dict[tuple, int] = {}
+    for s, j, th, ln in zip(df["sample"].to_numpy(), df["joint"].to_numpy(), theta, lines):
+        if n_joints is not None and not 1 <= j <= n_joints:
+            probs.add(ln, f"joint {j} out of range 1..{n_joints} (joints are numbered from the base)")
+        if known is not None and s not in known:
+            probs.add(ln, f"sample {s} is not in samples.csv")
+        if abs(th) > max_angle:
+            probs.add(ln, f"{cols[0]} {th / unit:g} is beyond a joint's physical range "
+                          f"(|theta| <= {max_angle / unit:g} {cols[0][6:]})")
+        if (s, j) in seen:
+            probs.add(ln, f"duplicate joint {j} of sample {s} (first on line {seen[(s, j)]})")
+        else:
+            seen[(s, j)] = ln
+    probs.raise_if_any()
+    return pd.DataFrame({"sample": df["sample"].to_numpy(), "joint": df["joint"].to_numpy(), "theta": theta})
+
+
+def angles_from_table(df: pd.DataFrame, sample_ids, n_joints: int) -> np.ndarray:
+    """``(S, n)`` joint angles [rad] from a ``sample, joint, theta`` frame (NaN = not measured)."""
+    ids = np.asarray(sample_ids, dtype=np.int64)
+    pos = {int(s): i for i, s in enumerate(ids)}
+    out = np.full((len(ids), n_joints), np.nan)
+    if len(df):
+        rows = np.array([pos.get(int(s), -1) for s in df["sample"].to_numpy()])
+        cols = df["joint"].to_numpy(dtype=np.int64) - 1
+        ok = (rows >= 0) & (cols >= 0) & (cols < n_joints)
+        out[rows[ok], cols[ok]] = df["theta"].to_numpy(dtype=float)[ok]
+    return out
+
+
+def angles_table(angles, sample_ids) -> pd.DataFrame:
+    """The ``angles.csv`` layout (``sample, joint, theta_deg``) of ``(S, n)`` joint angles [rad].
+
+    NaN angles are left out (a missing row = an angle not measured).
+    """
+    th = np.asarray(angles, dtype=float)
+    ids = np.asarray(sample_ids, dtype=np.int64)
+    if th.ndim != 2 or th.shape[0] != len(ids):
+        raise ValueError(f"angles must have shape (S, n) with S={len(ids)} samples, got {th.shape}")
+    S, n = th.shape
+    sample, joint = np.repeat(ids, n), np.tile(np.arange(1, n + 1, dtype=np.int64), S)
+    flat = th.reshape(-1) / DEG
+    keep = np.isfinite(flat)
+    return pd.DataFrame({"sample": sample[keep], "joint": joint[keep], "theta_deg": flat[keep]})
+
+
 # ----------------------------------------------------------------------------- folders
 def _experiment_geometry(folder: Path, meta_path: Path, source: str) -> Geometry:
     if source == "default":
@@ -423,18 +517,22 @@ def read_experiment(path, *, missing_images: str = "error") -> Experiment:
                                         tendons=geom.tendons, tension_sigma=meta["tension_sigma"])
     has_images = image_paths is not None and any(p is not None for p in image_paths)
     calib = _calibration_path(path, meta_path, meta, has_images)
-    pts_path = path / "notch_points.csv"
-    points = None
+    pts_path, ang_path = path / "notch_points.csv", path / "angles.csv"
+    points = angles = None
     if pts_path.is_file():
         df = read_points_table(pts_path, n_points=geom.n_points, sample_ids=samples["sample"])
         points = points_from_table(df, samples["sample"], geom.n_points)
-    elif not has_images:
-        raise InputFileError(f"{path}: no notch_points.csv and no images: an experiment needs measured "
-                             "notch points or one image per sample", path=path)
+    if ang_path.is_file():
+        df = read_angles_table(ang_path, n_joints=geom.n_joints, sample_ids=samples["sample"])
+        angles = angles_from_table(df, samples["sample"], geom.n_joints)
+    if points is None and angles is None and not has_images:
+        raise InputFileError(f"{path}: no notch_points.csv, no angles.csv and no images: an experiment needs "
+                             "measured notch points, measured joint angles or one image per sample", path=path)
     return Experiment(name=meta["name"], path=path, description=meta["description"], geometry=geom,
                       mirror=meta["mirror"], calibration_path=calib, point_sigma=meta["point_sigma"],
                       tension_sigma=meta["tension_sigma"], samples=samples, points=points,
-                      image_paths=image_paths, base=meta["base"], ramp_time=meta["ramp_time"])
+                      image_paths=image_paths, base=meta["base"], ramp_time=meta["ramp_time"],
+                      angles=angles, angle_sigma=meta["angle_sigma"])
 
 
 def is_experiment_dir(path) -> bool:
@@ -443,7 +541,7 @@ def is_experiment_dir(path) -> bool:
 
 
 #: Files whose presence makes a sub-folder of a study an experiment that lost its experiment.toml.
-_EXPERIMENT_FILES = ("samples.csv", "notch_points.csv")
+_EXPERIMENT_FILES = ("samples.csv", "notch_points.csv", "angles.csv")
 
 
 @dataclass(frozen=True)
@@ -587,6 +685,7 @@ def _samples_for_file(samples: pd.DataFrame) -> pd.DataFrame:
 def write_experiment(folder, *, name: str, samples: pd.DataFrame, points=None, mirror: bool = False,
                      description: str = "", geometry="default", calibration=None,
                      point_sigma: float | None = None, tension_sigma: float | None = None,
+                     angles=None, angle_sigma: float | None = None, protocol: dict | None = None,
                      force: bool = False) -> Path:
     """Write an experiment folder per docs/data-formats.md.
 
@@ -611,6 +710,12 @@ def write_experiment(folder, *, name: str, samples: pd.DataFrame, points=None, m
         Point uncertainty [m] (written as ``point_mm``).
     tension_sigma : float or None
         Tension uncertainty [N].
+    angles : array (S, n) [rad] or None
+        Measured joint angles, NaN = not measured (written to angles.csv in degrees).
+    angle_sigma : float or None
+        Angle uncertainty [rad] (written as ``angle_deg``).
+    protocol : dict or None
+        ``{"ramp_time_s": ...}`` written as ``[protocol]``.
     force : bool
 
     Returns
@@ -627,6 +732,7 @@ def write_experiment(folder, *, name: str, samples: pd.DataFrame, points=None, m
         pts = np.asarray(points, dtype=float)
         if pts.ndim != 3 or pts.shape[0] != len(df):
             raise ValueError(f"points must have shape (S={len(df)}, m, 2), got {pts.shape}")
+    ang_rows = None if angles is None else angles_table(angles, df["sample"].to_numpy())
     meta = {"name": name, "description": description, "geometry": str(geometry), "mirror": bool(mirror),
             "calibration": None if calibration is None else str(calibration)}
     unc = {}
@@ -634,13 +740,21 @@ def write_experiment(folder, *, name: str, samples: pd.DataFrame, points=None, m
         unc["point_mm"] = float(point_sigma) / MM
     if tension_sigma is not None:
         unc["tension_N"] = float(tension_sigma)
+    if angle_sigma is not None:
+        unc["angle_deg"] = float(angle_sigma) / DEG
     if unc:
         meta["uncertainty"] = unc
+    if protocol:
+        meta["protocol"] = {k: float(v) for k, v in protocol.items()}
     write_table_atomic(df, folder / "samples.csv")
     if points is not None:
         write_table_atomic(points_table(points, df["sample"].to_numpy()), folder / "notch_points.csv")
     elif (folder / "notch_points.csv").exists():
         os.remove(folder / "notch_points.csv")
+    if ang_rows is not None:
+        write_table_atomic(ang_rows, folder / "angles.csv")
+    elif (folder / "angles.csv").exists():
+        os.remove(folder / "angles.csv")
     # experiment.toml last: a folder without it is not an experiment yet.
     write_text_atomic(toml_dumps(meta), folder / "experiment.toml")
     return folder
