@@ -150,7 +150,7 @@ def test_physics_imports_no_file_io_and_nothing_above_it(module):
     graph = import_graph()
     deps = graph[f"notchfit.{module}"]
     above = ("notchfit.io", "notchfit.commands", "notchfit.cli", "notchfit.figures", "notchfit.report",
-             "notchfit.diagnosis", "notchfit.fitting", "notchfit.synth", "notchfit.batch")
+             "notchfit.diagnosis", "notchfit.fitting", "notchfit.synth", "notchfit.recipes", "notchfit.batch")
     bad = sorted(d for d in deps if any(d == a or d.startswith(a + ".") for a in above))
     assert not bad, f"notchfit.{module} (physics) imports {bad}"
 
