@@ -22,17 +22,18 @@ from numba import njit
 
 # ---- packed parameter vector (the spring and damping entries hold joint 1's values; the
 # kernels read every joint's own from the per-joint table ``J``)
-(P_K1, P_K2, P_K3, P_TM, P_TS, P_MUD, P_MUS, P_B, P_VTHR, P_BETA, P_H, P_FX, P_FZ, P_RX, P_P,
- P_LAW, P_UNI, P_ARMU) = range(18)
-N_PAR = 18
+(P_K1, P_K2, P_K3, P_TM, P_TS, P_MUD, P_MUS, P_B, P_VTHR, P_BETA, P_H, P_FX, P_FZ, P_RX,
+ P_LAW, P_UNI, P_ARMU) = range(17)
+N_PAR = 17
 #: friction laws (``P_LAW``): the seed's per-link channel law, the capstan law of a lumen tendon
 LAW_CHANNEL, LAW_CAPSTAN = 0, 1
 
 # ---- per-joint table ``J`` (rows, one column per joint): unscaled spring rates and breaks
 # (Fig. 17 form), stiffness scale, damping b_j [N m s/rad], rest angle θ0_j [rad], moment
-# arms of the right and left tendons [m]
-J_K1, J_K2, J_K3, J_TM, J_TS, J_S, J_B, J_TH0, J_AR, J_AL = range(10)
-N_J = 10
+# arms of the right and left tendons [m], and the straight-configuration vector (x, z) from
+# joint j's pivot to joint j+1's (to the tool point for the last joint) [m], for tip loads
+J_K1, J_K2, J_K3, J_TM, J_TS, J_S, J_B, J_TH0, J_AR, J_AL, J_DX, J_DZ = range(12)
+N_J = 12
 
 # relative slack on the stick test |ΔT| <= μ_s N (1 + slack): lets a link stick when N = 0
 # (straight joints) or μ_s == μ_d, where the paper's strict |ΔT| < μ_s N can never hold
@@ -153,10 +154,15 @@ def wrap_measure(th, law):
 
 
 @njit(cache=True)
-def tip_torques(theta, p, fx, fz, out):
-    """``J_X(θ)^T (f_x, f_z, 0)`` (Eqs. 18-20) into ``out`` [N m].
+def tip_torques(theta, dx, dz, fx, fz, out):
+    """``J_X(θ)^T (f_x, f_z, 0)`` (Eqs. 18-20) into ``out`` [N m], for any pivot chain.
 
-    ``J_xk = p Σ_{i≥k} cos φ_i``, ``J_zk = -p Σ_{i≥k} sin φ_i``, ``φ_i = Σ_{l≤i} θ_l``.
+    ``(d_x, d_z)_i`` is the straight-configuration vector from joint ``i``'s pivot
+    to the next (to the tool point for the last joint), turned by ``φ_i = Σ_{l≤i} θ_l``
+    (``R_y``: ``(d_x cos φ + d_z sin φ, -d_x sin φ + d_z cos φ)``); the lever
+    ``L_k = Σ_{i≥k} R(φ_i) d_i`` from joint ``k`` to the tool point gives
+    ``τ_k = L_k,z f_x - L_k,x f_z``. On the seed tube (``d = (0, p)``) this is the
+    paper's ``J_xk = p Σ_{i≥k} cos φ_i``, ``J_zk = -p Σ_{i≥k} sin φ_i``.
     """
     n = theta.shape[0]
     phi = 0.0
@@ -166,12 +172,22 @@ def tip_torques(theta, p, fx, fz, out):
         phi += theta[i]
         cphi[i] = math.cos(phi)
         sphi[i] = math.sin(phi)
-    sc = 0.0
-    ss = 0.0
+    uniform = True                      # the seed's chain: the paper's sums, bit for bit
+    for i in range(n):
+        if dx[i] != 0.0 or dz[i] != dz[0]:
+            uniform = False
+            break
+    lx = 0.0
+    lz = 0.0
     for i in range(n - 1, -1, -1):
-        sc += cphi[i]
-        ss += sphi[i]
-        out[i] = p * sc * fx - p * ss * fz
+        if uniform:
+            lx += sphi[i]
+            lz += cphi[i]
+            out[i] = dz[0] * lz * fx - dz[0] * lx * fz
+        else:
+            lx += dx[i] * cphi[i] + dz[i] * sphi[i]
+            lz += dz[i] * cphi[i] - dx[i] * sphi[i]
+            out[i] = lz * fx - lx * fz
 
 
 @njit(cache=True, inline="always")
@@ -213,7 +229,7 @@ def reference_kernel(t_s, TLm, TRm, par, J, dt_max, ramp_time, settle_time):
     S = t_s.shape[0]
     n = J.shape[1]
     mud, mus, vthr = par[P_MUD], par[P_MUS], par[P_VTHR]
-    beta, h, fx, fz, rx, p = par[P_BETA], par[P_H], par[P_FX], par[P_FZ], par[P_RX], par[P_P]
+    beta, h, fx, fz, rx = par[P_BETA], par[P_H], par[P_FX], par[P_FZ], par[P_RX]
     law = int(par[P_LAW])
     armu = par[P_ARMU] != 0.0
     ebeta = math.exp(beta)
@@ -289,7 +305,7 @@ def reference_kernel(t_s, TLm, TRm, par, J, dt_max, ramp_time, settle_time):
                     TR[i + 1] = slide_law(TR[i], sinabs[i], sinabs[i + 1], mud, sR[i], law)
             # ---- Step 2: first-order dynamics
             if use_tip:
-                tip_torques(th, p, fx, fz, tip)
+                tip_torques(th, J[J_DX], J[J_DZ], fx, fz, tip)
             for i in range(n):
                 if armu:
                     x = rx * (TR[i] - TL[i])
@@ -461,7 +477,7 @@ def _geometry_terms(th, par, J, G):
             G[G_IB, i] = fb
             G[G_IT, i] = ft
     if par[P_FX] != 0.0 or par[P_FZ] != 0.0:
-        tip_torques(th, par[P_P], par[P_FX], par[P_FZ], G[G_TIP])
+        tip_torques(th, J[J_DX], J[J_DZ], par[P_FX], par[P_FZ], G[G_TIP])
 
 
 @njit(cache=True)
@@ -684,7 +700,7 @@ def _settle(th, TL, TR, par, J, out, work, tol, maxiter):
         work[i] = 0.0
     for it in range(maxiter):
         if use_tip:
-            tip_torques(out, par[P_P], fx, fz, work)
+            tip_torques(out, J[J_DX], J[J_DZ], fx, fz, work)
         delta = 0.0
         for i in range(n):
             if armu:

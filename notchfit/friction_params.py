@@ -22,6 +22,7 @@ import numpy as np
 from . import _friction_kernels as _k
 from . import paper
 from .geometry import Geometry
+from .kinematics import chain
 from .springs import PiecewiseLinearSpring, friction_spring, material_spring
 from .validation import readonly
 
@@ -270,7 +271,9 @@ class FrictionParams:
         Spring rates, breaks and scale (:meth:`joint_spring`), damping
         (:meth:`joint_damping`), rest angles ``θ0_j`` and the moment arms of the
         right and left tendons about each joint's bending axis
-        (:meth:`Geometry.moment_arms`). Cached per (parameters, geometry).
+        (:meth:`Geometry.moment_arms`), and the pivot chain's straight-configuration
+        steps (:func:`notchfit.kinematics.chain`: joint to joint, the last to the tool
+        point) for the tip-load torques. Cached per (parameters, geometry).
         """
         return _joint_table(self, geom)
 
@@ -284,6 +287,9 @@ class FrictionParams:
         J[_k.J_B] = self.joint_damping(sp)
         J[_k.J_TH0] = geom.rest_angles
         J[_k.J_AR], J[_k.J_AL] = geom.moment_arms(+1), geom.moment_arms(-1)
+        ch = chain(geom)
+        J[_k.J_DX, :-1], J[_k.J_DZ, :-1] = ch.steps[1:, 0], ch.steps[1:, 1]
+        J[_k.J_DX, -1], J[_k.J_DZ, -1] = ch.tip
         return readonly(J)
 
     def packed(self, geom: Geometry, table: np.ndarray | None = None) -> np.ndarray:
@@ -306,12 +312,6 @@ class FrictionParams:
         par[_k.P_ARMU] = float(np.all(arms == arms[0, 0]))
         par[_k.P_RX] = arms[0, 0]
         par[_k.P_LAW] = _k.LAW_CAPSTAN if self.friction_law == "capstan" else _k.LAW_CHANNEL
-        pitches = geom.pitches
-        if (self.tip_force_x != 0.0 or self.tip_force_z != 0.0) and (
-                not np.all(pitches == pitches[0]) or geom.backbone != "axis"):
-            raise ValueError("a tip force needs equal joint spacings and backbone = 'axis' "
-                             "(the tip-load torques of the section backbone come with its kinematics)")
-        par[_k.P_P] = pitches[0]
         return par
 
 

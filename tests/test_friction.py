@@ -51,7 +51,10 @@ def test_fig17_kernel_spring_matches_springs_module():
 def test_eq18_20_kernel_tip_torques_match_kinematics(geom, rng):
     th = rng.normal(0, 0.08, geom.n_joints)
     out = np.zeros(geom.n_joints)
-    K.tip_torques(th, geom.p, 0.7, -1.3, out)
+    J = FrictionParams().joint_table(geom)          # the seed chain: d = (0, p) for every joint
+    np.testing.assert_array_equal(J[K.J_DZ], geom.p)
+    assert not J[K.J_DX].any()
+    K.tip_torques(th, J[K.J_DX], J[K.J_DZ], 0.7, -1.3, out)
     np.testing.assert_allclose(out, joint_torques_from_tip_wrench(th, geom, 0.7, -1.3), rtol=1e-12, atol=1e-16)
 
 

@@ -298,3 +298,39 @@ def test_default_model_follows_the_geometry(wrist):
     assert p.spring_law == "material" and p.friction_law == "capstan"
     t, T = _steps([0.3, 0.6])
     np.testing.assert_array_equal(simulate(t, None, T, geom=wrist).theta, simulate(t, None, T, p, wrist).theta)
+
+
+# ----------------------------------------------------------------------------- tip load on real tubes
+@pytest.mark.parametrize("name", ["wrist_asymmetric", "wrist_tip_first"])
+def test_kernel_tip_torques_equal_the_kinematic_jacobian(name):
+    """The kernels' J_X^T f (Eqs. 18-20 on the pivot chain: per-joint spacing, neutral-axis
+    pivots, the tool point on the tip face) equals kinematics.joint_torques_from_tip_wrench."""
+    from notchfit.kinematics import joint_torques_from_tip_wrench
+
+    g = _geom(name)
+    J = FrictionParams(spring_law="material").joint_table(g)
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        th = rng.uniform(-0.4, 0.4, g.n_joints)
+        fx, fz = rng.uniform(-1.0, 1.0, 2)
+        out = np.empty(g.n_joints)
+        K.tip_torques(th, J[K.J_DX], J[K.J_DZ], fx, fz, out)
+        np.testing.assert_allclose(out, joint_torques_from_tip_wrench(th, g, fx, fz), rtol=1e-12, atol=1e-16)
+
+
+@pytest.mark.parametrize("method", ["fast", "reference"])
+def test_frictionless_tip_load_on_a_wrist_matches_the_statics(wrist, method):
+    """μ = 0 with a tip force on a section backbone: the simulator's rest states are the
+    quasi-static equilibria of Eq. (10) with J_st^T F (an independent Newton solve)."""
+    fx, fz = 0.02, -0.01
+    p = FrictionParams(spring_law="material", friction_law="capstan", mu_d=0.0, mu_s=0.0, E_lin=E_LIN,
+                       E_se=E_SE, tip_force_x=fx, tip_force_z=fz)
+    t, T = _steps([0.0, 0.2, 0.5, 0.3, 0.0])
+    th = simulate(t, None, T, p, wrist, method=method).theta
+    model = statics.QuasiStaticModel(wrist, spring=p.joint_spring(wrist))
+    prev = wrist.rest_angles
+    for k, Tk in enumerate(T):
+        eq = statics.equilibrium(model, tensions=(Tk, 0.0), tip_load=(fx, fz, 0.0), theta0=prev)
+        assert eq.success
+        prev = eq.theta
+        np.testing.assert_allclose(th[k], eq.theta, rtol=0, atol=1e-6 if method == "reference" else 1e-9)
