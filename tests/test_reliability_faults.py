@@ -76,6 +76,45 @@ def test_report_refuses_an_input_study(study3, tmp_path, capsys):
     assert snapshot(study3) == before
 
 
+def test_report_refuses_folders_inside_or_holding_input_data(study3, tmp_path, capsys):
+    """A folder inside an experiment, inside the --study, or another study: refused, nothing written
+    (no report, no lock, no staging folder)."""
+    other = copy_study(study3, tmp_path / "other")
+    inside = other / "L045" / "results"
+    inside.mkdir()
+    before = snapshot(other)
+    for argv, needle in (([inside], "L045 above it holds experiment.toml"),
+                         ([other / "results", "--study", other], "inside the input folder"),
+                         ([other, "--study", study3], "its sub-folder L045 holds experiment.toml")):
+        rc, _, err = run_main(["report", *argv], capsys)
+        assert_one_line_error(rc, err, str(argv[0]), needle)
+    assert snapshot(other) == before and not (other / "results").exists()
+
+
+def test_report_takes_the_output_lock(study3, tmp_path, capsys):
+    """report into a folder another live run writes into: exit 2 naming its pid, nothing written;
+    then a report is written and the lock released."""
+    out = tmp_path / "out"
+    rc, _, _ = run_main(["fit", study3, "--out", out, "--models", "cc", "--no-figures"], capsys)
+    assert rc == 0
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (out / ".notchfit-lock").write_text(f"{holder.pid} {socket.gethostname()}\n")
+        before = snapshot(out)
+        rc, _, err = run_main(["report", out], capsys)
+        assert_one_line_error(rc, err, str(out), "another notchfit run", f"pid {holder.pid}")
+        assert snapshot(out) == before
+    finally:
+        holder.kill()
+        holder.wait()
+    rc, stdout, _ = run_main(["report", out], capsys)
+    assert rc == 0 and f"report: {out / 'report.html'}" in stdout
+    assert (out / "report.html").read_bytes().startswith(b"<!DOCTYPE html>")
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]     # lock and staging folder gone
+    rc, _, err = run_main(["report", out], capsys)                     # no --force: the report is kept
+    assert_one_line_error(rc, err, "report.html", "--force")
+
+
 # ----------------------------------------------------------------------------- Ctrl-C and SIGTERM
 def _start(argv):
     proc = subprocess.Popen([sys.executable, "-m", "notchfit.cli", *map(str, argv)], env=cli_env(),

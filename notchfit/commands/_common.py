@@ -23,6 +23,7 @@ import sys
 import traceback
 from pathlib import Path
 
+from .. import io
 from ..io.errors import InputFileError
 from ..io.interrupts import received_signal
 
@@ -188,20 +189,49 @@ def add_points_option(parser, *aliases, help: str) -> None:
     parser.add_argument("--points", *aliases, dest="points", type=Path, default=None, metavar="DIR", help=help)
 
 
-def check_out_dir(out, *inputs) -> Path:
-    """Check ``--out`` before anything is read or written; returns it as a Path.
+def _input_data_reason(out: Path) -> str | None:
+    """Why folder ``out`` holds input data (an experiment, a folder inside one, a study), or None."""
+    for folder in [out, *out.parents]:
+        if io.is_experiment_dir(folder):
+            where = "it holds" if folder == out else f"{folder} above it holds"
+            return f"is an input study or experiment folder ({where} experiment.toml)"
+    try:
+        subs = sorted(p for p in out.iterdir() if p.is_dir() and not p.name.startswith("."))
+    except OSError:
+        return None
+    exp = next((p for p in subs if io.is_experiment_dir(p)), None)
+    if exp is not None:
+        return f"is an input study folder (its sub-folder {exp.name} holds experiment.toml)"
+    return None
 
-    Refused (:class:`InputError`): ``--out`` equal to or inside an input
+
+def check_out_dir(out, *inputs, option: str = "--out", hint: str | None = None) -> Path:
+    """Check an output folder before anything is read or written; returns it as a Path.
+
+    Refused (:class:`InputError`): the folder equal to or inside an input
     folder (outputs would mix with the raw data, and a study would see the
-    output folder as a broken experiment), a file where the folder should be,
-    or a path through a file (``afile/x``).
+    output folder as a broken experiment), a folder that is itself input
+    data (an experiment, a folder inside one, or a study: it or a sub-folder
+    holds ``experiment.toml``), a file where the folder should be, or a path
+    through a file (``afile/x``).
+
+    Parameters
+    ----------
+    out : path
+    *inputs : path or None
+        The command's input folders.
+    option : str
+        How the messages name the folder (``"--out"``; ``""`` for a positional argument).
+    hint : str, optional
+        Appended to the message when the folder is input data (what to run instead).
     """
     out = Path(out)
+    label = f"{option} {out}" if option else str(out)
     for parent in [out, *out.parents]:
         if parent.exists():
             if not parent.is_dir():
                 what = "is a file" if parent == out else f"cannot be created: {parent} is a file"
-                raise InputError(f"--out {out}: {what}, not a folder")
+                raise InputError(f"{label}: {what}, not a folder")
             break
     target = out.resolve()
     for inp in inputs:
@@ -210,8 +240,12 @@ def check_out_dir(out, *inputs) -> Path:
         src = Path(inp).resolve()
         if src.is_dir() and (target == src or src in target.parents):
             where = "is the input folder" if target == src else f"is inside the input folder {inp}"
-            raise InputError(f"--out {out} {where}; outputs would mix with the data: choose a folder "
+            raise InputError(f"{label} {where}; outputs would mix with the data: choose a folder "
                              "outside it")
+    reason = _input_data_reason(target)
+    if reason is not None:
+        raise InputError(f"{label}: {reason}, not an output folder; outputs would mix with the data"
+                         + (f"; {hint}" if hint else ": choose a folder outside it"))
     return out
 
 
