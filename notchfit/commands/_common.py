@@ -28,8 +28,8 @@ from ..io.errors import InputFileError
 from ..io.interrupts import received_signal
 
 __all__ = ["EXIT_INPUT_ERROR", "EXIT_ITEMS_FAILED", "INPUT_ERRORS", "InputError", "OneLineParser",
-           "add_batch_options", "add_command", "add_points_option", "call", "check_out_dir",
-           "debug_enabled", "error_exit", "execute", "list_failures"]
+           "add_batch_options", "add_command", "add_points_option", "call", "check_out_dir", "check_points_dir",
+           "count_option", "debug_enabled", "error_exit", "execute", "jobs_option", "list_failures"]
 
 EXIT_ITEMS_FAILED = 1
 EXIT_INPUT_ERROR = 2
@@ -173,10 +173,56 @@ def call(mod, argv) -> int:
     return execute(add_command(None, mod).parse_args([str(a) for a in argv]))
 
 
+def count_option(minimum: int = 1):
+    """An argparse ``type``: an integer ``>= minimum`` (``--samples 0 0`` is an error, not the default)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{text} is below {minimum}")
+        return value
+    parse.__name__ = "count"      # argparse names the type in its messages
+    return parse
+
+
+#: Worker processes allowed per CPU: more only adds memory and start-up time to a CPU-bound batch.
+MAX_JOBS_PER_CPU = 4
+
+
+def jobs_option(text: str) -> int:
+    """An argparse ``type`` for ``--jobs``: 0 (every CPU) to :data:`MAX_JOBS_PER_CPU` x the CPUs."""
+    value = count_option(0)(text)
+    cpus = os.cpu_count() or 1
+    if value > MAX_JOBS_PER_CPU * cpus:
+        raise argparse.ArgumentTypeError(f"{value} worker processes for {cpus} CPUs: at most "
+                                         f"{MAX_JOBS_PER_CPU * cpus} (0 = one per CPU)")
+    return value
+
+
 def add_batch_options(parser) -> None:
     """``--jobs N`` and ``--scheduler ADDRESS`` of the commands that run on :func:`notchfit.batch.run_batch`."""
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; 0 = all CPUs)")
+    parser.add_argument("--jobs", type=jobs_option, default=1, help="worker processes (default 1; 0 = all CPUs)")
     parser.add_argument("--scheduler", default=None, help="Dask distributed scheduler address")
+
+
+def check_points_dir(points) -> Path | None:
+    """Check an explicit ``--points DIR`` before anything is read: an existing folder holding a
+    detect run's ``detections.csv`` (in it, or in its experiment sub-folders). None stays None
+    (the command looks in ``--out``)."""
+    if points is None:
+        return None
+    path = Path(points)
+    if not path.exists():
+        raise InputError(f"--points {points}: folder not found (the --out folder of a notchfit detect run)")
+    if not path.is_dir():
+        raise InputError(f"--points {points}: is a file; give the --out folder of a notchfit detect run "
+                         "(it holds detections.csv)")
+    if not io.find_output(path, "detections.csv"):
+        raise InputError(f"--points {points}: holds no detections.csv (neither in it nor in its experiment "
+                         "sub-folders): not the --out folder of a notchfit detect run")
+    return path
 
 
 def add_points_option(parser, *aliases, help: str) -> None:
@@ -184,7 +230,8 @@ def add_points_option(parser, *aliases, help: str) -> None:
 
     The one option name for "points from a detect run" (``fit``, ``simulate``,
     ``diagnose``); ``aliases`` are older names that still work (e.g.
-    ``"--detections"``). The value is ``args.points`` (a Path or None).
+    ``"--detections"``). The value is ``args.points`` (a Path or None); the
+    command checks it with :func:`check_points_dir` before reading anything.
     """
     parser.add_argument("--points", *aliases, dest="points", type=Path, default=None, metavar="DIR", help=help)
 
