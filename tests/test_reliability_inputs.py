@@ -120,6 +120,8 @@ CASES = [
      ["experiment.toml", "point_mm"]),
     ("toml-nan-sigma", lambda e, t: _replace(e / "experiment.toml", "point_mm = 0.02", "point_mm = nan"),
      ["experiment.toml", "point_mm"]),
+    ("toml-absurd-sigma", lambda e, t: _replace(e / "experiment.toml", "point_mm = 0.02", "point_mm = 1e300"),
+     ["experiment.toml", "line 7", "point_mm must be a positive number below 1000"]),
     # --- samples.csv
     ("samples-nan-tension", lambda e, t: _samples_row(e, 3, "2,10.0,nan,0.5,0,0"),
      ["samples.csv", "line 3", "tension_left_N"]),

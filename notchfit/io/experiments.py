@@ -10,7 +10,6 @@ line and the problem.
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +47,8 @@ _TOML_KEYS = {"name", "description", "geometry", "mirror", "calibration", "uncer
 #: Where the tube's base enters a photograph (``base`` in experiment.toml; absent: found by the detector).
 BASE_SIDES = ("top", "bottom", "left", "right")
 _UNCERTAINTY_KEYS = {"point_mm": "point_sigma", "tension_N": "tension_sigma"}
+#: Largest standard uncertainty accepted, in the key's unit (mm, N): beyond it, a typo or a unit mistake.
+MAX_UNCERTAINTY = 1e3
 #: Load-cell uncertainty when experiment.toml gives none [N] (docs/data-formats.md).
 DEFAULT_TENSION_SIGMA = 0.05
 
@@ -172,8 +173,8 @@ def _uncertainty(doc: TomlFile, unc, probs: Problems, out: dict) -> None:
         where = doc.line_of("uncertainty", k)
         if k not in _UNCERTAINTY_KEYS:
             probs.add(where, f"unknown key {k!r} in [uncertainty] (known: {', '.join(_UNCERTAINTY_KEYS)})")
-        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-            probs.add(where, f"[uncertainty] {k} must be a positive number, got {v!r}")
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < MAX_UNCERTAINTY:
+            probs.add(where, f"[uncertainty] {k} must be a positive number below {MAX_UNCERTAINTY:g}, got {v!r}")
         else:
             out[_UNCERTAINTY_KEYS[k]] = float(v) * (MM if k == "point_mm" else 1.0)
 
