@@ -414,10 +414,10 @@ def test_params_toml_round_trip_and_errors(tmp_path):
     text = path.read_text()
     assert "k_lin_Nm_per_rad = 0.51234567890123" in text and "[metadata]" in text
     (tmp_path / "bad.toml").write_text("mu_d = 0.2\nmu_k = 0.3\n")
-    with pytest.raises(ValueError, match="bad.toml: unknown friction parameter 'mu_k'"):
+    with pytest.raises(ValueError, match="bad.toml: line 2: unknown friction parameter 'mu_k'"):
         load_params(tmp_path / "bad.toml")
     (tmp_path / "bad2.toml").write_text("mu_d = 0.5\nmu_s = 0.3\n")
-    with pytest.raises(ValueError, match="bad2.toml: mu_s must be >= mu_d"):
+    with pytest.raises(ValueError, match="bad2.toml: line 2: mu_s must be >= mu_d"):
         load_params(tmp_path / "bad2.toml")
     (tmp_path / "short.toml").write_text("k_mid = 0.3\n")
     assert load_params(tmp_path / "short.toml") == FrictionParams(k_mid=0.3)

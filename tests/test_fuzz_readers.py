@@ -44,6 +44,8 @@ def _seeds(folder: Path) -> dict:
     cam = io.write_camera(CameraModel.synthetic(320, 240), folder / "camera.yml").read_bytes()
     png = cv2.imencode(".png", (np.arange(48 * 64) % 251).astype(np.uint8).reshape(48, 64))[1].tobytes()
     jpg = cv2.imencode(".jpg", (np.arange(48 * 64) % 251).astype(np.uint8).reshape(48, 64))[1].tobytes()
+    rgb = (np.arange(48 * 64 * 3) % 251).astype(np.uint8).reshape(48, 64, 3)
+    tif, bmp = (cv2.imencode(ext, rgb)[1].tobytes() for ext in (".tif", ".bmp"))
     return {
         "experiment.toml": (exp / "experiment.toml").read_bytes(),
         "samples.csv": (exp / "samples.csv").read_bytes(),
@@ -64,6 +66,8 @@ def _seeds(folder: Path) -> dict:
         "camera.yml": cam,
         "image.png": png,
         "image.jpg": jpg,
+        "image.tif": tif,
+        "image.bmp": bmp,
     }
 
 
@@ -96,6 +100,8 @@ READERS = {
     "camera.yml": io.read_camera,
     "image.png": io.load_image,
     "image.jpg": io.load_image,
+    "image.tif": io.load_image,
+    "image.bmp": io.load_image,
 }
 
 

@@ -21,6 +21,7 @@ import pytest
 from notchfit import io
 from notchfit.commands import diagnose
 from notchfit.io import interrupts, outputs
+from notchfit.synth import generate_study, load_recipe
 from reliability_helpers import (assert_one_line_error, cli_env, copy_study, make_study, prior_outputs,
                                  run_main, snapshot)
 
@@ -76,6 +77,45 @@ def test_report_refuses_an_input_study(study3, tmp_path, capsys):
     assert snapshot(study3) == before
 
 
+def test_report_refuses_folders_inside_or_holding_input_data(study3, tmp_path, capsys):
+    """A folder inside an experiment, inside the --study, or another study: refused, nothing written
+    (no report, no lock, no staging folder)."""
+    other = copy_study(study3, tmp_path / "other")
+    inside = other / "L045" / "results"
+    inside.mkdir()
+    before = snapshot(other)
+    for argv, needle in (([inside], "L045 above it holds experiment.toml"),
+                         ([other / "results", "--study", other], "inside the input folder"),
+                         ([other, "--study", study3], "its sub-folder L045 holds experiment.toml")):
+        rc, _, err = run_main(["report", *argv], capsys)
+        assert_one_line_error(rc, err, str(argv[0]), needle)
+    assert snapshot(other) == before and not (other / "results").exists()
+
+
+def test_report_takes_the_output_lock(study3, tmp_path, capsys):
+    """report into a folder another live run writes into: exit 2 naming its pid, nothing written;
+    then a report is written and the lock released."""
+    out = tmp_path / "out"
+    rc, _, _ = run_main(["fit", study3, "--out", out, "--models", "cc", "--no-figures"], capsys)
+    assert rc == 0
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (out / ".notchfit-lock").write_text(f"{holder.pid} {socket.gethostname()}\n")
+        before = snapshot(out)
+        rc, _, err = run_main(["report", out], capsys)
+        assert_one_line_error(rc, err, str(out), "another notchfit run", f"pid {holder.pid}")
+        assert snapshot(out) == before
+    finally:
+        holder.kill()
+        holder.wait()
+    rc, stdout, _ = run_main(["report", out], capsys)
+    assert rc == 0 and f"report: {out / 'report.html'}" in stdout
+    assert (out / "report.html").read_bytes().startswith(b"<!DOCTYPE html>")
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]     # lock and staging folder gone
+    rc, _, err = run_main(["report", out], capsys)                     # no --force: the report is kept
+    assert_one_line_error(rc, err, "report.html", "--force")
+
+
 # ----------------------------------------------------------------------------- Ctrl-C and SIGTERM
 def _start(argv):
     proc = subprocess.Popen([sys.executable, "-m", "notchfit.cli", *map(str, argv)], env=cli_env(),
@@ -120,6 +160,95 @@ def test_interrupted_diagnose(sig, jobs, study3, tmp_path, capsys):
     gone = psutil.wait_procs(children, timeout=10)[1]
     assert not gone, f"orphan workers: {gone}"
     assert snapshot(out) == before           # no staging folder, no lock file, earlier outputs whole
+
+
+@pytest.fixture(scope="module")
+def image_study(tmp_path_factory):
+    """A rendered study (recipe null, 9 images of 1568 x 1455 px) whose samples.csv names the images
+    again and again (54 samples): detect then runs for many seconds on 2 workers."""
+    study = tmp_path_factory.mktemp("rel_detect") / "study"
+    generate_study(load_recipe("null").scaled(n_experiments=1, n_up=4, n_down=4), study, seed=1, images=True)
+    samples = study / "L045" / "samples.csv"
+    header, *rows = samples.read_text().splitlines()
+    lines = [header]
+    for k in range(54):
+        cells = rows[k % len(rows)].split(",")
+        cells[0], cells[1] = str(k + 1), f"{5.0 * (k + 1):g}"
+        lines.append(",".join(cells))
+    samples.write_text("\n".join(lines) + "\n")
+    return study
+
+
+def _earlier_detect_outputs(out):
+    before = prior_outputs(out)
+    (out / "L045" / "detections.csv").write_bytes(b"earlier detections of L045\n")
+    (out / "L045" / "overlays").mkdir()
+    (out / "L045" / "overlays" / "0001.png").write_bytes(b"earlier overlay\n")
+    (out / "detect_run.json").write_bytes(b'{"earlier": true}\n')
+    assert snapshot(out) != before
+    return snapshot(out)
+
+
+def _wait_for_staged(out, pattern, proc, timeout=120):
+    """Until the run has staged a file matching ``pattern`` (it is mid-way through its items)."""
+    t0 = time.monotonic()
+    while not list(out.glob(f".notchfit-stage-*/{pattern}")):
+        assert proc.poll() is None, f"finished before staging {pattern}"
+        assert time.monotonic() - t0 < timeout
+        time.sleep(0.05)
+
+
+def _assert_interrupted(proc, lines, reader, sig, children, out, before):
+    proc.wait(timeout=60)
+    reader.join(timeout=10)
+    assert proc.returncode == 128 + sig, lines
+    text = "".join(lines)
+    assert "Traceback" not in text and "Error" not in text, text
+    assert len(lines) == 1 and f"interrupted ({signal.Signals(sig).name})" in lines[0], text
+    gone = psutil.wait_procs(children, timeout=10)[1]
+    assert not gone, f"orphan workers: {gone}"
+    assert snapshot(out) == before           # no staging folder, no lock file, earlier outputs whole
+
+
+@pytest.mark.parametrize("sig,jobs", [(signal.SIGINT, 2), (signal.SIGTERM, 2), (signal.SIGINT, 1)],
+                         ids=["sigint-jobs2", "sigterm-jobs2", "sigint-serial"])
+def test_interrupted_detect(sig, jobs, image_study, tmp_path):
+    """Ctrl-C / SIGTERM once detect has written its first overlays: exit 130/143, one stderr line,
+    no traceback, both workers gone, the earlier detections, overlays and run record byte-identical."""
+    out = tmp_path / "out"
+    before = _earlier_detect_outputs(out)
+    proc, lines, reader = _start(["detect", image_study, "--out", out, "--force", "--jobs", jobs])
+    _wait_for_staged(out, "L045/overlays/*.png", proc)
+    children = psutil.Process(proc.pid).children(recursive=True)
+    assert len(children) == (jobs if jobs > 1 else 0)
+    proc.send_signal(sig)
+    _assert_interrupted(proc, lines, reader, sig, children, out, before)
+
+
+def test_interrupted_detect_on_a_dask_cluster(image_study, tmp_path):
+    """Ctrl-C of a --scheduler run: exit 130, one line; the run's tasks are cancelled on the cluster
+    (none left on the scheduler), the cluster itself keeps running, and a task that was executing
+    when the run stopped writes nothing into --out afterwards (earlier outputs byte-identical)."""
+    distributed = pytest.importorskip("distributed")
+    out = tmp_path / "out"
+    before = _earlier_detect_outputs(out)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        proc, lines, reader = _start(["detect", image_study, "--out", out, "--force",
+                                      "--scheduler", cluster.scheduler_address])
+        _wait_for_staged(out, "L045/overlays/*.png", proc)
+        assert not psutil.Process(proc.pid).children(recursive=True)
+        proc.send_signal(signal.SIGINT)
+        _assert_interrupted(proc, lines, reader, signal.SIGINT, [], out, before)
+        t0 = time.monotonic()
+        while client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks)):
+            assert time.monotonic() - t0 < 30, "tasks of the interrupted run left on the scheduler"
+            time.sleep(0.1)
+        while any(client.run(lambda dask_worker: len(dask_worker.state.executing)).values()):
+            assert time.monotonic() - t0 < 30, "a task of the interrupted run still executing"
+            time.sleep(0.1)
+        assert client.submit(sum, [1, 2]).result(timeout=30) == 3
+    assert snapshot(out) == before
 
 
 def test_interrupt_during_the_final_moves_is_held_until_they_are_done(tmp_path, monkeypatch):

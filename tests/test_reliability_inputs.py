@@ -58,6 +58,17 @@ def _geometry(exp: Path, **changes) -> None:
     _replace(exp / "experiment.toml", 'geometry = "default"', 'geometry = "geom.toml"')
 
 
+def _last_line() -> int:
+    """The line :func:`_geometry` writes its (one) change on: the last of the file."""
+    return len((datasets_dir() / "geometry" / "default.toml").read_text().splitlines())
+
+
+def _model(t: Path, e: Path, data) -> list:
+    """Write the model file ``t/m.toml`` (text or bytes); the argv of ``simulate --model`` on it."""
+    (t / "m.toml").write_bytes(data if isinstance(data, bytes) else data.encode())
+    return ["simulate", e, "--out", t / "out", "--model", t / "m.toml", "--force", "--no-figures"]
+
+
 def _samples_row(exp: Path, line_no: int, row: str) -> None:
     _set_line(exp / "samples.csv", line_no, row)
 
@@ -87,7 +98,9 @@ CASES = [
     ("geometry-negative-radius", lambda e, t: _geometry(e, outer_radius_mm="-3.0"),
      ["geom.toml", "outer_radius_mm", "positive"]),
     ("geometry-slot-deeper-than-tube", lambda e, t: _geometry(e, slot_depth_mm="7.0"),
-     ["geom.toml", "slot_depth"]),
+     ["geom.toml", f": line {_last_line()}: slot_depth must be smaller than the tube diameter"]),
+    ("geometry-decimal-comma", lambda e, t: _geometry(e, p_mm="1,21"),
+     ["geom.toml", f"line {_last_line()}", "decimal comma"]),
     ("geometry-nan", lambda e, t: _geometry(e, p_mm="nan"), ["geom.toml", "p_mm", "finite"]),
     ("geometry-inf", lambda e, t: _geometry(e, r_x_mm="inf"), ["geom.toml", "r_x_mm", "finite"]),
     ("geometry-huge-n-joints", lambda e, t: _geometry(e, n_joints="1000000000000"), ["geom.toml", "n_joints"]),
@@ -107,6 +120,8 @@ CASES = [
      ["experiment.toml", "point_mm"]),
     ("toml-nan-sigma", lambda e, t: _replace(e / "experiment.toml", "point_mm = 0.02", "point_mm = nan"),
      ["experiment.toml", "point_mm"]),
+    ("toml-absurd-sigma", lambda e, t: _replace(e / "experiment.toml", "point_mm = 0.02", "point_mm = 1e300"),
+     ["experiment.toml", "line 7", "point_mm must be a positive number below 1000"]),
     # --- samples.csv
     ("samples-nan-tension", lambda e, t: _samples_row(e, 3, "2,10.0,nan,0.5,0,0"),
      ["samples.csv", "line 3", "tension_left_N"]),
@@ -157,6 +172,34 @@ CASES = [
     ("model-garbage", lambda e, t: ((t / "m.toml").write_bytes(b"\x00\xff\xfe garbage"),
                                     ["simulate", e, "--out", t / "out", "--model", t / "m.toml",
                                      "--force", "--no-figures"])[1], ["m.toml"]),
+    ("model-string", lambda e, t: _model(t, e, 'mu_d = 0.2\nk_lin_Nm_per_rad = "abc"\n'),
+     ["m.toml", "line 2", "k_lin_Nm_per_rad must be a number"]),
+    ("model-boolean", lambda e, t: _model(t, e, "mu_d = true\n"), ["m.toml", "line 1", "mu_d must be a number"]),
+    ("model-table", lambda e, t: _model(t, e, "[mu_d]\nx = 1\n"), ["m.toml", "line 1", "mu_d must be a number"]),
+    ("model-nan", lambda e, t: _model(t, e, "mu_d = 0.2\nk_lin_Nm_per_rad = nan\n"),
+     ["m.toml", "line 2", "k_lin must be finite"]),
+    ("model-negative", lambda e, t: _model(t, e, "\n# stiffness\nk_lin_Nm_per_rad = -0.05\n"),
+     ["m.toml", "line 3", "k_lin must be positive"]),
+    ("model-mu-s-below-mu-d", lambda e, t: _model(t, e, "mu_d = 0.5\nmu_s = 0.3\n"),
+     ["m.toml", "line 2", "mu_s must be >= mu_d"]),
+    ("model-absurd-force", lambda e, t: _model(t, e, "mu_d = 0.2\ntip_force_x_N = 1e6\n"),
+     ["m.toml", "line 2", "tip_force_x_N", "absurd"]),
+    ("model-absurd-stiffness", lambda e, t: _model(t, e, "k_lin_Nm_per_rad = 1e300\n"),
+     ["m.toml", "line 1", "absurd"]),
+    ("model-absurd-time", lambda e, t: _model(t, e, "damping_time_s = 1e-30\n"),
+     ["m.toml", "line 1", "damping_time_s", "absurd"]),
+    ("model-decimal-comma", lambda e, t: _model(t, e, "mu_d = 0,2\n"), ["m.toml", "line 1", "decimal comma"]),
+    ("model-latin1", lambda e, t: _model(t, e, "mu_d = 0.2 # r\xe9glage\n".encode("latin-1")),
+     ["m.toml", "line 1", "UTF-8"]),
+    # --- --points DIR (fit, simulate, diagnose): an explicit folder must be a detect run's
+    ("points-dir-is-a-file", lambda e, t: ["fit", e, "--out", t / "out", "--force", "--points", e / "samples.csv"],
+     ["--points", "samples.csv", "is a file"]),
+    ("points-dir-missing", lambda e, t: ["simulate", e, "--out", t / "out", "--force", "--points", t / "nope"],
+     ["--points", "nope", "not found"]),
+    ("points-dir-without-detections", lambda e, t: ["diagnose", e.parent, "--out", t / "out", "--force",
+                                                    "--points", e.parent], ["--points", "no detections.csv"]),
+    # --- report
+    ("report-folder-missing", lambda e, t: ["report", t / "nope"], ["nope", "output folder not found"]),
     # --- recipe (synth)
     ("recipe-bad-toml", lambda e, t: ((t / "r.toml").write_text("[[experiments]\n"),
                                       ["synth", t / "r.toml", "--out", t / "out", "--force"])[1],
@@ -300,6 +343,39 @@ def test_bad_images_in_detect_are_listed_per_image(base_study, tmp_path, capsys)
     assert "too large" in failed[3] and "too large" in failed[4]
 
 
+def _forged(fmt: str, w: int, h: int) -> bytes:
+    """A small image in format ``fmt`` whose header claims ``w x h`` pixels."""
+    data = bytearray(cv2.imencode(fmt, np.zeros((40, 50), np.uint8))[1].tobytes())
+    if fmt == ".bmp":
+        data[18:26] = struct.pack("<ii", w, h)
+    elif fmt == ".pgm":
+        data = data.replace(b"50 40", f"{w} {h}".encode(), 1)
+    else:                                       # TIFF: ImageWidth (256) and ImageLength (257) of IFD 0
+        bo = "<" if data[:2] == b"II" else ">"
+        ifd = struct.unpack(bo + "I", data[4:8])[0]
+        for i in range(struct.unpack(bo + "H", data[ifd:ifd + 2])[0]):
+            e = ifd + 2 + 12 * i
+            tag, typ = struct.unpack(bo + "HH", data[e:e + 4])
+            if tag in (256, 257):
+                fmt_v = bo + ("H" if typ == 3 else "I")
+                data[e + 8:e + 8 + struct.calcsize(fmt_v)] = struct.pack(fmt_v, w if tag == 256 else h)
+    return bytes(data)
+
+
+@pytest.mark.parametrize("fmt", [".tif", ".bmp", ".pgm"])
+@pytest.mark.parametrize("side", [30_000, 60_000])
+def test_forged_headers_of_other_formats_are_clean_errors(fmt, side, tmp_path):
+    """Formats whose size notchfit does not read from the header itself (TIFF, BMP, PGM): OpenCV
+    refuses a header above its own pixel limit, or finds the data missing before it allocates the
+    image — an InputFileError naming the file either way, no memory exhausted."""
+    from notchfit.io import InputFileError, load_image
+
+    path = tmp_path / f"forged{fmt}"
+    path.write_bytes(_forged(fmt, side, side))
+    with pytest.raises(InputFileError, match=str(path)):
+        load_image(path)
+
+
 @pytest.mark.parametrize("kind", ["16-bit", "rgba", "rgb"])
 def test_16_bit_and_rgba_images_are_processed(kind, base_study, tmp_path, capsys):
     """Images OpenCV decodes in other depths or channel counts: no traceback (processed or listed)."""
@@ -364,6 +440,26 @@ def test_unexpected_exception_is_one_line_and_debug_shows_the_traceback(base_stu
     monkeypatch.setenv("NOTCHFIT_DEBUG", "1")
     rc, _, err = run_main(argv, capsys)
     assert rc == 2 and "Traceback" in err
+
+
+@pytest.mark.parametrize("argv,needles", [
+    (["synth", "null", "--out", "{t}/s", "--samples", "0", "0"], ["--samples", "0 is below 1"]),
+    (["synth", "null", "--out", "{t}/s", "--experiments", "0"], ["--experiments", "0 is below 1"]),
+    (["synth", "null", "--out", "{t}/s", "--seed", "-5"], ["--seed", "-5 is below 0"]),
+    (["fit", "{t}", "--out", "{t}/out", "--jobs", "-3"], ["--jobs", "-3 is below 0"]),
+    (["fit", "{t}", "--out", "{t}/out", "--jobs", "100000"], ["--jobs", "100000 worker processes", "at most"]),
+    (["diagnose", "{t}", "--out", "{t}/out", "--max-folds", "0"], ["--max-folds", "0 is below 1"]),
+    (["diagnose", "{t}", "--out", "{t}/out", "--seed", "-1"], ["--seed", "-1 is below 0"]),
+    (["demo", "--out", "{t}/demo", "--jobs", "-5"], ["--jobs", "-5 is below 0"]),
+], ids=["synth-samples-0", "synth-experiments-0", "synth-seed-negative", "jobs-negative", "jobs-huge",
+        "max-folds-0", "diagnose-seed-negative", "demo-jobs-negative"])
+def test_counts_out_of_range_are_usage_errors(argv, needles, tmp_path, capsys):
+    """Counts and seeds are checked when the options are parsed: one line, exit 2, before anything runs
+    (``--samples 0 0`` was taken as "the recipe's counts"; a negative seed failed deep in numpy)."""
+    with pytest.raises(SystemExit) as exc:
+        run_main([a.format(t=tmp_path) for a in argv], capsys)
+    assert_one_line_error(exc.value.code, capsys.readouterr().err, *needles)
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
 def test_usage_error_is_one_line(capsys):

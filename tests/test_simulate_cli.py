@@ -69,7 +69,7 @@ def test_compare_simulation_on_its_own_prediction():
 def test_simulate_figures_are_the_friction_figures(study, tmp_path):
     """Figs. 18-19 of `simulate` come from notchfit.figures.friction (PNG and their data as CSV)."""
     out = tmp_path / "o"
-    assert main(["simulate", str(study / "L045"), "--out", str(out), "--points", str(tmp_path)]) == 0
+    assert main(["simulate", str(study / "L045"), "--out", str(out)]) == 0
     d = pd.read_csv(out / "fig19_shape_parameters.csv")
     assert {"a_pred_rad", "a_meas_rad", "b_meas_rad", "point_rms_mm"} <= set(d.columns)
     assert len(pd.read_csv(out / "fig18_joint_angles.csv")) == 12 * 27

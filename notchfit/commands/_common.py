@@ -23,12 +23,13 @@ import sys
 import traceback
 from pathlib import Path
 
+from .. import io
 from ..io.errors import InputFileError
 from ..io.interrupts import received_signal
 
 __all__ = ["EXIT_INPUT_ERROR", "EXIT_ITEMS_FAILED", "INPUT_ERRORS", "InputError", "OneLineParser",
-           "add_batch_options", "add_command", "add_points_option", "call", "check_out_dir",
-           "debug_enabled", "error_exit", "execute", "list_failures"]
+           "add_batch_options", "add_command", "add_points_option", "call", "check_out_dir", "check_points_dir",
+           "count_option", "debug_enabled", "error_exit", "execute", "jobs_option", "list_failures"]
 
 EXIT_ITEMS_FAILED = 1
 EXIT_INPUT_ERROR = 2
@@ -172,10 +173,56 @@ def call(mod, argv) -> int:
     return execute(add_command(None, mod).parse_args([str(a) for a in argv]))
 
 
+def count_option(minimum: int = 1):
+    """An argparse ``type``: an integer ``>= minimum`` (``--samples 0 0`` is an error, not the default)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{text} is below {minimum}")
+        return value
+    parse.__name__ = "count"      # argparse names the type in its messages
+    return parse
+
+
+#: Worker processes allowed per CPU: more only adds memory and start-up time to a CPU-bound batch.
+MAX_JOBS_PER_CPU = 4
+
+
+def jobs_option(text: str) -> int:
+    """An argparse ``type`` for ``--jobs``: 0 (every CPU) to :data:`MAX_JOBS_PER_CPU` x the CPUs."""
+    value = count_option(0)(text)
+    cpus = os.cpu_count() or 1
+    if value > MAX_JOBS_PER_CPU * cpus:
+        raise argparse.ArgumentTypeError(f"{value} worker processes for {cpus} CPUs: at most "
+                                         f"{MAX_JOBS_PER_CPU * cpus} (0 = one per CPU)")
+    return value
+
+
 def add_batch_options(parser) -> None:
     """``--jobs N`` and ``--scheduler ADDRESS`` of the commands that run on :func:`notchfit.batch.run_batch`."""
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; 0 = all CPUs)")
+    parser.add_argument("--jobs", type=jobs_option, default=1, help="worker processes (default 1; 0 = all CPUs)")
     parser.add_argument("--scheduler", default=None, help="Dask distributed scheduler address")
+
+
+def check_points_dir(points) -> Path | None:
+    """Check an explicit ``--points DIR`` before anything is read: an existing folder holding a
+    detect run's ``detections.csv`` (in it, or in its experiment sub-folders). None stays None
+    (the command looks in ``--out``)."""
+    if points is None:
+        return None
+    path = Path(points)
+    if not path.exists():
+        raise InputError(f"--points {points}: folder not found (the --out folder of a notchfit detect run)")
+    if not path.is_dir():
+        raise InputError(f"--points {points}: is a file; give the --out folder of a notchfit detect run "
+                         "(it holds detections.csv)")
+    if not io.find_output(path, "detections.csv"):
+        raise InputError(f"--points {points}: holds no detections.csv (neither in it nor in its experiment "
+                         "sub-folders): not the --out folder of a notchfit detect run")
+    return path
 
 
 def add_points_option(parser, *aliases, help: str) -> None:
@@ -183,25 +230,55 @@ def add_points_option(parser, *aliases, help: str) -> None:
 
     The one option name for "points from a detect run" (``fit``, ``simulate``,
     ``diagnose``); ``aliases`` are older names that still work (e.g.
-    ``"--detections"``). The value is ``args.points`` (a Path or None).
+    ``"--detections"``). The value is ``args.points`` (a Path or None); the
+    command checks it with :func:`check_points_dir` before reading anything.
     """
     parser.add_argument("--points", *aliases, dest="points", type=Path, default=None, metavar="DIR", help=help)
 
 
-def check_out_dir(out, *inputs) -> Path:
-    """Check ``--out`` before anything is read or written; returns it as a Path.
+def _input_data_reason(out: Path) -> str | None:
+    """Why folder ``out`` holds input data (an experiment, a folder inside one, a study), or None."""
+    for folder in [out, *out.parents]:
+        if io.is_experiment_dir(folder):
+            where = "it holds" if folder == out else f"{folder} above it holds"
+            return f"is an input study or experiment folder ({where} experiment.toml)"
+    try:
+        subs = sorted(p for p in out.iterdir() if p.is_dir() and not p.name.startswith("."))
+    except OSError:
+        return None
+    exp = next((p for p in subs if io.is_experiment_dir(p)), None)
+    if exp is not None:
+        return f"is an input study folder (its sub-folder {exp.name} holds experiment.toml)"
+    return None
 
-    Refused (:class:`InputError`): ``--out`` equal to or inside an input
+
+def check_out_dir(out, *inputs, option: str = "--out", hint: str | None = None) -> Path:
+    """Check an output folder before anything is read or written; returns it as a Path.
+
+    Refused (:class:`InputError`): the folder equal to or inside an input
     folder (outputs would mix with the raw data, and a study would see the
-    output folder as a broken experiment), a file where the folder should be,
-    or a path through a file (``afile/x``).
+    output folder as a broken experiment), a folder that is itself input
+    data (an experiment, a folder inside one, or a study: it or a sub-folder
+    holds ``experiment.toml``), a file where the folder should be, or a path
+    through a file (``afile/x``).
+
+    Parameters
+    ----------
+    out : path
+    *inputs : path or None
+        The command's input folders.
+    option : str
+        How the messages name the folder (``"--out"``; ``""`` for a positional argument).
+    hint : str, optional
+        Appended to the message when the folder is input data (what to run instead).
     """
     out = Path(out)
+    label = f"{option} {out}" if option else str(out)
     for parent in [out, *out.parents]:
         if parent.exists():
             if not parent.is_dir():
                 what = "is a file" if parent == out else f"cannot be created: {parent} is a file"
-                raise InputError(f"--out {out}: {what}, not a folder")
+                raise InputError(f"{label}: {what}, not a folder")
             break
     target = out.resolve()
     for inp in inputs:
@@ -210,8 +287,12 @@ def check_out_dir(out, *inputs) -> Path:
         src = Path(inp).resolve()
         if src.is_dir() and (target == src or src in target.parents):
             where = "is the input folder" if target == src else f"is inside the input folder {inp}"
-            raise InputError(f"--out {out} {where}; outputs would mix with the data: choose a folder "
+            raise InputError(f"{label} {where}; outputs would mix with the data: choose a folder "
                              "outside it")
+    reason = _input_data_reason(target)
+    if reason is not None:
+        raise InputError(f"{label}: {reason}, not an output folder; outputs would mix with the data"
+                         + (f"; {hint}" if hint else ": choose a folder outside it"))
     return out
 
 

@@ -13,7 +13,7 @@ from .. import diagnosis
 from ..report import build_report, summary_lines
 from ..synth import generate_study, load_recipe
 from . import detect, fit, simulate
-from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call
+from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call, count_option, jobs_option
 from .diagnose import write_diagnosis
 
 NAME = "demo"
@@ -53,11 +53,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--small", action="store_true", help="a smaller study (faster)")
     parser.add_argument("--cause", default="proximal_friction",
                         help="hidden effect: a recipe name in datasets/recipes (default proximal_friction)")
-    parser.add_argument("--seed", type=int, default=7, help="seed of the synthetic study (default 7)")
+    parser.add_argument("--seed", type=count_option(0), default=7, help="seed of the synthetic study (default 7)")
     parser.add_argument("--images", action=argparse.BooleanOptionalAction, default=None,
                         help="render one image per sample and run detect on them (default: yes for the "
                              "full demo, no with --small, which then uses the notch points directly)")
-    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: up to 2)")
+    parser.add_argument("--jobs", type=jobs_option, default=None, help="worker processes (default: up to 2)")
     parser.add_argument("--force", action="store_true", help="replace an earlier demo in --out")
 
 

@@ -64,7 +64,8 @@ def detect_one(item: dict) -> dict:
     det = detect_notches(img, cam, item["geometry"], mirror=item["mirror"], base=item["base"])
     if item["overlay"] is not None:
         ov = detection_overlay(img, det, item["sample"])
-        Path(item["overlay"]).parent.mkdir(parents=True, exist_ok=True)
+        # the run made the folder in its staging area; no mkdir here: a task still running on a Dask
+        # worker after the run was interrupted must not bring back the staging folder it removed
         if not cv2.imwrite(str(item["overlay"]), ov):
             raise OSError(f"could not write {item['overlay']}")
     return {"table": detections_table(item["sample"], det), "image_status": det.image_status,

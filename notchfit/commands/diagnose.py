@@ -10,7 +10,7 @@ from ..diagnosis import CAUSES, Diagnosis, diagnose
 from ..figures.diagnosis import write_diagnosis_figures
 from ..friction import save_params
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
-                      list_failures)
+                      check_points_dir, count_option, list_failures)
 from ._points import points_file, points_problem
 
 NAME = "diagnose"
@@ -53,9 +53,9 @@ def add_arguments(parser) -> None:
                       help="folder with detect's detections.csv (default: --out) for experiments "
                            "without notch_points.csv (--detections: the old name)")
     parser.add_argument("--causes", help="comma-separated candidate causes to try (default: all)")
-    parser.add_argument("--max-folds", type=int, default=6,
+    parser.add_argument("--max-folds", type=count_option(1), default=6,
                         help="leave-one-experiment-out up to this many experiments, else k-fold")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the noise floor's draws (default 0)")
+    parser.add_argument("--seed", type=count_option(0), default=0, help="seed of the noise floor's draws (default 0)")
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     add_batch_options(parser)
 
@@ -105,6 +105,7 @@ def run(args) -> int:
     if args.jobs < 0:
         raise InputError("--jobs must be at least 0 (0: one per CPU)")
     check_out_dir(args.out, args.study)
+    check_points_dir(args.points)
     exps, unread = _experiments(args)
     with io.OutputRun(args.out, outputs=list(OUTPUTS), force=args.force, name="diagnose") as run_:
         diag = diagnose(exps, jobs=args.jobs, scheduler=args.scheduler, seed=args.seed,

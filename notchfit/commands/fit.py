@@ -13,7 +13,7 @@ from ..fitting import failed_fits, fit_experiment, fit_summary, fits_table, poin
 from ..shapes import get_model
 from ..units import MM
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
-                      list_failures)
+                      check_points_dir, list_failures)
 from ._points import points_file, points_problem
 
 NAME = "fit"
@@ -131,6 +131,7 @@ def _fittable(args, models) -> tuple[list, dict, bool]:
 def run(args) -> int:
     models = _model_names(args.models)
     check_out_dir(args.out, args.input)
+    check_points_dir(args.points)
     exps, problems, study = _fittable(args, models)
     sigma_cli = None if args.sigma_mm is None else args.sigma_mm * MM
     items = [{"points": e.points, "geometry": e.geometry, "models": models, "mirror": e.mirror,

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .. import io
 from ..report import build_report, summary_lines
+from ._common import InputError, check_out_dir
 
 NAME = "report"
 ORDER = 80
@@ -32,7 +34,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    path = build_report(args.dir, study=args.study, title=args.title, force=args.force)
+    # DIR is an output folder: never a study or experiment (the report would land in the raw data),
+    # and written under the folder's lock like every other command's outputs
+    check_out_dir(args.dir, args.study, option="", hint=f"run `notchfit report OUT --study {args.dir}` on "
+                  "the --out folder of fit/simulate/diagnose")
+    if not args.dir.is_dir():
+        raise InputError(f"{args.dir}: output folder not found")
+    with io.OutputRun(args.dir, outputs=["report.html"], force=args.force, name="report"):
+        path = build_report(args.dir, study=args.study, title=args.title, force=args.force)
     for line in summary_lines(args.dir):
         print(line)
     print(f"report: {path}")

@@ -12,7 +12,8 @@ from ..batch import run_batch
 from ..comparison import compare_simulation, comparison_table
 from ..figures.friction import plot_fig18, plot_fig19
 from ..friction import FrictionParams, default_params, simulate, simulation_table
-from ._common import EXIT_ITEMS_FAILED, add_batch_options, add_points_option, check_out_dir, list_failures
+from ._common import (EXIT_ITEMS_FAILED, add_batch_options, add_points_option, check_out_dir, check_points_dir,
+                      list_failures)
 
 NAME = "simulate"
 ORDER = 50
@@ -130,6 +131,7 @@ def run(args) -> int:
     if args.method not in ("fast", "reference"):
         raise ValueError(f"--method must be fast or reference, got {args.method!r}")
     check_out_dir(args.out, args.input)
+    check_points_dir(args.points)
     scan = io.scan_study(args.input)
     exps, study = scan.experiments, scan.study
     params = _experiment_params(exps, args)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..synth import generate_study, list_recipes, load_recipe
-from ._common import InputError
+from ._common import InputError, count_option, jobs_option
 
 NAME = "synth"
 ORDER = 10
@@ -33,14 +33,14 @@ Examples:
 def add_arguments(parser) -> None:
     parser.add_argument("recipe", nargs="?", help="recipe TOML file or shipped recipe name")
     parser.add_argument("--out", type=Path, help="study folder to create")
-    parser.add_argument("--seed", type=int, default=None, help="override the recipe's seed")
+    parser.add_argument("--seed", type=count_option(0), default=None, help="override the recipe's seed")
     parser.add_argument("--images", action="store_true", default=None,
                         help="also render one image per sample (needs notchfit.render)")
-    parser.add_argument("--experiments", type=int, default=None,
+    parser.add_argument("--experiments", type=count_option(1), default=None,
                         help="keep only the first N experiments of the recipe")
-    parser.add_argument("--samples", type=int, nargs=2, metavar=("N_UP", "N_DOWN"), default=None,
+    parser.add_argument("--samples", type=count_option(1), nargs=2, metavar=("N_UP", "N_DOWN"), default=None,
                         help="samples on the loading and the unloading ramp")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    parser.add_argument("--jobs", type=jobs_option, default=1, help="worker processes (default 1)")
     parser.add_argument("--force", action="store_true", help="replace an existing study in OUT")
     parser.add_argument("--list", action="store_true", help="list the shipped recipes and exit")
 

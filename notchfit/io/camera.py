@@ -5,11 +5,17 @@ The camera file's keys are those of docs/data-formats.md: ``camera_matrix``,
 ``avg_reprojection_error`` [px], and ``plane_rvec``, ``plane_tvec`` (3x1,
 ``plane_tvec`` in mm) when the bending plane is known. The models they hold
 are :class:`~notchfit.camera.CameraModel` and :class:`~notchfit.camera.Board`.
+
+Camera files are written with ``cv2.FileStorage`` (so OpenCV's own reader
+reads them) but read by a parser of the FileStorage YAML subset written here:
+OpenCV's parser is not safe on damaged input (it can abort the process).
 """
 
 from __future__ import annotations
 
 import math
+import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -17,7 +23,7 @@ import numpy as np
 
 from ..camera import DIST_LENGTHS, Board, CameraModel
 from ..units import MM
-from .errors import InputFileError, InputFileNotFoundError, read_input_bytes
+from .errors import InputFileError, InputFileNotFoundError, decode_text, located, read_input_bytes
 from .outputs import atomic_write
 from .resources import calibration_dir
 from .toml import TomlError, TomlFile, load_toml
@@ -148,70 +154,234 @@ def write_camera(model: CameraModel, path, *, extra: dict | None = None) -> Path
     return atomic_write(path, writer, suffix=f".tmp{suffix}")
 
 
-def _open_storage(path: Path):
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)   # the error below is the message
-    try:
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-        opened = fs.isOpened()
-    except (cv2.error, SystemError) as exc:
-        text = str(exc.__cause__ or exc).strip()
-        msg = text.splitlines()[-1] if text else "parse error"
-        raise InputFileError(f"{path}: not an OpenCV FileStorage camera file ({msg})", path=path) from None
-    finally:
-        cv2.utils.logging.setLogLevel(level)
-    if not opened:
-        raise InputFileError(f"{path}: not an OpenCV FileStorage camera file", path=path)
-    return fs
+# ----------------------------------------------------------------------------- FileStorage YAML subset
+# Camera files are untrusted input: OpenCV's own FileStorage parser can abort the whole process
+# on a damaged file (a heap corruption on a matrix without `cols`, found by the slow fuzz job), so
+# they are parsed here, in Python, and never handed to cv2.FileStorage. The subset is what
+# cv2.FileStorage writes: a `%YAML:1.x` (OpenCV 4) or `%YAML 1.x` (OpenCV 5) header, an optional
+# `---`, top-level `key: scalar` lines, `key: !!opencv-matrix` maps of rows, cols, dt and data (a
+# flow list that may span lines), comments; other keys (nested maps, sequences) are skipped.
+_HEADER = re.compile(r"%YAML[: ]1\.\d+\Z")
+_KEY = re.compile(r"([A-Za-z_][\w.-]*)[ ]*:(?:[ ]+(.*))?\Z")
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
+_SPECIAL = {".nan": math.nan, ".inf": math.inf, "+.inf": math.inf, "-.inf": -math.inf}
+_DT = re.compile(r"(\d*)([ucwsifdh])\Z")
+_MATRIX_FIELDS = ("rows", "cols", "dt", "data")
+_MATRIX_TAG = "!!opencv-matrix"
+#: Largest matrix read from a camera file [elements] (a calibration's per-view errors are hundreds).
+MAX_MATRIX_ELEMENTS = 1_000_000
 
 
-def _matrix(fs, path: Path, key: str, required: bool = True) -> np.ndarray | None:
-    node = fs.getNode(key)
-    if node.empty() or node.isNone():
+@dataclass(frozen=True)
+class _Entry:
+    """A top-level ``key: text`` of the file, with the indented ``(line, content)`` lines that follow."""
+
+    key: str
+    line: int
+    text: str
+    more: tuple = ()
+
+
+def _err(path: Path, line: int | None, problem: str, key: str | None = None) -> InputFileError:
+    return InputFileError(located(path, line, problem), path=path, line=line, key=key)
+
+
+def _scan_line(raw: str) -> tuple[str, int]:
+    """The line without its comment (``#`` at the start or after a blank, outside quotes) and
+    its balance of ``[``/``{`` minus ``]``/``}`` outside quotes."""
+    quote, depth, prev = None, 0, " "
+    for i, ch in enumerate(raw):
+        if quote:
+            if ch == quote and not (quote == '"' and prev == "\\"):
+                quote = None
+        elif ch in "\"'":
+            quote = ch
+        elif ch == "#" and prev in " \t":
+            return raw[:i].rstrip(), depth
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        prev = ch
+    return raw.rstrip(), depth
+
+
+def _logical_lines(path: Path, text: str) -> list[tuple[int, int, str]]:
+    """``(line number, indent, content)`` of the lines that carry content: blank lines and
+    comments dropped, a flow collection ``[ ... ]`` that spans lines joined into its first line."""
+    out: list[tuple[int, int, str]] = []
+    depth = 0
+    for no, raw in enumerate(text.split("\n"), 1):
+        raw = raw.rstrip("\r")
+        body, delta = _scan_line(raw)
+        stripped = body.lstrip(" ")
+        if not stripped:
+            continue
+        if stripped[0] == "\t":
+            raise _err(path, no, "a tab in the indentation (YAML indents with spaces)")
+        if depth == 0 and (body == "..." or (body == "---" and len(out) > 1)):
+            break               # the end of the (first) document
+        if depth > 0:
+            first, indent, content = out[-1]
+            out[-1] = (first, indent, f"{content} {stripped}")
+        else:
+            out.append((no, len(body) - len(stripped), stripped))
+        depth += delta
+        if depth < 0:
+            raise _err(path, no, "a closing bracket without its opening one")
+    if depth > 0:
+        raise _err(path, out[-1][0], "a list or map opened with [ or { is not closed")
+    return out
+
+
+def _parse_entries(path: Path, text: str) -> dict[str, _Entry]:
+    """The top-level entries of a FileStorage YAML text, by key (the header checked, duplicates refused)."""
+    first = next(((no, ln.rstrip()) for no, ln in enumerate(text.split("\n"), 1) if ln.strip()), None)
+    if first is None or not _HEADER.match(first[1]):
+        raise _err(path, first and first[0],
+                   "not an OpenCV FileStorage YAML camera file (the first line must be %YAML:1.0)")
+    lines = _logical_lines(path, text)
+    body = lines[2:] if len(lines) > 1 and lines[1][2] == "---" else lines[1:]
+    found: list[tuple[str, int, str, list]] = []
+    seen: dict[str, int] = {}
+    for no, indent, content in body:
+        if indent > 0 or content.startswith("- ") or content == "-":
+            if not found:
+                raise _err(path, no, f"an indented line before the first key: {content[:40]!r}")
+            found[-1][3].append((no, content))
+            continue
+        m = _KEY.match(content)
+        if not m:
+            raise _err(path, no, f"expected 'key: value', got {content[:40]!r}")
+        key = m.group(1)
+        if key in seen:
+            raise _err(path, no, f"key {key!r} appears twice (lines {seen[key]} and {no})", key)
+        seen[key] = no
+        found.append((key, no, (m.group(2) or "").strip(), []))
+    return {key: _Entry(key, no, text, tuple(more)) for key, no, text, more in found}
+
+
+def _number(path: Path, line: int, key: str, s: str) -> float:
+    """A YAML number (``4000.``, ``3.e-04``, ``-1``, ``.Nan``, ``-.Inf``) of key ``key`` on ``line``."""
+    s = s.strip()
+    if _NUMBER.match(s):
+        return float(s)
+    if s.lower() in _SPECIAL:
+        return _SPECIAL[s.lower()]
+    raise _err(path, line, f"{key}: {s[:40]!r} is not a number", key)
+
+
+def _numbers(path: Path, line: int, key: str, text: str) -> list[float]:
+    """The numbers of a flow list ``[ a, b, ... ]``."""
+    if not (text.startswith("[") and text.endswith("]")):
+        raise _err(path, line, f"{key}: expected a list [ ... ] of numbers, got {text[:40]!r}", key)
+    inner = text[1:-1].strip()
+    items = [s.strip() for s in inner.split(",")] if inner else []
+    if items and not items[-1]:
+        items.pop()                 # a trailing comma
+    if len(items) > MAX_MATRIX_ELEMENTS:
+        raise _err(path, line, f"{key}: more than {MAX_MATRIX_ELEMENTS:,} values", key)
+    return [_number(path, line, key, s) for s in items]
+
+
+def _count(path: Path, key: str, fields: dict, name: str) -> int:
+    line, text = fields[name]
+    if not re.fullmatch(r"\d{1,7}", text) or not 1 <= int(text) <= MAX_MATRIX_ELEMENTS:
+        raise _err(path, line, f"{key}: {name} must be a positive integer, got {text[:40]!r}", key)
+    return int(text)
+
+
+def _opencv_matrix(path: Path, e: _Entry) -> np.ndarray:
+    """The matrix of a ``!!opencv-matrix`` entry: shape (rows, cols), or (rows, cols, channels)."""
+    fields: dict[str, tuple[int, str]] = {}
+    for no, content in e.more:
+        m = _KEY.match(content)
+        if not m or m.group(1) not in _MATRIX_FIELDS:
+            raise _err(path, no, f"{e.key}: expected one of rows, cols, dt, data, got {content[:40]!r}", e.key)
+        if m.group(1) in fields:
+            raise _err(path, no, f"{e.key}: {m.group(1)} given twice", e.key)
+        fields[m.group(1)] = (no, (m.group(2) or "").strip())
+    missing = [f for f in _MATRIX_FIELDS if f not in fields]
+    if missing:
+        raise _err(path, e.line, f"{e.key}: the matrix lacks {', '.join(missing)}", e.key)
+    rows, cols = _count(path, e.key, fields, "rows"), _count(path, e.key, fields, "cols")
+    dt_line, dt = fields["dt"]
+    dt_match = _DT.match(dt.strip("\"'"))
+    if not dt_match or int(dt_match.group(1) or 1) not in range(1, 5):
+        raise _err(path, dt_line, f"{e.key}: dt must be a number type such as d or f, got {dt[:20]!r}", e.key)
+    channels = int(dt_match.group(1) or 1)
+    data_line, data = fields["data"]
+    values = _numbers(path, data_line, e.key, data)
+    if len(values) != rows * cols * channels:
+        raise _err(path, data_line, f"{e.key}: data holds {len(values)} values, rows x cols x channels = "
+                                    f"{rows} x {cols} x {channels}", e.key)
+    shape = (rows, cols) if channels == 1 else (rows, cols, channels)
+    return np.array(values, dtype=float).reshape(shape)
+
+
+def _matrix(path: Path, entries: dict, key: str, required: bool = True) -> np.ndarray | None:
+    """The finite matrix (or flow list of numbers) under ``key``; None when absent and not required."""
+    e = entries.get(key)
+    if e is None:
         if required:
-            raise ValueError(f"{path}: missing key {key!r}")
+            raise _err(path, None, f"missing key {key!r}", key)
         return None
-    m = node.mat()
-    if m is None:
-        if not node.isSeq():
-            raise ValueError(f"{path}: key {key!r} is not a matrix")
-        m = np.array([node.at(i).real() for i in range(node.size())])
-    m = np.asarray(m, float)
+    if e.text == _MATRIX_TAG:
+        m = _opencv_matrix(path, e)
+    elif e.text.startswith("[") and not e.more:
+        m = np.array(_numbers(path, e.line, key, e.text), dtype=float)
+    else:
+        raise _err(path, e.line, f"{key}: not a matrix (expected {_MATRIX_TAG} with rows, cols, dt, data)", key)
     if not np.isfinite(m).all():
-        raise ValueError(f"{path}: key {key!r} holds non-finite values")
+        raise _err(path, e.line, f"{key}: holds non-finite values", key)
     return m
 
 
-def _number(fs, path: Path, key: str, required: bool = True) -> float | None:
-    node = fs.getNode(key)
-    if node.empty() or node.isNone():
+def _scalar(path: Path, entries: dict, key: str, required: bool = True) -> float | None:
+    """The finite number under ``key``; None when absent and not required."""
+    e = entries.get(key)
+    if e is None:
         if required:
-            raise ValueError(f"{path}: missing key {key!r}")
+            raise _err(path, None, f"missing key {key!r}", key)
         return None
-    if not (node.isInt() or node.isReal()):
-        raise ValueError(f"{path}: key {key!r} must be a number")
-    return node.real()
+    if e.more or not e.text:
+        raise _err(path, e.line, f"{key}: must be a number on its line", key)
+    v = _number(path, e.line, key, e.text)
+    if not math.isfinite(v):
+        raise _err(path, e.line, f"{key}: must be a finite number, got {e.text[:40]!r}", key)
+    return v
 
 
-def _camera_from_storage(fs, path: Path) -> CameraModel:
-    K = _matrix(fs, path, "camera_matrix")
+def _line(entries: dict, key: str) -> int | None:
+    return entries[key].line if key in entries else None
+
+
+def _camera_from_entries(path: Path, entries: dict) -> CameraModel:
+    K = _matrix(path, entries, "camera_matrix")
     if K.shape != (3, 3):
-        raise ValueError(f"{path}: camera_matrix must be 3x3, got {K.shape}")
-    d = _matrix(fs, path, "distortion_coefficients").ravel()
+        raise _err(path, _line(entries, "camera_matrix"), f"camera_matrix must be 3x3, got {K.shape}",
+                   "camera_matrix")
+    d = _matrix(path, entries, "distortion_coefficients").ravel()
     if d.size not in DIST_LENGTHS:
-        raise ValueError(f"{path}: distortion_coefficients must hold 4, 5, 8, 12 or 14 values, got {d.size}")
-    w, h = _number(fs, path, "image_width"), _number(fs, path, "image_height")
+        raise _err(path, _line(entries, "distortion_coefficients"), "distortion_coefficients must hold 4, 5, "
+                   f"8, 12 or 14 values, got {d.size}", "distortion_coefficients")
+    w, h = _scalar(path, entries, "image_width"), _scalar(path, entries, "image_height")
     if not (0 < w <= 1e6 and 0 < h <= 1e6) or w != int(w) or h != int(h):
-        raise ValueError(f"{path}: image_width/image_height must be positive integers, got {w}, {h}")
-    rms = _number(fs, path, "avg_reprojection_error", required=False)
-    rv, tv = _matrix(fs, path, "plane_rvec", required=False), _matrix(fs, path, "plane_tvec", required=False)
+        raise _err(path, _line(entries, "image_width"), "image_width/image_height must be positive integers "
+                   f"up to 1e6, got {w:g}, {h:g}", "image_width")
+    rms = _scalar(path, entries, "avg_reprojection_error", required=False)
+    rv = _matrix(path, entries, "plane_rvec", required=False)
+    tv = _matrix(path, entries, "plane_tvec", required=False)
     if (rv is None) != (tv is None):
-        raise ValueError(f"{path}: plane_rvec and plane_tvec must be given together")
+        raise _err(path, _line(entries, "plane_rvec") or _line(entries, "plane_tvec"),
+                   "plane_rvec and plane_tvec must be given together")
     if rv is not None and (rv.size != 3 or tv.size != 3):
-        raise ValueError(f"{path}: plane_rvec and plane_tvec must be 3x1")
-    std = _matrix(fs, path, "intrinsics_std_dev", required=False)
-    pve = _matrix(fs, path, "per_view_reprojection_errors", required=False)
-    prms = _number(fs, path, "plane_reprojection_error", required=False)
+        bad = "plane_rvec" if rv.size != 3 else "plane_tvec"
+        raise _err(path, _line(entries, bad), f"{bad}: must be 3x1, got {rv.size if rv.size != 3 else tv.size} "
+                   "values", bad)
+    std = _matrix(path, entries, "intrinsics_std_dev", required=False)
+    pve = _matrix(path, entries, "per_view_reprojection_errors", required=False)
+    prms = _scalar(path, entries, "plane_reprojection_error", required=False)
     try:
         return CameraModel(K, d, (int(w), int(h)),
                            plane_rvec=None if rv is None else rv.ravel(),
@@ -221,36 +391,30 @@ def _camera_from_storage(fs, path: Path) -> CameraModel:
                            per_view_errors=None if pve is None else pve.ravel(),
                            plane_rms=math.nan if prms is None else float(prms))
     except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
+        raise _err(path, None, str(exc)) from None
 
 
 def read_camera(path) -> CameraModel:
-    """Read a camera file written by :func:`write_camera` or by OpenCV's calibration sample.
+    """Read a camera file written by :func:`write_camera`, by ``cv2.FileStorage`` or by OpenCV's
+    calibration sample (the keys of docs/data-formats.md; other keys are ignored).
 
-    A negative ``avg_reprojection_error`` (a camera not calibrated from
-    views) is read as NaN.
+    The file is parsed in Python (the FileStorage YAML subset above), never
+    by ``cv2.FileStorage``, whose parser can abort the process on a damaged
+    file. A negative ``avg_reprojection_error`` (a camera not calibrated
+    from views) is read as NaN.
 
     Raises
     ------
     InputFileNotFoundError
         The file does not exist (also a ``FileNotFoundError``).
     InputFileError
-        A folder, an unreadable file, not an OpenCV FileStorage file, or a
-        key missing or malformed (the message names the file and the key).
+        A folder, an unreadable file, not UTF-8, not a FileStorage YAML file,
+        or a key missing or malformed (the message names the file, the line
+        and the key).
     """
     path = Path(path)
     try:
-        read_input_bytes(path, what="camera file")
+        data = read_input_bytes(path, what="camera file")
     except InputFileNotFoundError:
         raise InputFileNotFoundError(f"camera file not found: {path}", path=path) from None
-    fs = _open_storage(path)
-    try:
-        return _camera_from_storage(fs, path)
-    except InputFileError:
-        raise
-    except (ValueError, TypeError, OverflowError, cv2.error, SystemError) as exc:
-        msg = str(exc).strip().splitlines()
-        text = msg[-1] if msg else type(exc).__name__
-        raise InputFileError(text if text.startswith(str(path)) else f"{path}: {text}", path=path) from None
-    finally:
-        fs.release()
+    return _camera_from_entries(path, _parse_entries(path, decode_text(path, data)))

@@ -10,7 +10,6 @@ line and the problem.
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,6 +55,8 @@ _UNCERTAINTY_KEYS = {"point_mm": "point_sigma", "tension_N": "tension_sigma", "a
 _UNCERTAINTY_UNITS = {"point_mm": MM, "tension_N": 1.0, "angle_deg": DEG}
 #: Columns of ``angles.csv``: ``sample,joint`` and exactly one of the two angle columns.
 ANGLE_COLUMNS = ("sample", "joint", "theta_deg", "theta_rad")
+#: Largest standard uncertainty accepted, in the key's unit (mm, N, deg): beyond it, a typo or a unit mistake.
+MAX_UNCERTAINTY = 1e3
 #: Load-cell uncertainty when experiment.toml gives none [N] (docs/data-formats.md).
 DEFAULT_TENSION_SIGMA = 0.05
 
@@ -187,8 +188,8 @@ def _uncertainty(doc: TomlFile, unc, probs: Problems, out: dict) -> None:
         where = doc.line_of("uncertainty", k)
         if k not in _UNCERTAINTY_KEYS:
             probs.add(where, f"unknown key {k!r} in [uncertainty] (known: {', '.join(_UNCERTAINTY_KEYS)})")
-        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-            probs.add(where, f"[uncertainty] {k} must be a positive number, got {v!r}")
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < MAX_UNCERTAINTY:
+            probs.add(where, f"[uncertainty] {k} must be a positive number below {MAX_UNCERTAINTY:g}, got {v!r}")
         else:
             out[_UNCERTAINTY_KEYS[k]] = float(v) * _UNCERTAINTY_UNITS[k]
 

@@ -8,6 +8,7 @@ naming the file and, where it can be found, the line.
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -55,7 +56,7 @@ def load_geometry(source: str | os.PathLike | None = "default") -> Geometry:
     try:
         return geometry_from_dict(doc.data, origin=str(path), line_of=doc.line_of)
     except ValueError as exc:
-        raise TomlError(str(exc), path=path) from None
+        raise doc.locate(str(exc)) from None
     except (TypeError, OverflowError, ArithmeticError, KeyError, IndexError) as exc:
         # geometry_from_dict checks types and signs; what it lets through fails later in Geometry
         raise TomlError(f"{path}: invalid geometry ({type(exc).__name__}: {exc}); see docs/geometry.md",
@@ -77,13 +78,47 @@ def load_params(path) -> FrictionParams:
         :class:`~notchfit.io.toml.TomlFileNotFoundError`.
     """
     doc = load_toml(path, what="friction parameter file")
+    _check_magnitudes(doc)
     try:
         return params_from_mapping(doc.data, origin=str(doc.path))
     except ValueError as exc:
-        raise TomlError(str(exc), path=doc.path) from None
+        raise doc.locate(str(exc)) from None
     except (TypeError, OverflowError, ArithmeticError) as exc:     # e.g. an integer too large for a float
         raise TomlError(f"{doc.path}: invalid friction parameters ({type(exc).__name__}: {exc})",
                         path=doc.path) from None
+
+
+#: Largest magnitude of a model-file number [SI]; moduli (keys ending in ``_Pa``, fields ``E_...``)
+#: go up to :data:`MODULUS_MAX_PA`, and a time constant (``_s``) may not be below
+#: :data:`TIME_MIN_S` unless 0. Beyond them a value is a typo or a unit mistake, and the simulator
+#: crawls through it in one uninterruptible kernel call (measured: a tip force of 1e6 N ran for
+#: minutes, 1e4 N for 16 s; damping_time_s = 1e-30 for 36 s, 1e-15 for 0.4 s).
+MODEL_MAX = 1e3
+MODULUS_MAX_PA = 1e13
+TIME_MIN_S = 1e-12
+
+
+def _magnitude_problem(key: str, v) -> str | None:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return None                 # the types are checked by the model
+    a = abs(float(v)) if abs(v) < 1e308 else math.inf
+    top = MODULUS_MAX_PA if (key.endswith("_Pa") or key.startswith("E_")) else MODEL_MAX
+    low = TIME_MIN_S if key.endswith("_s") and not key.endswith("_per_s") else 0.0
+    if math.isfinite(a) and (a > top or 0 < a < low):
+        rng = f"0 or {low:g} to {top:g}" if low else f"at most {top:g} in magnitude"
+        return f"{key} = {v!r} is an absurd value (accepted: {rng}, in the key's SI unit)"
+    return None
+
+
+def _check_magnitudes(doc) -> None:
+    """Refuse absurd magnitudes in a model file (types, signs and finiteness are the model's checks)."""
+    for key, val in doc.data.items():
+        if key == "metadata":
+            continue
+        for v in (val if isinstance(val, list) else [val]):
+            problem = _magnitude_problem(str(key), v)
+            if problem:
+                raise doc.error(problem, key)
 
 
 def save_params(params: FrictionParams, path, **metadata) -> Path:

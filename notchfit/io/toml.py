@@ -66,6 +66,33 @@ class TomlFile:
         return TomlError(located(self.path, line, problem), path=self.path, line=line,
                          key=".".join(str(k) for k in keys) or None)
 
+    def locate(self, message: str) -> TomlError:
+        """A :class:`TomlError` for a checker's ``message``, at the line of the key it names.
+
+        ``message`` is ``"<path>: <problem>"`` or a bare problem, from code that
+        checks the parsed values and knows no lines (``"slot_depth must be
+        smaller than the tube diameter"``). The key is the top-level key of the
+        file named earliest in the problem, as written or without its unit
+        suffix (``slot_depth_mm`` is named by ``slot_depth``); a message that
+        already names a line is kept as it is.
+        """
+        prefix = f"{self.path}: "
+        problem = message[len(prefix):] if message.startswith(prefix) else message
+        if problem.startswith("line "):
+            return TomlError(located(self.path, None, problem), path=self.path)
+        best = None
+        for key in self.data:
+            for name in {str(key), _UNIT_SUFFIX.sub("", str(key))}:
+                m = re.search(rf"(?<![\w.]){re.escape(name)}(?!\w)", problem)
+                if m and (best is None or m.start() < best[0]):
+                    best = (m.start(), key)
+        return self.error(problem, best[1]) if best else TomlError(located(self.path, None, problem),
+                                                                      path=self.path)
+
+
+#: Unit suffixes of file keys (docs/data-formats.md): ``p_mm`` is the field ``p`` in mm.
+_UNIT_SUFFIX = re.compile(r"_(?:mm|rad|deg|N|Pa|s|Nm|Nm_per_rad|Nms_per_rad|m_per_s)$")
+
 
 def load_toml(path, *, what: str = "file") -> TomlFile:
     """Read and parse a TOML file.
@@ -99,20 +126,25 @@ def load_toml(path, *, what: str = "file") -> TomlFile:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise _syntax_error(path, str(exc)) from None
+        raise _syntax_error(path, str(exc), text) from None
     except RecursionError:
         raise TomlError(located(path, None, "bad TOML: arrays or tables nested too deeply"),
                         path=path) from None
     return TomlFile(path=path, data=data, text=text)
 
 
-def _syntax_error(path: Path, msg: str) -> TomlError:
+def _syntax_error(path: Path, msg: str, text: str = "") -> TomlError:
     m = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", msg)
     if m is None:
         return TomlError(located(path, None, f"bad TOML: {msg}; the file is not valid TOML"), path=path)
     reason, line, column = msg[:m.start()], int(m.group(1)), int(m.group(2))
-    return TomlError(located(path, line, f"bad TOML: {reason} at column {column}; the file is not valid TOML"),
-                     path=path, line=line, column=column)
+    lines = text.splitlines()
+    row = lines[line - 1] if 0 < line <= len(lines) else ""
+    hint = ""
+    if re.match(r"\d,\d", row[column - 2:column + 1]):
+        hint = " (a decimal comma? TOML numbers are written with a point: 1.5, not 1,5)"
+    return TomlError(located(path, line, f"bad TOML: {reason} at column {column}{hint}; the file is not valid "
+                                         "TOML"), path=path, line=line, column=column)
 
 
 # ----------------------------------------------------------------------------- key lines
