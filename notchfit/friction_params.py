@@ -61,6 +61,7 @@ PARAM_KEYS = {
     "E_se": "E_se_Pa",
     "strain_lower": "strain_lower",
     "stop_ratio": "stop_ratio",
+    "rest_angle": "rest_angle_rad",
 }
 #: the keys every model file holds (the seed paper's model and its extensions)
 _SEED_KEYS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop", "mu_d", "mu_s", "b", "v_thr",
@@ -124,6 +125,11 @@ class FrictionParams:
     stop_ratio : float
         Slot-closure stop rate over the linear rate (material law; the seed's
         ``k_stop / k_lin``).
+    rest_angle : float, tuple of n floats, or None
+        Rest angles ``θ0_j`` [rad] of the tube this model was identified on
+        (``notchfit identify``), in place of the geometry's ``rest_angle_rad``;
+        None (default): the geometry's. A pre-curve is a property of one tube:
+        a model meant for other tubes of the same stock leaves it None.
     """
 
     k_lin: float = paper.FRICTION_K_LIN
@@ -147,13 +153,14 @@ class FrictionParams:
     E_se: float = 4e9
     strain_lower: float = 0.015
     stop_ratio: float = paper.FRICTION_K_STOP / paper.FRICTION_K_LIN
+    rest_angle: float | tuple | None = None
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name in ("spring_law", "friction_law"):
+            if f.name in ("spring_law", "friction_law") or (f.name == "rest_angle" and v is None):
                 continue
-            if f.name in PER_JOINT_FIELDS and isinstance(v, (tuple, list, np.ndarray)):
+            if f.name in PER_JOINT_FIELDS + ("rest_angle",) and isinstance(v, (tuple, list, np.ndarray)):
                 v = tuple(_number(f.name, x) for x in v)
                 if not v:
                     raise ValueError(f"friction parameter {f.name} needs at least one value")
@@ -222,13 +229,30 @@ class FrictionParams:
         rates = np.stack([col(self.k_lin), col(self.k_mid), col(self.k_stop)], axis=-1)
         return PiecewiseLinearSpring(breaks, rates, scale)
 
+    def with_rest_angles(self, geom: Geometry) -> Geometry:
+        """``geom`` with this model's rest angles (``rest_angle``), or ``geom`` itself when None.
+
+        Raises
+        ------
+        ValueError
+            Rest angles given for another number of joints, or beyond a slot's closure.
+        """
+        if self.rest_angle is None:
+            return geom
+        if isinstance(self.rest_angle, tuple) and len(self.rest_angle) != geom.n_joints:
+            raise ValueError(f"the model's rest angles (rest_angle_rad) are given for {len(self.rest_angle)} "
+                             f"joints, the geometry {geom.name!r} has {geom.n_joints}")
+        return geom.replace(rest_angle=self.rest_angle)
+
     def joint_spring(self, geom: Geometry) -> PiecewiseLinearSpring:
         """The spring of every joint of ``geom`` (breaks (n, 2), rates (n, 3), scale (n,)).
 
         The rates law (:meth:`spring`) or the material law
         (:func:`notchfit.springs.material_spring`), with the gradient scale. The
-        spring acts on the deflection from the rest angle, ``θ_j - θ0_j``.
+        spring acts on the deflection from the rest angle, ``θ_j - θ0_j``
+        (:meth:`with_rest_angles`).
         """
+        geom = self.with_rest_angles(geom)
         n = geom.n_joints
         if self.spring_law == "material":
             sp = material_spring(geom, self.E_lin, self.E_se, self.strain_lower, self.stop_ratio)
@@ -260,7 +284,7 @@ class FrictionParams:
         out = {}
         for f in PARAM_KEYS:
             v = getattr(self, f)
-            if f in _SEED_KEYS or v != getattr(default, f):
+            if f in _SEED_KEYS or (v is not None and v != getattr(default, f)):
                 out[f] = list(v) if isinstance(v, tuple) else v
         return out
 
@@ -275,6 +299,7 @@ class FrictionParams:
         return _joint_table(self, geom)
 
     def _build_joint_table(self, geom: Geometry) -> np.ndarray:
+        geom = self.with_rest_angles(geom)
         sp = self.joint_spring(geom)
         n = geom.n_joints
         J = np.empty((_k.N_J, n))
@@ -407,7 +432,7 @@ def _mapping_value(field: str, key: str, val, origin: str):
         if not isinstance(val, str):
             raise ValueError(f"{origin}: {key} must be a string, got {val!r}")
         return val
-    if field in PER_JOINT_FIELDS and isinstance(val, list):
+    if field in PER_JOINT_FIELDS + ("rest_angle",) and isinstance(val, list):
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in val):
             raise ValueError(f"{origin}: {key} must be a number or a list of numbers, got {val!r}")
         return tuple(float(v) for v in val)
