@@ -229,20 +229,30 @@ class FrictionParams:
         rates = np.stack([col(self.k_lin), col(self.k_mid), col(self.k_stop)], axis=-1)
         return PiecewiseLinearSpring(breaks, rates, scale)
 
-    def with_rest_angles(self, geom: Geometry) -> Geometry:
-        """``geom`` with this model's rest angles (``rest_angle``), or ``geom`` itself when None.
+    def rest_angles(self, geom: Geometry) -> np.ndarray:
+        """Rest angles ``θ0_j`` (n,) [rad]: the model's (``rest_angle``), else the geometry's.
 
         Raises
         ------
         ValueError
-            Rest angles given for another number of joints, or beyond a slot's closure.
+            Rest angles given for another number of joints, or not inside a slot's closure.
         """
         if self.rest_angle is None:
-            return geom
+            return geom.rest_angles
         if isinstance(self.rest_angle, tuple) and len(self.rest_angle) != geom.n_joints:
             raise ValueError(f"the model's rest angles (rest_angle_rad) are given for {len(self.rest_angle)} "
                              f"joints, the geometry {geom.name!r} has {geom.n_joints}")
-        return geom.replace(rest_angle=self.rest_angle)
+        rest = np.broadcast_to(np.asarray(self.rest_angle, dtype=float), (geom.n_joints,)).copy()
+        if np.any(np.abs(rest) >= geom.closure_angles):
+            raise ValueError(f"the model's rest angles (rest_angle_rad) must be smaller in magnitude than the "
+                             f"slots' closure angles of geometry {geom.name!r}")
+        return rest
+
+    def with_rest_angles(self, geom: Geometry) -> Geometry:
+        """``geom`` with this model's rest angles (:meth:`rest_angles`), or ``geom`` itself when None."""
+        if self.rest_angle is None:
+            return geom
+        return geom.replace(rest_angle=tuple(self.rest_angles(geom)))
 
     def joint_spring(self, geom: Geometry) -> PiecewiseLinearSpring:
         """The spring of every joint of ``geom`` (breaks (n, 2), rates (n, 3), scale (n,)).
@@ -250,12 +260,12 @@ class FrictionParams:
         The rates law (:meth:`spring`) or the material law
         (:func:`notchfit.springs.material_spring`), with the gradient scale. The
         spring acts on the deflection from the rest angle, ``θ_j - θ0_j``
-        (:meth:`with_rest_angles`).
+        (:meth:`rest_angles`).
         """
-        geom = self.with_rest_angles(geom)
         n = geom.n_joints
         if self.spring_law == "material":
-            sp = material_spring(geom, self.E_lin, self.E_se, self.strain_lower, self.stop_ratio)
+            sp = material_spring(geom, self.E_lin, self.E_se, self.strain_lower, self.stop_ratio,
+                                 rest_angles=self.rest_angles(geom))
             return sp.with_scale(self.joint_scale(n))
         sp = self.spring(n)
         b = np.broadcast_to(sp.breaks, (n, 2))
@@ -299,7 +309,6 @@ class FrictionParams:
         return _joint_table(self, geom)
 
     def _build_joint_table(self, geom: Geometry) -> np.ndarray:
-        geom = self.with_rest_angles(geom)
         sp = self.joint_spring(geom)
         n = geom.n_joints
         J = np.empty((_k.N_J, n))
@@ -307,7 +316,7 @@ class FrictionParams:
         J[_k.J_TM], J[_k.J_TS] = sp.breaks[:, 0], sp.breaks[:, 1]
         J[_k.J_S] = np.broadcast_to(sp.scale, (n,))
         J[_k.J_B] = self.joint_damping(sp)
-        J[_k.J_TH0] = geom.rest_angles
+        J[_k.J_TH0] = self.rest_angles(geom)
         J[_k.J_AR], J[_k.J_AL] = geom.moment_arms(+1), geom.moment_arms(-1)
         return readonly(J)
 

@@ -19,7 +19,7 @@ PHYSICS = ("geometry", "kinematics", "notches", "cables", "springs", "statics", 
            "_friction_kernels", "friction_params", "predictor", "shapes", "units", "validation", "paper", "polygon",
            "section")
 #: analysis: returns objects, writes nothing.
-ANALYSIS = ("fitting", "diagnosis")
+ANALYSIS = ("fitting", "diagnosis", "identify")
 #: modules whose functions may exceed the length limit: the numba kernels (one
 #: time loop each, kept whole for the compiler).
 LONG_FUNCTIONS_ALLOWED = ("_friction_kernels",)
