@@ -301,7 +301,7 @@ def statics_truth(time, tension_left, tension_right, params: FrictionParams, geo
         Residual torque tolerance [N m].
     """
     tl, tr = np.asarray(tension_left, float), np.asarray(tension_right, float)
-    geom = params.with_rest_angles(geom)
+    geom = params.tube_geometry(geom)
     model = statics.QuasiStaticModel(geom, spring=params.joint_spring(geom))
     th = geom.rest_angles
     out = []

@@ -77,16 +77,19 @@ def test_identify_recovers_the_material_of_a_synthetic_wrist(one_wrist):
     and mu_d within 3 SE of the truth; each trial predicted by a model fitted on the other two within
     15 % of the 0.5 deg angle noise (pooled), and no trial worse than 1.5x the noise."""
     res = identify(one_wrist)
-    assert res.metric == "deg" and res.free == ("E_lin", "E_se", "strain_lower", "mu_d") and res.rest_free
+    assert res.metric == "deg" and res.free == ("E_lin", "E_se", "strain_lower", "mu_d")
+    assert res.tube_free == ("rest_angle", "slot_depth")
     for name, truth in TRUTH.items():
         assert abs(res.values[name] - truth) <= 3.0 * res.se[name], (name, res.values[name], res.se[name])
     assert abs(res.heldout_rms - ANGLE_NOISE_DEG) <= 0.15 * ANGLE_NOISE_DEG
     assert max(res.heldout.values()) < 1.5 * ANGLE_NOISE_DEG
     assert res.train_rms <= res.heldout_rms
-    rest = np.asarray(res.rest_angles["wrist_asymmetric"])            # the geometry's 0 rad
-    assert np.all(np.abs(rest) <= 3.0 * np.asarray(res.rest_se["wrist_asymmetric"]) + 1e-4)
-    # the shared model carries the tube's rest angles and the quasi-static damping
-    assert res.model.rest_angle == tuple(rest) and res.model.damping_time == pytest.approx(1e-3)
+    tube = res.tubes["wrist_asymmetric"]                          # drawn as the geometry file says
+    assert np.all(np.abs(tube.rest_angles) <= 3.0 * tube.rest_se)
+    assert np.all(np.abs(tube.depth_offsets) <= 3.0 * tube.depth_se)
+    # the shared model of a one-tube study carries its rest angles, cut depths and the quasi-static damping
+    assert res.model.rest_angle == tuple(tube.rest_angles) and res.model.damping_time == pytest.approx(1e-3)
+    assert res.model.slot_depth_offset == tuple(tube.depth_offsets)
 
 
 def test_material_from_two_wrists_predicts_a_third(tmp_path, capsys):
@@ -100,10 +103,11 @@ def test_material_from_two_wrists_predicts_a_third(tmp_path, capsys):
     out = tmp_path / "ident"
     assert main(["identify", str(tmp_path / "ab"), "--out", str(out), "--no-heldout"]) == 0
     data = json.loads((out / "identify.json").read_text())
-    assert set(data["tubes"].values()) == {"wrist_asymmetric", "wrist_tip_first"}
+    assert set(data["tubes"]) == {"wrist_asymmetric", "wrist_tip_first"}
+    assert data["free"][-2:] == ["rest_angle_rad", "slot_depth_offset_m"]
     assert (out / "model_wrist_tip_first.toml").is_file()
     model = load_params(out / "model.toml")
-    assert model.rest_angle is None                         # a shared model: each tube's own rest angles
+    assert model.rest_angle is None and model.slot_depth_offset is None    # shared: no one tube's values
     assert main(["simulate", str(tmp_path / "c"), "--out", str(tmp_path / "pred"), "--model", str(out / "model.toml"),
                  "--no-figures"]) == 0
     errs = np.concatenate([pd.read_csv(tmp_path / "pred" / n / "simulation_vs_angles.csv")
@@ -140,12 +144,14 @@ def test_identify_cli_contract_and_points_metric(tmp_path, capsys):
 def test_free_names_defaults_and_tubes(geom):
     """--free takes field names and file keys; the defaults follow each tube's laws; tubes are labelled by
     geometry name, made unique."""
-    assert parse_free(["E_lin_Pa", " mu_d", "rest_angle_rad"]) == ("E_lin", "mu_d", "rest_angle")
+    assert parse_free(["E_lin_Pa", " mu_d", "rest_angle_rad", "slot_depth_offset_m"]) == (
+        "E_lin", "mu_d", "rest_angle", "slot_depth")
     with pytest.raises(ValueError, match="twice"):
         parse_free(["E_lin", "E_lin_Pa"])
     wrist = io.load_geometry(io.datasets_dir() / "geometry" / "wrist_asymmetric.toml")
     assert default_free([default_params(geom)], [geom]) == ("k_lin", "k_mid", "mu_d")
-    assert default_free([default_params(wrist)], [wrist]) == ("E_lin", "E_se", "strain_lower", "mu_d", "rest_angle")
+    assert default_free([default_params(wrist)], [wrist]) == ("E_lin", "E_se", "strain_lower", "mu_d", "rest_angle",
+                                                              "slot_depth")
     other = wrist.replace(slot_depth=1.38e-3)
     assert tube_labels([wrist, other, wrist, geom]) == ["wrist_asymmetric", "wrist_asymmetric-2",
                                                         "wrist_asymmetric", "moses2015"]
@@ -201,3 +207,16 @@ def test_standard_errors_of_a_linear_problem(rng):
     se = standard_errors(_Linear(A, y, np.arange(200)), x, np.full(2, 1e-6))
     assert np.all(se >= ols * (1 - 1e-6))
     assert se == pytest.approx(ols, rel=0.25)            # the jackknife agrees for homoscedastic noise
+
+
+def test_simulate_angles_is_simulate_theta(one_wrist):
+    """The identification's inner loop, friction.simulate_angles, returns simulate's angles bit for bit
+    (Sec. IV-B, fast and reference solvers, with solver options)."""
+    from notchfit.friction import simulate, simulate_angles
+    e = one_wrist[0]
+    p = default_params(e.geometry).replace(mu_d=0.1, mu_s=0.11, slot_depth_offset=(0.0, 5e-6, 0.0, -5e-6, 0.0))
+    for kw in ({}, {"dtheta_max": 2e-3}, {"method": "reference", "dt": 2e-4}):
+        a = simulate_angles(e.time, None, e.tension_right, p, e.geometry, **kw)
+        assert np.array_equal(a, simulate(e.time, None, e.tension_right, p, e.geometry, **kw).theta)
+    with pytest.raises(TypeError, match="unknown option"):
+        simulate_angles(e.time, None, e.tension_right, p, e.geometry, tension_tol=0.1)

@@ -9,7 +9,7 @@ from pathlib import Path
 from .. import io
 from ..identify import identify
 from ..identify.data import tube_labels
-from ..units import DEG
+from ..units import DEG, MM
 from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir, list_failures
 from ._points import with_measurements
 
@@ -72,11 +72,10 @@ def _tube_file(tube: str) -> str:
 def _model_metadata(result, data: dict) -> dict:
     """The ``[metadata]`` of model.toml: source, metric, free parameters, standard errors, errors."""
     meta = {"source": "notchfit identify", "metric": result.metric, "free": data["free"], "se": data["se"],
-            "train_rms": result.train_rms, "heldout_rms": result.heldout_rms,
-            "tubes": sorted(set(result.tubes.values()))}
+            "train_rms": result.train_rms, "heldout_rms": result.heldout_rms, "tubes": list(result.tubes)}
     if len(meta["tubes"]) > 1:
-        meta["note"] = ("shared parameters of every tube; each tube's rest angles are in its "
-                        "model_<tube>.toml")
+        meta["note"] = ("shared parameters of every tube; each tube's rest angles and cut depths are in "
+                        "its model_<tube>.toml")
     return meta
 
 
@@ -87,10 +86,10 @@ def write_identification(result, out_dir) -> dict:
     meta = _model_metadata(result, data)
     io.save_params(result.model, out / "model.toml", **meta)
     files = {}
-    if len(result.tube_models) > 1:
-        for tube, params in result.tube_models.items():
+    if len(result.tubes) > 1:
+        for tube, fit in result.tubes.items():
             files[tube] = _tube_file(tube)
-            io.save_params(params, out / files[tube], **{**meta, "tube": tube, "note": "the model of one tube"})
+            io.save_params(fit.model, out / files[tube], **{**meta, "tube": tube, "note": "the model of one tube"})
     data["model_file"] = "model.toml"
     data["tube_model_files"] = files
     io.write_json_atomic(data, out / "identify.json")
@@ -137,12 +136,14 @@ def run(args) -> int:
 
 def _print_summary(result, data: dict, out) -> None:
     unit = result.metric
-    print(f"identify: {len(result.tubes)} experiments, {len(result.tube_models)} tube(s), errors in {unit}")
+    print(f"identify: {len(result.experiment_tubes)} experiments, {len(result.tubes)} tube(s), errors in {unit}")
     for key, v in data["params"].items():
         print(f"  {key:18s} = {v:.5g} ± {data['se'][key]:.2g}")
-    if result.rest_free:
-        for tube, a in result.rest_angles.items():
-            print(f"  rest angles of {tube} [deg]: " + ", ".join(f"{v / DEG:.2f}" for v in a))
+    for tube, fit in result.tubes.items():
+        if "rest_angle" in result.tube_free:
+            print(f"  {tube}: rest angles [deg] " + ", ".join(f"{v / DEG:.2f}" for v in fit.rest_angles))
+        if "slot_depth" in result.tube_free:
+            print(f"  {tube}: cut depths [mm] " + ", ".join(f"{v / MM:.4f}" for v in fit.slot_depths))
     held = "" if math.isnan(result.heldout_rms) else f"; held-out rms {result.heldout_rms:.3f} {unit} " \
                                                       "(each experiment predicted by a model fitted without it)"
     print(f"train rms {result.train_rms:.3f} {unit}{held}")

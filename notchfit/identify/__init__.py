@@ -11,7 +11,8 @@ and — for tubes cut from one stock — new tubes from their geometry alone
    are one tube);
 2. fits the free parameters (:mod:`notchfit.identify.specs`: by default the
    material law's ``E_lin``, ``E_se``, ``strain_lower`` or the seed tube's
-   ``k_lin``, ``k_mid``; ``μ_d``; each real tube's rest angles) to every
+   ``k_lin``, ``k_mid``; ``μ_d``; each real tube's rest angles and effective
+   cut depths, the latter with a prior of the cutting tolerance) to every
    experiment at once — every tube shares the scalar parameters — by bounded
    least squares from the best of a grid of probe starts
    (:mod:`notchfit.identify.problem`);
@@ -28,10 +29,11 @@ from __future__ import annotations
 
 from .data import METRICS, Observed, observe_study, study_metric, zero_tension_samples
 from .problem import Problem, Solution, make_problem, solve
-from .specs import MATERIAL, REST, SPECS, default_free, parse_free, specs_for
-from .study import Identification, identify
+from .specs import DEPTH, MATERIAL, REST, SPECS, default_free, parse_free, specs_for
+from .study import Identification, TubeFit, identify
 
 __all__ = [
+    "DEPTH",
     "MATERIAL",
     "METRICS",
     "REST",
@@ -40,6 +42,7 @@ __all__ = [
     "Observed",
     "Problem",
     "Solution",
+    "TubeFit",
     "default_free",
     "identify",
     "make_problem",

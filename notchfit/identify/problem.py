@@ -30,7 +30,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..comparison import angle_residuals
-from ..friction import FrictionParams, simulate
+from ..friction import FrictionParams, simulate_angles
 from ..notches import notch_points, to_plane
 from .data import Observed, zero_tension_samples
 
@@ -50,10 +50,15 @@ class Problem:
         Tube -> its base FrictionParams (fixed values of everything not free).
     specs : tuple of ParamSpec
         The scalar free parameters.
-    rest_tubes : tuple of str
-        Tubes whose rest angles are free, in the order of ``x``.
+    blocks : tuple of (field, tube, n)
+        The per-joint unknowns of single tubes after the scalars, in the order
+        of ``x``: ``("rest_angle", tube, n)`` [rad], ``("slot_depth_offset", tube, n)`` [m].
     x0, lo, hi : ndarray
         Start and bounds in optimiser coordinates.
+    prior : ndarray (m, p)
+        A zero-mean Gaussian prior on linear combinations of the unknowns: each
+        row adds the residual ``prior[r] @ x`` (the cut depths' tolerance, per
+        notch and for a tube's mean).
     excess : float
         ``μ_s − μ_d``, held.
     sim_kw : dict
@@ -63,10 +68,11 @@ class Problem:
     obs: tuple
     base: dict
     specs: tuple
-    rest_tubes: tuple
+    blocks: tuple
     x0: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
+    prior: np.ndarray
     excess: float
     sim_kw: dict = field(default_factory=dict)
     _cache: dict = field(default_factory=dict, repr=False)
@@ -79,19 +85,18 @@ class Problem:
         """Scalar parameter values by field name (SI)."""
         return {s.name: s.from_x(float(v)) for s, v in zip(self.specs, x[:self.k])}
 
-    def rest(self, x) -> dict:
-        """Tube -> rest angles (n,) [rad] of the tubes whose rest angles are free."""
+    def tube_values(self, x) -> dict:
+        """Tube -> {field: (n,) values} of its free per-joint unknowns."""
         out, i = {}, self.k
-        for tube in self.rest_tubes:
-            n = self.base[tube].rest_angle_n
-            out[tube] = np.asarray(x[i:i + n], dtype=float)
+        for name, tube, n in self.blocks:
+            out.setdefault(tube, {})[name] = np.asarray(x[i:i + n], dtype=float)
             i += n
         return out
 
     def params(self, x) -> dict:
         """Tube -> the FrictionParams of ``x``."""
-        vals, rest = self.values(x), self.rest(x)
-        return {tube: with_values(b.params, vals, self.excess, rest.get(tube)) for tube, b in self.base.items()}
+        vals, per = self.values(x), self.tube_values(x)
+        return {t: with_values(b, vals, self.excess, **per.get(t, {})) for t, b in self.base.items()}
 
     def theta(self, i: int, params: FrictionParams) -> np.ndarray:
         """Simulated joint angles of experiment ``i`` (S, n) [rad], cached by the parameters."""
@@ -100,49 +105,45 @@ class Problem:
         if th is None:
             if len(self._cache) > 4096:
                 self._cache.clear()
-            o = self.obs[i]
-            left, right = o.tendon_tensions
-            th = simulate(o.time, left, right, params, o.geom, ramp_time=o.ramp_time, **self.sim_kw).theta
+            th = predict(self.obs[i], params, self.sim_kw)
             self._cache[key] = th
         return th
 
     def residuals(self, x) -> np.ndarray:
-        """Whitened residuals of every experiment, stacked (fixed length: zeros where not measured)."""
+        """Whitened residuals of every experiment, stacked (fixed length: zeros where not measured),
+        then the prior's."""
         by_tube = self.params(x)
-        return np.concatenate([whitened(o, self.theta(i, by_tube[o.tube])) for i, o in enumerate(self.obs)])
+        return np.concatenate([whitened(o, self.theta(i, by_tube[o.tube])) for i, o in enumerate(self.obs)]
+                              + [self.prior @ np.asarray(x, dtype=float)])
 
     def clusters(self) -> np.ndarray:
-        """The sample each residual belongs to (cluster ids for the standard errors)."""
+        """The sample each residual belongs to (cluster ids for the standard errors; -1: a prior's)."""
         out, base = [], 0
         for o in self.obs:
             S = o.time.size
             per = o.angles.shape[1] if o.metric == "deg" else 2 * o.points.shape[1]
             out.append(base + np.repeat(np.arange(S), per))
             base += S
+        out.append(np.full(self.prior.shape[0], -1))
         return np.concatenate(out)
 
     def measured(self) -> np.ndarray:
-        """Which residuals are measured values (bool, the layout of :meth:`residuals`)."""
+        """Which residuals are measured values (bool, the layout of :meth:`residuals`; False for the prior's)."""
         return np.concatenate([(np.isfinite(o.angles) if o.metric == "deg"
-                                else np.repeat(o.valid[..., None], 2, axis=-1)).ravel() for o in self.obs])
+                                else np.repeat(o.valid[..., None], 2, axis=-1)).ravel() for o in self.obs]
+                              + [np.zeros(self.prior.shape[0], bool)])
 
 
-def with_values(params: FrictionParams, values: dict, excess: float, rest=None) -> FrictionParams:
-    """``params`` with scalar ``values`` (``μ_s = μ_d + excess`` when ``μ_d`` is among them) and rest angles."""
+def with_values(params: FrictionParams, values: dict, excess: float, **per_joint) -> FrictionParams:
+    """``params`` with scalar ``values`` (``μ_s = μ_d + excess`` when ``μ_d`` is among them) and per-joint
+    values of one tube (``rest_angle=``, ``slot_depth_offset=``)."""
     kw = dict(values)
     if "mu_d" in kw:
         kw["mu_s"] = kw["mu_d"] + excess
-    if rest is not None:
-        kw["rest_angle"] = tuple(float(v) for v in rest)
+    for name, v in per_joint.items():
+        if v is not None:
+            kw[name] = tuple(float(a) for a in v)
     return params.replace(**kw)
-
-
-@dataclass(frozen=True)
-class _Base:
-    """A tube's base model and its joint count (for the layout of ``x``)."""
-
-    params: FrictionParams
-    rest_angle_n: int
 
 
 def whitened(o: Observed, theta: np.ndarray) -> np.ndarray:
@@ -169,7 +170,7 @@ def errors(o: Observed, theta: np.ndarray) -> np.ndarray:
 def predict(o: Observed, params: FrictionParams, sim_kw: dict | None = None) -> np.ndarray:
     """Joint angles (S, n) [rad] of one experiment under ``params``."""
     left, right = o.tendon_tensions
-    return simulate(o.time, left, right, params, o.geom, ramp_time=o.ramp_time, **(sim_kw or {})).theta
+    return simulate_angles(o.time, left, right, params, o.geom, ramp_time=o.ramp_time, **(sim_kw or {}))
 
 
 def _rest_start(obs, tube, base: FrictionParams, sim_kw) -> np.ndarray:
@@ -193,40 +194,71 @@ def _rest_start(obs, tube, base: FrictionParams, sim_kw) -> np.ndarray:
     return rest0 + np.nan_to_num(shift)
 
 
-def make_problem(obs, base: dict, specs, rest_free: bool, *, excess: float, sim_kw: dict | None = None,
-                 rest_range: float = 0.2, closure_margin: float = 0.9) -> Problem:
-    """Build the problem of fitting ``specs`` (and the rest angles when ``rest_free``) to ``obs``.
+def _depth_block(geom, depth_range: float, min_wall: float):
+    """Bounds of one tube's cut-depth offsets [m]: ``±depth_range``, the cut kept inside the tube."""
+    g = geom.slot_depths
+    lo = np.maximum(-depth_range, -0.5 * g)
+    hi = np.minimum(depth_range, 2.0 * geom.outer_radius - min_wall - g)
+    return lo, hi
+
+
+def make_problem(obs, base: dict, specs, *, rest: bool = False, depth: bool = False, excess: float,
+                 sim_kw: dict | None = None, rest_range: float = 0.2, closure_margin: float = 0.9,
+                 depth_range: float = 60e-6, depth_sigma: float = 15e-6, depth_common: float | None = 2e-6,
+                 min_wall: float = 20e-6) -> Problem:
+    """Build the problem of fitting ``specs`` (and each tube's rest angles and cut depths) to ``obs``.
 
     Parameters
     ----------
     base : dict
         Tube -> base FrictionParams; the tubes not in ``obs`` are ignored.
+    rest, depth : bool
+        Fit each tube's rest angles (from the start of :func:`_rest_start`) and its
+        per-notch cut-depth offsets (from 0, with the Gaussian prior ``depth_sigma``).
     rest_range : float
-        Rest angles move at most this far from the geometry's [rad].
+        Rest angles move at most this far from the geometry's [rad] ...
     closure_margin : float
         ... and stay within this fraction of each slot's closure angle.
+    depth_range, depth_sigma, min_wall : float
+        Cut-depth offsets: bound, prior standard deviation (the cutting tolerance) and
+        the thinnest wall left [m].
+    depth_common : float or None
+        Prior standard deviation of a tube's mean offset [m] (None: only the per-notch
+        prior). Small by default: a depth error common to a tube's notches is a
+        stiffness scale, which the shared material cannot tell from the tube's;
+        the per-notch offsets then carry only the notch-to-notch variation.
     """
-    sim_kw = dict(sim_kw or {})
     tubes = list(dict.fromkeys(o.tube for o in obs))
     geoms = {t: next(o.geom for o in obs if o.tube == t) for t in tubes}
-    b = {t: _Base(base[t], geoms[t].n_joints) for t in tubes}
     x0 = [s.to_x(float(np.clip(s.start, s.lower, s.upper))) for s in specs]
     lo = [s.x_bounds[0] for s in specs]
     hi = [s.x_bounds[1] for s in specs]
+    rows = []
     start_params = {t: with_values(base[t], {s.name: s.start for s in specs}, excess) for t in tubes}
-    rest_tubes = tuple(tubes) if rest_free else ()
-    for t in rest_tubes:
-        g = geoms[t]
-        ref = base[t].rest_angles(g)
-        cap = closure_margin * g.closure_angles
-        lo_t, hi_t = np.maximum(ref - rest_range, -cap), np.minimum(ref + rest_range, cap)
-        start = np.clip(_rest_start(obs, t, start_params[t], sim_kw), lo_t, hi_t)
-        x0 += list(start)
-        lo += list(lo_t)
-        hi += list(hi_t)
+    blocks = []
+    for t in tubes:
+        g, n = geoms[t], geoms[t].n_joints
+        if rest:
+            ref, cap = base[t].rest_angles(g), closure_margin * g.closure_angles
+            lo_t, hi_t = np.maximum(ref - rest_range, -cap), np.minimum(ref + rest_range, cap)
+            x0 += list(np.clip(_rest_start(obs, t, start_params[t], sim_kw), lo_t, hi_t))
+            lo, hi = lo + list(lo_t), hi + list(hi_t)
+            blocks.append(("rest_angle", t, n))
+        if depth:
+            lo_t, hi_t = _depth_block(g, depth_range, min_wall)
+            i = len(x0)
+            x0, lo, hi = x0 + [0.0] * n, lo + list(lo_t), hi + list(hi_t)
+            rows += [(list(range(i + j, i + j + 1)), depth_sigma) for j in range(n)]
+            if depth_common is not None:
+                rows.append((list(range(i, i + n)), depth_common))
+            blocks.append(("slot_depth_offset", t, n))
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     x0 = np.clip(np.asarray(x0, float), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
-    return Problem(tuple(obs), b, tuple(specs), rest_tubes, x0, lo, hi, float(excess), sim_kw)
+    prior = np.zeros((len(rows), x0.size))
+    for r, (idx, sigma) in enumerate(rows):
+        prior[r, idx] = 1.0 / (len(idx) * sigma)          # one unknown / sigma, or a block's mean / sigma
+    return Problem(tuple(obs), {t: base[t] for t in tubes}, tuple(specs), tuple(blocks), x0, lo, hi, prior,
+                   float(excess), dict(sim_kw or {}))
 
 
 @dataclass(frozen=True)
@@ -240,7 +272,7 @@ class Solution:
     se : ndarray
         Standard errors of ``x`` (:func:`standard_errors`).
     cost : float
-        Half the sum of squared whitened residuals at ``x``.
+        Half the sum of squared whitened residuals at ``x`` (the priors' included).
     n_residuals : int
         Measured values (angles or point coordinates).
     success : bool
@@ -277,12 +309,17 @@ def _probe_starts(pb: Problem, n_starts: int) -> tuple[list, int]:
     return [cands[i] for i in order[:max(1, n_starts)]], len(cands)
 
 
-def _diff_steps(pb: Problem, x, rel: float, rest_step: float) -> np.ndarray:
+def _diff_steps(pb: Problem, x, rel: float, rest_step: float, depth_step: float = 2e-7) -> np.ndarray:
     """Absolute finite-difference steps: ``rel`` of a parameter's value (log coordinates: ``rel`` itself;
-    others: ``rel`` of the larger of the value and a tenth of the bound range); ``rest_step`` [rad] for rest angles."""
-    h = np.full(x.size, rest_step)
+    others: ``rel`` of the larger of the value and a tenth of the bound range); ``rest_step`` [rad] for rest
+    angles, ``depth_step`` [m] for cut depths."""
+    h = np.empty(x.size)
     for i, s in enumerate(pb.specs):
         h[i] = rel if s.log else rel * max(abs(float(x[i])), 0.1 * (pb.hi[i] - pb.lo[i]))
+    i = pb.k
+    for name, _, n in pb.blocks:
+        h[i:i + n] = rest_step if name == "rest_angle" else depth_step
+        i += n
     return h
 
 
@@ -312,8 +349,9 @@ def standard_errors(pb: Problem, x, h) -> np.ndarray:
     J = _jacobian(pb, x, h)
     r = pb.residuals(x)
     keep = pb.measured()
-    J, r, cl = J[keep], r[keep], pb.clusters()[keep]
-    B = J.T @ J
+    cl = pb.clusters()
+    B = J.T @ J                               # the priors' rows included (a posterior's information)
+    J, r, cl = J[keep], r[keep], cl[keep]
     n, p = r.size, x.size
     gn = np.diag(np.linalg.pinv(B)) * float(r @ r) / max(n - p, 1)
     d = []
@@ -359,7 +397,7 @@ def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: floa
     h = _diff_steps(pb, best.x, diff_rel, rest_step)
     se = standard_errors(pb, best.x, h)
     n_res = int(pb.measured().sum())
-    cost = 0.5 * float(np.sum(pb.residuals(best.x) ** 2))
+    cost = 0.5 * float(np.sum(pb.residuals(best.x) ** 2))          # the priors' terms included
     if not math.isfinite(cost):
         raise ValueError("the identification's cost is not finite at its optimum")
     return Solution(best.x, se, cost, n_res, bool(best.success), str(best.message), nfev + x0.size + 1,

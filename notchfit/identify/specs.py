@@ -19,9 +19,20 @@ has the material of superelastic nitinol:
   polymer tendon on nitinol; bounds 0–0.8, start 0.1.
 
 Positive moduli and the strain threshold are fitted in log space. ``μ_s`` is
-tied to ``μ_d`` plus the base model's excess (0.01, the paper's). Each tube's
-rest angles (``rest_angle``) are fitted per joint within ``±REST_RANGE`` of the
-geometry file's (and inside the slot's closure).
+tied to ``μ_d`` plus the base model's excess (0.01, the paper's).
+
+Per tube and per notch (real tubes):
+
+* ``rest_angle`` — the rest angles, within ``±REST_RANGE`` of the geometry
+  file's (and inside the slot's closure), started from the samples taken at
+  rest: cutting and heat treatment leave a few degrees of pre-curve that a
+  geometry file rarely knows to a tenth of a degree;
+* ``slot_depth`` — the effective cut depth, within ``±DEPTH_RANGE`` of the
+  drawing, with a Gaussian prior of ``DEPTH_TOLERANCE`` (a cutting and
+  measuring tolerance of ~10–20 µm): the wall left by a deep one-sided cut is
+  ~0.2 mm thick and its stiffness goes with its thickness cubed, so 10 µm off
+  is ~15 % off in a notch's stiffness, more than the angle noise of a
+  measurement. The material stays shared by every notch and tube.
 """
 
 from __future__ import annotations
@@ -31,8 +42,8 @@ import dataclasses
 from ..diagnosis.specs import BASELINE, CANDIDATES, ParamSpec
 from ..friction_params import PARAM_KEYS, FrictionParams, default_params
 
-__all__ = ["MATERIAL", "QUASI_STATIC_DAMPING_TIME", "REST", "REST_RANGE", "SPECS", "base_model", "default_free",
-           "parse_free", "specs_for"]
+__all__ = ["DEPTH", "DEPTH_COMMON", "DEPTH_RANGE", "DEPTH_TOLERANCE", "MATERIAL", "QUASI_STATIC_DAMPING_TIME", "REST", "REST_RANGE",
+           "SPECS", "TUBE_FREE", "base_model", "default_free", "parse_free", "specs_for"]
 
 #: Damping time of the real-tube models identify fits [s] (docs/models.md, "Identification"): a
 #: link of the friction model sticks once its cable speed falls below ``v_thr``, so the rest
@@ -45,6 +56,18 @@ QUASI_STATIC_DAMPING_TIME = 1e-3
 REST = "rest_angle"
 #: Rest angles are fitted within this distance of the geometry file's [rad] (~11°).
 REST_RANGE = 0.2
+#: The name of the per-tube, per-notch cut depths in ``--free``.
+DEPTH = "slot_depth"
+#: Cut depths are fitted within this distance of the geometry file's [m] ...
+DEPTH_RANGE = 60e-6
+#: ... with a zero-mean Gaussian prior of this standard deviation [m] (the cutting tolerance) ...
+DEPTH_TOLERANCE = 15e-6
+#: ... and the mean of a tube's offsets held near 0 [m]: a depth error common to a tube's
+#: notches scales its stiffness like the material does, so it is left to the shared material.
+DEPTH_COMMON = 2e-6
+#: Names of the per-tube unknowns in ``--free``, with their spellings.
+TUBE_FREE = {REST: REST, "rest_angle_rad": REST, DEPTH: DEPTH, "slot_depth_offset": DEPTH,
+             "slot_depth_offset_m": DEPTH}
 
 #: Material of superelastic nitinol (module docstring).
 MATERIAL = (
@@ -74,13 +97,13 @@ def parse_free(names) -> tuple[str, ...]:
     ValueError
         An unknown name, or one given twice.
     """
-    by_key = {v: k for k, v in PARAM_KEYS.items()}
+    by_key = {v: k for k, v in PARAM_KEYS.items() if k not in ("rest_angle", "slot_depth_offset")}
     out = []
     for raw in names:
         name = raw.strip()
-        field = by_key.get(name, name)
-        if field not in SPECS and field != REST:
-            known = ", ".join(sorted(SPECS)) + f", {REST}"
+        field = TUBE_FREE.get(name, by_key.get(name, name))
+        if field not in SPECS and field not in (REST, DEPTH):
+            known = ", ".join(sorted(SPECS)) + f", {REST}, {DEPTH}"
             raise ValueError(f"--free {name!r}: not a parameter identify can fit (known: {known})")
         if field in out:
             raise ValueError(f"--free names {field} twice")
@@ -95,9 +118,8 @@ def default_free(models, geoms) -> tuple[str, ...]:
 
     The material law's ``E_lin``, ``E_se``, ``strain_lower`` when a tube uses it,
     the rates law's ``k_lin``, ``k_mid`` when one does (the diagnosis baseline),
-    ``μ_d`` always, and the rest angles of the tubes with a section backbone
-    (real tubes: pre-curved by their cutting and heat treatment, by a few degrees
-    that the geometry file rarely knows to a tenth of a degree).
+    ``μ_d`` always, and for real tubes (a section backbone) each notch's rest
+    angle and, with the material law, its cut depth (module docstring).
     """
     laws = {m.spring_law for m in models}
     free = []
@@ -106,8 +128,11 @@ def default_free(models, geoms) -> tuple[str, ...]:
     if "rates" in laws:
         free += ["k_lin", "k_mid"]
     free.append("mu_d")
-    if any(g.backbone == "section" for g in geoms):
+    real = [m for m, g in zip(models, geoms) if g.backbone == "section"]
+    if real:
         free.append(REST)
+    if any(m.spring_law == "material" for m in real):
+        free.append(DEPTH)
     return tuple(free)
 
 
@@ -121,7 +146,7 @@ def base_model(geom) -> FrictionParams:
 
 
 def specs_for(free, models, *, start: FrictionParams | None = None) -> tuple[ParamSpec, ...]:
-    """The specs of the scalar free parameters (``rest_angle`` left out), in ``free``'s order.
+    """The specs of the scalar free parameters (the per-tube ``rest_angle``, ``slot_depth`` left out), in order.
 
     ``μ_d`` starts at the capstan value (0.1) when every tube has the capstan
     law, else at the paper's 0.29. ``start`` (a ``--model`` file) moves each
@@ -130,7 +155,7 @@ def specs_for(free, models, *, start: FrictionParams | None = None) -> tuple[Par
     capstan = all(m.friction_law == "capstan" for m in models)
     out = []
     for name in free:
-        if name == REST:
+        if name in (REST, DEPTH):
             continue
         spec = _CAPSTAN_MU if (name == "mu_d" and capstan) else SPECS[name]
         if start is not None:

@@ -11,16 +11,55 @@ from threadpoolctl import threadpool_limits
 from ..batch import run_batch
 from ..friction import FrictionParams
 from ..friction_params import PARAM_KEYS
+from ..units import MM
 from .data import Observed, metric_unit, observe_study
 from .problem import Solution, errors, make_problem, predict, solve, with_values
-from .specs import REST, REST_RANGE, base_model, default_free, parse_free, specs_for
+from .specs import DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free, parse_free, \
+    specs_for
 
-__all__ = ["FIT_SOLVER", "Identification", "identify"]
+__all__ = ["FIT_SOLVER", "Identification", "TubeFit", "identify"]
 
 #: The fast solver's options inside the fits: joints move at most 2 mrad per step while a link
 #: slides (default 0.5 mrad): half the time, within 0.014° of the default on the shipped wrists
 #: (benchmarks/bench_identify.py); the reported errors use the defaults.
 FIT_SOLVER = {"dtheta_max": 2e-3}
+
+
+@dataclass(frozen=True)
+class TubeFit:
+    """One tube's identified per-notch values (n joints).
+
+    Attributes
+    ----------
+    name : str
+        Tube label (:func:`notchfit.identify.data.tube_labels`).
+    experiments : tuple of str
+    rest_angles, rest_se : ndarray (n,) [rad]
+        Rest angles used (identified, or the geometry's) and their standard errors (NaN: not identified).
+    slot_depths : ndarray (n,) [m]
+        Effective cut depths used (the geometry's plus the identified offsets).
+    depth_offsets, depth_se : ndarray (n,) [m]
+        Identified offsets from the geometry's depths (0 when not identified) and their standard errors.
+    model : FrictionParams
+        The tube's model: the shared values with its rest angles and cut depths.
+    """
+
+    name: str
+    experiments: tuple
+    rest_angles: np.ndarray = field(repr=False)
+    rest_se: np.ndarray = field(repr=False)
+    slot_depths: np.ndarray = field(repr=False)
+    depth_offsets: np.ndarray = field(repr=False)
+    depth_se: np.ndarray = field(repr=False)
+    model: FrictionParams = field(repr=False)
+
+    def as_dict(self) -> dict:
+        """Degrees and millimetres (µm for the depth offsets), as in ``identify.json``."""
+        deg = lambda a: [math.degrees(float(v)) for v in a]  # noqa: E731
+        um = lambda a: [float(v) * 1e6 for v in a]  # noqa: E731
+        return {"experiments": list(self.experiments), "rest_angle_deg": deg(self.rest_angles),
+                "rest_angle_se_deg": deg(self.rest_se), "slot_depth_mm": [float(v) / MM for v in self.slot_depths],
+                "slot_depth_offset_um": um(self.depth_offsets), "slot_depth_offset_se_um": um(self.depth_se)}
 
 
 @dataclass(frozen=True)
@@ -37,18 +76,15 @@ class Identification:
     free : tuple of str
         The scalar free parameters (FrictionParams field names), in fit order.
     values, se : dict
-        Their identified values and standard errors (SI; cluster-robust, one cluster per sample).
-    rest_free : bool
-        Whether each tube's rest angles were identified.
-    rest_angles, rest_se : dict
-        Tube -> rest angles (n,) [rad] used (identified, or the geometry's) and their
-        standard errors (NaN when not identified).
-    model : FrictionParams
-        The shared model: every tube's base model with ``values``; with one
-        tube, also its identified rest angles.
-    tube_models : dict
-        Tube -> its model (with its identified rest angles).
+        Their identified values and standard errors (SI; :func:`notchfit.identify.problem.standard_errors`).
+    tube_free : tuple of str
+        The per-tube unknowns identified: ``"rest_angle"``, ``"slot_depth"``.
     tubes : dict
+        Tube label -> :class:`TubeFit`.
+    model : FrictionParams
+        The shared model: the base model with ``values``; with one tube, also
+        its rest angles and cut depths (its :attr:`TubeFit.model`).
+    experiment_tubes : dict
         Experiment -> tube label.
     train_rms : float
         Rms error of the fit on every experiment.
@@ -61,7 +97,8 @@ class Identification:
         Experiment -> its held-out rms error.
     heldout_by_tube : dict
         With several tubes: tube -> rms error of its experiments predicted by the
-        model fitted on the other tubes only (its rest angles from its geometry file).
+        model fitted on the other tubes only (from its geometry file: its rest
+        angles and depths as drawn).
     solution : Solution
         The fit on every experiment (cost, evaluations, convergence).
     """
@@ -70,12 +107,10 @@ class Identification:
     free: tuple
     values: dict
     se: dict
-    rest_free: bool
-    rest_angles: dict
-    rest_se: dict
-    model: FrictionParams
-    tube_models: dict
+    tube_free: tuple
     tubes: dict
+    model: FrictionParams
+    experiment_tubes: dict
     train_rms: float
     train: dict
     heldout_rms: float
@@ -84,22 +119,21 @@ class Identification:
     solution: Solution | None = field(default=None, repr=False)
 
     def as_dict(self) -> dict:
-        """The ``identify.json`` mapping (docs/data-formats.md): file keys with units, rest angles in degrees."""
+        """The ``identify.json`` mapping (docs/data-formats.md): file keys with units, per-tube values."""
         key = PARAM_KEYS
+        tube_keys = {REST: "rest_angle_rad", DEPTH: "slot_depth_offset_m"}
+        sol = self.solution
         return {
-            "free": [key[f] for f in self.free] + (["rest_angle_rad"] if self.rest_free else []),
+            "free": [key[f] for f in self.free] + [tube_keys[f] for f in self.tube_free],
             "params": {key[f]: self.values[f] for f in self.free},
             "se": {key[f]: self.se[f] for f in self.free},
             "metric": self.metric, "train_rms": self.train_rms, "heldout_rms": self.heldout_rms,
             "heldout": dict(self.heldout), "train": dict(self.train),
             "heldout_by_geometry": dict(self.heldout_by_tube),
-            "rest_angles": {t: {"rest_angle_deg": [math.degrees(v) for v in a],
-                                "se_deg": [math.degrees(v) for v in self.rest_se[t]],
-                                "identified": self.rest_free} for t, a in self.rest_angles.items()},
-            "tubes": dict(self.tubes),
-            "fit": {"cost": self.solution.cost, "n_residuals": self.solution.n_residuals,
-                    "success": self.solution.success, "message": self.solution.message,
-                    "nfev": self.solution.nfev, "starts": self.solution.starts} if self.solution else None,
+            "tubes": {t: f.as_dict() for t, f in self.tubes.items()},
+            "fit": None if sol is None else {"cost": sol.cost, "n_residuals": sol.n_residuals,
+                                             "success": sol.success, "message": sol.message, "nfev": sol.nfev,
+                                             "starts": sol.starts},
         }
 
 
@@ -129,10 +163,10 @@ def _fit(task: _Task):
         models = [task.base[o.tube] for o in train]
         specs = specs_for(task.free, models, start=task.start)
         opt = dict(task.options)
-        sim_kw = opt.pop("sim_kw", {})
-        rest_range = opt.pop("rest_range", REST_RANGE)
-        pb = make_problem(train, task.base, specs, REST in task.free, excess=task.excess, sim_kw=sim_kw,
-                          rest_range=rest_range)
+        prob_kw = {k: opt.pop(k) for k in ("sim_kw", "rest_range", "depth_range", "depth_sigma", "depth_common")
+                   if k in opt}
+        pb = make_problem(train, task.base, specs, rest=REST in task.free, depth=DEPTH in task.free,
+                          excess=task.excess, **prob_kw)
         sol = solve(pb, **opt)
         fitted = pb.params(sol.x)
         vals = pb.values(sol.x)
@@ -185,7 +219,8 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
              by_tube: bool = True, jobs: int = 1, scheduler=None, n_starts: int = 2, loss: str = "linear",
              f_scale: float = 3.0, max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6,
              diff_rel: float = 2e-3, rest_step: float = 2e-4, rest_range: float = REST_RANGE,
-             sim_kw: dict | None = None) -> Identification:
+             depth_range: float = DEPTH_RANGE, depth_sigma: float = DEPTH_TOLERANCE,
+             depth_common: float | None = DEPTH_COMMON, sim_kw: dict | None = None) -> Identification:
     """Identify the model's parameters on a study; held-out errors by leaving experiments (and tubes) out.
 
     Parameters
@@ -209,6 +244,9 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
         Passed to :func:`notchfit.identify.problem.solve` (every fit alike).
     rest_range : float
         How far the rest angles may move from the geometry's [rad].
+    depth_range, depth_sigma, depth_common : float
+        Cut-depth offsets: bound, Gaussian prior per notch (the cutting tolerance) and
+        of a tube's mean (None: free) [m] (:func:`notchfit.identify.problem.make_problem`).
     sim_kw : dict, optional
         Options of :func:`notchfit.friction.simulate` during the fits (default
         :data:`FIT_SOLVER`); the reported errors always use its defaults.
@@ -223,12 +261,33 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     first = next(iter(base.values()))
     excess = max(first.mu_s - first.mu_d, 0.0)
     options = dict(n_starts=n_starts, loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol, xtol=xtol,
-                   diff_rel=diff_rel, rest_step=rest_step, rest_range=rest_range,
-                   sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
+                   diff_rel=diff_rel, rest_step=rest_step, rest_range=rest_range, depth_range=depth_range,
+                   depth_sigma=depth_sigma, depth_common=depth_common, sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
     keys, tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube)
     res = run_batch(_fit, tasks, keys=keys, jobs=jobs, scheduler=scheduler, desc="identify")
     res.raise_on_failure()
     return _result(obs, base, free, excess, tasks, res.values())
+
+
+def _tube_fits(obs, pb, sol, fitted) -> dict:
+    """Tube -> :class:`TubeFit` of the full fit."""
+    se_of = {}
+    i = pb.k
+    for name, tube, n in pb.blocks:
+        se_of[(name, tube)] = sol.se[i:i + n]
+        i += n
+    out = {}
+    for t in dict.fromkeys(o.tube for o in obs):
+        geom = next(o.geom for o in obs if o.tube == t)
+        p, n = fitted[t], geom.n_joints
+        nan = np.full(n, math.nan)
+        out[t] = TubeFit(name=t, experiments=tuple(o.name for o in obs if o.tube == t),
+                         rest_angles=p.rest_angles(geom), rest_se=se_of.get(("rest_angle", t), nan),
+                         slot_depths=p.depth_geometry(geom).slot_depths,
+                         depth_offsets=np.zeros(n) if p.slot_depth_offset is None
+                         else np.broadcast_to(np.asarray(p.slot_depth_offset, float), (n,)).copy(),
+                         depth_se=se_of.get(("slot_depth_offset", t), nan), model=p)
+    return out
 
 
 def _result(obs, base, free, excess, tasks, outs) -> Identification:
@@ -236,16 +295,8 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
     pb, sol, fitted, _ = outs[0]
     unit = metric_unit(obs[0].metric)
     vals = pb.values(sol.x)
-    sx = sol.se
-    se = {s.name: (vals[s.name] * sx[i] if s.log else sx[i]) for i, s in enumerate(pb.specs)}
-    rest_free = REST in free
-    rest, rest_se, i = {}, {}, pb.k
-    for t in dict.fromkeys(o.tube for o in obs):
-        geom = next(o.geom for o in obs if o.tube == t)
-        rest[t] = tuple(fitted[t].rest_angles(geom))
-        n = geom.n_joints
-        rest_se[t] = tuple(sx[i:i + n]) if rest_free else (math.nan,) * n
-        i += n if rest_free else 0
+    se = {s.name: (vals[s.name] * sol.se[i] if s.log else sol.se[i]) for i, s in enumerate(pb.specs)}
+    tubes = _tube_fits(obs, pb, sol, fitted)
     train_err = {o.name: errors(o, predict(o, fitted[o.tube])) for o in obs}
     held, by_tube = {}, {}
     for task, (_, _, _, preds) in zip(tasks[1:], outs[1:]):
@@ -253,12 +304,12 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
             held.update(preds)
         else:
             by_tube[obs[task.test[0]].tube] = _rms([p / unit for p in preds.values()])
-    tubes = list(rest)
-    shared = fitted[tubes[0]] if len(tubes) == 1 else with_values(base[tubes[0]], vals, excess)
+    names = list(tubes)
+    shared = fitted[names[0]] if len(names) == 1 else with_values(base[names[0]], vals, excess)
     return Identification(
-        metric=obs[0].metric, free=tuple(s.name for s in pb.specs), values=vals, se=se, rest_free=rest_free,
-        rest_angles=rest, rest_se=rest_se, model=shared, tube_models=fitted, tubes={o.name: o.tube for o in obs},
-        train_rms=_rms([e / unit for e in train_err.values()]),
+        metric=obs[0].metric, free=tuple(s.name for s in pb.specs), values=vals, se=se,
+        tube_free=tuple(f for f in (REST, DEPTH) if f in free), tubes=tubes, model=shared,
+        experiment_tubes={o.name: o.tube for o in obs}, train_rms=_rms([e / unit for e in train_err.values()]),
         train={k: _rms([e / unit]) for k, e in train_err.items()},
         heldout_rms=_rms([e / unit for e in held.values()]), heldout={k: _rms([e / unit]) for k, e in held.items()},
         heldout_by_tube=by_tube, solution=sol)
