@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import multiprocessing
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -264,7 +265,10 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
                    diff_rel=diff_rel, rest_step=rest_step, rest_range=rest_range, depth_range=depth_range,
                    depth_sigma=depth_sigma, depth_common=depth_common, sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
     keys, tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube)
-    res = run_batch(_fit, tasks, keys=keys, jobs=jobs, scheduler=scheduler, desc="identify")
+    # the platform's default start method (fork on Linux), as the diagnosis's folds: spawned workers
+    # re-import notchfit and reload the kernels, several seconds for fits of about one second
+    res = run_batch(_fit, tasks, keys=keys, jobs=jobs, scheduler=scheduler, desc="identify",
+                    start_method=multiprocessing.get_start_method())
     res.raise_on_failure()
     return _result(obs, base, free, excess, tasks, res.values())
 
