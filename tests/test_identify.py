@@ -103,6 +103,8 @@ def test_material_from_two_wrists_predicts_a_third(tmp_path, capsys):
     out = tmp_path / "ident"
     assert main(["identify", str(tmp_path / "ab"), "--out", str(out), "--no-heldout"]) == 0
     data = json.loads((out / "identify.json").read_text())
+    truth = json.loads((tmp_path / "ab" / "truth.json").read_text())["experiments"]
+    assert truth["B1"]["geometry"] == "wrist_tip_first" and "geometry" not in truth["A1"]   # per-experiment tubes
     assert set(data["tubes"]) == {"wrist_asymmetric", "wrist_tip_first"}
     assert data["free"][-2:] == ["rest_angle_rad", "slot_depth_offset_m"]
     assert (out / "model_wrist_tip_first.toml").is_file()

@@ -20,7 +20,7 @@ from ._points import points_file, points_problem, with_measurements
 
 NAME = "fit"
 ORDER = 40
-HELP = "fit shape models (cc, linear, ...) to the notch points of an experiment or a study"
+HELP = "fit shape models (cc, linear, ...) to the notch points or measured angles of an experiment or a study"
 DESCRIPTION = """Fit shape models to every sample of an experiment (or of every experiment of a
 study): the plane transform of each experiment is estimated once for all its samples, then
 each sample is fitted with each model (Sec. IV-A, Figs. 12-15). Points come from the
