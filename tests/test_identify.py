@@ -150,6 +150,10 @@ def test_free_names_defaults_and_tubes(geom):
         "E_lin", "mu_d", "rest_angle", "slot_depth")
     with pytest.raises(ValueError, match="twice"):
         parse_free(["E_lin", "E_lin_Pa"])
+    from notchfit.identify import specs_for
+    with pytest.raises(ValueError, match="no tube of this study uses spring_law = 'rates'"):
+        specs_for(("k_lin", "mu_d"), [default_params(io.load_geometry(io.datasets_dir() / "geometry"
+                                                                      / "wrist_asymmetric.toml"))])
     wrist = io.load_geometry(io.datasets_dir() / "geometry" / "wrist_asymmetric.toml")
     assert default_free([default_params(geom)], [geom]) == ("k_lin", "k_mid", "mu_d")
     assert default_free([default_params(wrist)], [wrist]) == ("E_lin", "E_se", "strain_lower", "mu_d", "rest_angle",

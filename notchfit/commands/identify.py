@@ -23,10 +23,12 @@ fitted scalar parameters (tubes cut from one stock share the material); each rea
 own rest angles.
 
 Free parameters (--free, comma-separated; field names or model-file keys): by default the
-material law's E_lin, E_se, strain_lower (or the seed tube's k_lin, k_mid), mu_d, and the rest
-angles of every tube with a section backbone (rest_angle). Bounds and starts come from physics
+material law's E_lin, E_se, strain_lower (or the seed tube's k_lin, k_mid), mu_d, and for every
+real tube (section backbone) each notch's rest angle (rest_angle) and effective cut depth
+(slot_depth, with a prior of the cutting tolerance, 15 um). Bounds and starts come from physics
 (docs/models.md, "Identification"); the fit starts from the best of a grid of probes. --model
-FILE gives the values of everything not fitted (and the starts).
+FILE gives the values of everything not fitted (and the starts); without it a real tube's
+model gets the quasi-static damping time (1 ms).
 
 Compares measured joint angles (angles.csv: errors in degrees) when every experiment has them,
 else notch points (notch_points.csv or detect's detections.csv: errors in mm). Held out: each

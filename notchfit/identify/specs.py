@@ -89,6 +89,11 @@ SPECS = {
 }
 
 
+#: The spring law a parameter acts through (the others act on every tube).
+_LAW_OF = {**{k: "rates" for k in ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop")},
+           **{k: "material" for k in ("E_lin", "E_se", "strain_lower", "stop_ratio", DEPTH)}}
+
+
 def parse_free(names) -> tuple[str, ...]:
     """``--free`` names (field names or model-file keys, e.g. ``E_lin`` or ``E_lin_Pa``) as field names.
 
@@ -151,10 +156,20 @@ def specs_for(free, models, *, start: FrictionParams | None = None) -> tuple[Par
     ``μ_d`` starts at the capstan value (0.1) when every tube has the capstan
     law, else at the paper's 0.29. ``start`` (a ``--model`` file) moves each
     start to its value, clipped into the bounds.
+
+    Raises
+    ------
+    ValueError
+        A parameter of a spring law no tube uses (it would have no effect).
     """
     capstan = all(m.friction_law == "capstan" for m in models)
+    laws = {m.spring_law for m in models}
     out = []
     for name in free:
+        need = _LAW_OF.get(name)
+        if need is not None and need not in laws:
+            raise ValueError(f"--free {name}: no tube of this study uses spring_law = {need!r} "
+                             f"(they use {', '.join(sorted(laws))}), so {name} has no effect")
         if name in (REST, DEPTH):
             continue
         spec = _CAPSTAN_MU if (name == "mu_d" and capstan) else SPECS[name]

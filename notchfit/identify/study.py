@@ -269,7 +269,8 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     # re-import notchfit and reload the kernels, several seconds for fits of about one second
     res = run_batch(_fit, tasks, keys=keys, jobs=jobs, scheduler=scheduler, desc="identify",
                     start_method=multiprocessing.get_start_method())
-    res.raise_on_failure()
+    if res.failures:
+        raise ValueError("identify: " + "; ".join(f"the fit {r.key}: {r.error}" for r in res.failures))
     return _result(obs, base, free, excess, tasks, res.values())
 
 
