@@ -226,3 +226,21 @@ def test_simulate_angles_is_simulate_theta(one_wrist):
         assert np.array_equal(a, simulate(e.time, None, e.tension_right, p, e.geometry, **kw).theta)
     with pytest.raises(TypeError, match="unknown option"):
         simulate_angles(e.time, None, e.tension_right, p, e.geometry, tension_tol=0.1)
+
+
+def test_model_file_fixes_what_is_not_free(one_wrist, tmp_path):
+    """--model gives the values of everything not fitted: with the true model but E_se off by 50 % and
+    only E_se free, identify recovers E_se (within 3 SE) and leaves the rest as the file says."""
+    base = default_params(one_wrist[0].geometry).replace(**{**TRUTH, "E_se": 4.5e9}, mu_s=TRUTH["mu_d"] + 0.01,
+                                                         damping_time=1e-3)
+    io.save_params(base, tmp_path / "start.toml")
+    out = tmp_path / "ident"
+    study = one_wrist[0].path.parent
+    assert main(["identify", str(study), "--out", str(out), "--model", str(tmp_path / "start.toml"),
+                 "--free", "E_se", "--no-heldout"]) == 0
+    data = json.loads((out / "identify.json").read_text())
+    assert data["free"] == ["E_se_Pa"] and data["heldout_rms"] is None        # NaN (no refits) written as null
+    assert abs(data["params"]["E_se_Pa"] - TRUTH["E_se"]) <= 3 * data["se"]["E_se_Pa"]
+    model = load_params(out / "model.toml")
+    assert (model.E_lin, model.strain_lower, model.mu_d) == (TRUTH["E_lin"], TRUTH["strain_lower"], TRUTH["mu_d"])
+    assert model.rest_angle is None and model.slot_depth_offset is None
