@@ -12,7 +12,6 @@ noise, a material identified on two wrists predicts a third wrist of another geo
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pandas as pd
@@ -20,13 +19,12 @@ import pytest
 
 from notchfit import io
 from notchfit.cli import main
-from notchfit.friction import FrictionParams, default_params, load_params
+from notchfit.friction import default_params, load_params
 from notchfit.identify import default_free, identify, observe_study, parse_free, study_metric, zero_tension_samples
 from notchfit.identify.data import tube_labels
 from notchfit.identify.problem import standard_errors
 from notchfit.recipes import recipe_from_dict
 from notchfit.synth import generate_study
-from notchfit.units import DEG
 
 TRUTH = {"E_lin": 45e9, "E_se": 3e9, "strain_lower": 0.014, "mu_d": 0.12}
 ANGLE_NOISE_DEG = 0.5

@@ -13,10 +13,10 @@ from ..batch import run_batch
 from ..friction import FrictionParams
 from ..friction_params import PARAM_KEYS
 from ..units import MM
-from .data import Observed, metric_unit, observe_study
+from .data import metric_unit, observe_study
 from .problem import Solution, errors, make_problem, predict, solve, with_values
-from .specs import DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free, parse_free, \
-    specs_for
+from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free,
+                    parse_free, specs_for)
 
 __all__ = ["FIT_SOLVER", "Identification", "TubeFit", "identify"]
 
