@@ -42,8 +42,8 @@ import dataclasses
 from ..diagnosis.specs import BASELINE, CANDIDATES, ParamSpec
 from ..friction_params import PARAM_KEYS, FrictionParams, default_params
 
-__all__ = ["DEPTH", "DEPTH_COMMON", "DEPTH_RANGE", "DEPTH_TOLERANCE", "MATERIAL", "QUASI_STATIC_DAMPING_TIME", "REST", "REST_RANGE",
-           "SPECS", "TUBE_FREE", "base_model", "default_free", "parse_free", "specs_for"]
+__all__ = ["DEPTH", "DEPTH_COMMON", "DEPTH_RANGE", "DEPTH_TOLERANCE", "MATERIAL", "QUASI_STATIC_DAMPING_TIME",
+           "REST", "REST_RANGE", "SPECS", "TUBE_FREE", "base_model", "default_free", "parse_free", "specs_for"]
 
 #: Damping time of the real-tube models identify fits [s] (docs/models.md, "Identification"): a
 #: link of the friction model sticks once its cable speed falls below ``v_thr``, so the rest

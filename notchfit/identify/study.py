@@ -263,7 +263,8 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     excess = max(first.mu_s - first.mu_d, 0.0)
     options = dict(n_starts=n_starts, loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol, xtol=xtol,
                    diff_rel=diff_rel, rest_step=rest_step, rest_range=rest_range, depth_range=depth_range,
-                   depth_sigma=depth_sigma, depth_common=depth_common, sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
+                   depth_sigma=depth_sigma, depth_common=depth_common,
+                   sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
     keys, tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube)
     # the platform's default start method (fork on Linux), as the diagnosis's folds: spawned workers
     # re-import notchfit and reload the kernels, several seconds for fits of about one second
