@@ -727,6 +727,34 @@ def fast_kernel(t_s, TLm, TRm, par, J, ramp_time, settle_time, h_min, h_max, gro
                 max_events, max_micro, settle_tol, settle_maxiter, land_sticks, dth_max, order):
     """Same model and input protocol as :func:`reference_kernel`, in large exact steps.
 
+    The whole history from the initial rest state (θ = θ0, zero tension, every
+    link sticking, ``settle_time`` before the first sample): :func:`fast_intervals`
+    from that state.
+    """
+    n = J.shape[1]
+    m = max(n - 1, 0)
+    th = J[J_TH0].copy()
+    return fast_intervals(t_s, TLm, TRm, t_s[0] - settle_time, 0.0, 0.0, True, th, np.zeros(n), np.zeros(n),
+                          np.zeros(m, np.int8), np.zeros(m, np.int8), np.zeros(2), par, J, ramp_time, h_min,
+                          h_max, growth, max_events, max_micro, settle_tol, settle_maxiter, land_sticks, dth_max,
+                          order)
+
+
+@njit(cache=True)
+def fast_intervals(t_s, TLm, TRm, t_prev, prev_left, prev_right, first, th, TL, TR, sL, sR, band, par, J,
+                   ramp_time, h_min, h_max, growth, max_events, max_micro, settle_tol, settle_maxiter,
+                   land_sticks, dth_max, order):
+    """The fast solver from a given state over the intervals ending at the samples ``t_s``.
+
+    The state — joint angles ``th``, tension profiles ``TL``, ``TR`` (n), the
+    links' stick/slip states ``sL``, ``sR`` (n-1, int8) and the base tensions
+    after the proximal band ``band`` (2: left, right) — is read and updated in
+    place, so that consecutive calls continue one history exactly (the
+    real-time predictor, :class:`notchfit.predictor.Predictor`). The first
+    interval starts at ``t_prev`` with the measured tensions ``prev_left``,
+    ``prev_right``; ``first``: it is the history's first (the band starts at
+    the first input).
+
     * Steps 1-4 are the reference's, in the reference's order (tensions from
       the previous states, then the state machine), so a slip front advances
       one link per pass as in the reference. Right after a link slips, the
@@ -764,11 +792,6 @@ def fast_kernel(t_s, TLm, TRm, par, J, ramp_time, settle_time, h_min, h_max, gro
     ebeta = math.exp(beta)
     embeta = math.exp(-beta)
 
-    th = J[J_TH0].copy()
-    TL = np.zeros(n)
-    TR = np.zeros(n)
-    sL = np.zeros(m, np.int8)
-    sR = np.zeros(m, np.int8)
     lastL = np.zeros(m, np.int8)
     lastR = np.zeros(m, np.int8)
     G = np.zeros((7, n))
@@ -797,8 +820,8 @@ def fast_kernel(t_s, TLm, TRm, par, J, ramp_time, settle_time, h_min, h_max, gro
     gL_e = np.zeros(m)
     gR_e = np.zeros(m)
     work = np.zeros(n)
-    tbL = 0.0
-    tbR = 0.0
+    tbL = band[0]
+    tbR = band[1]
 
     o_th = np.empty((S, n))
     o_TL = np.empty((S, n))
@@ -811,8 +834,8 @@ def fast_kernel(t_s, TLm, TRm, par, J, ramp_time, settle_time, h_min, h_max, gro
 
     for k in range(S):
         if k == 0:
-            t0 = t_s[0] - settle_time
-            aL, aR = 0.0, 0.0
+            t0 = t_prev
+            aL, aR = prev_left, prev_right
         else:
             t0 = t_s[k - 1]
             aL, aR = TLm[k - 1], TRm[k - 1]
@@ -839,7 +862,7 @@ def fast_kernel(t_s, TLm, TRm, par, J, ramp_time, settle_time, h_min, h_max, gro
             mL = aL + (bL - aL) * frac
             mR = aR + (bR - aR) * frac
             if beta > 0.0:
-                if k == 0 and t == 0.0:
+                if first and k == 0 and t == 0.0:
                     tbL, tbR = mL, mR
                 tbL = band_update(tbL, mL, ebeta, embeta)
                 tbR = band_update(tbR, mR, ebeta, embeta)
@@ -969,4 +992,6 @@ def fast_kernel(t_s, TLm, TRm, par, J, ramp_time, settle_time, h_min, h_max, gro
         for i in range(m):
             o_sL[k, i] = lastL[i]
             o_sR[k, i] = lastR[i]
+    band[0] = tbL
+    band[1] = tbR
     return o_th, o_TL, o_TR, o_bL, o_bR, o_sL, o_sR, nsteps_total

@@ -13,8 +13,17 @@ experiment's notch points. They are compared as the paper does:
   mapped into the plane with the fit's plane transform, against the measured
   points, ``e_i = ||Q_i − Q̃_i||`` per sample (rms and maximum).
 
-Returns objects and writes nothing; :func:`comparison_table` is the
-``simulation_vs_measured.csv`` layout (docs/data-formats.md).
+For an experiment with measured joint angles (``angles.csv``, real tubes) the
+comparison is in angle space (:func:`compare_angles`): the residual
+``θ_sim − θ_meas`` of every measured joint and sample, its rms per sample, per
+joint and overall, and the shape summary ``a``, ``b`` of the measured angles
+(the linear model fitted to them, :func:`notchfit.fitting.fit_angles`).
+:func:`angle_residuals` and :func:`angle_rms` are the one home of the angle
+residual and its rms (``simulate``, ``identify``; the diagnosis on angle data).
+
+Returns objects and writes nothing; :func:`comparison_table` and
+:func:`angle_comparison_table` are the ``simulation_vs_measured.csv`` and
+``simulation_vs_angles.csv`` layouts (docs/data-formats.md).
 """
 
 from __future__ import annotations
@@ -24,12 +33,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .fitting import PlaneTransform, fit_experiment
+from .fitting import PlaneTransform, fit_angles, fit_experiment
 from .notches import notch_points
 from .shapes import line_fit
-from .units import MM
+from .units import DEG, MM
 
-__all__ = ["SimulationComparison", "compare_simulation", "comparison_table", "nan_rms_max"]
+__all__ = ["AngleComparison", "SimulationComparison", "angle_comparison_table", "angle_residuals", "angle_rms",
+           "compare_angles", "compare_simulation", "comparison_table", "nan_rms_max"]
 
 
 @dataclass(frozen=True)
@@ -134,3 +144,126 @@ def comparison_table(comp: SimulationComparison, result) -> pd.DataFrame:
         "tension_right_N": np.asarray(result.input_right), "regime": np.asarray(result.regime).astype(str),
         "a_meas": comp.a_meas, "b_meas": comp.b_meas, "a_sim": comp.a_sim, "b_sim": comp.b_sim,
         "point_rms_mm": comp.point_rms / MM, "point_max_mm": comp.point_max / MM})
+
+
+def angle_residuals(theta_pred, theta_meas) -> np.ndarray:
+    """``θ_pred − θ_meas`` [rad] (..., n), NaN where the angle was not measured.
+
+    Parameters
+    ----------
+    theta_pred : array_like, shape (..., n) [rad]
+    theta_meas : array_like, shape (..., n) [rad]
+        NaN = not measured.
+    """
+    pred = np.asarray(theta_pred, dtype=float)
+    meas = np.asarray(theta_meas, dtype=float)
+    if pred.shape != meas.shape:
+        raise ValueError(f"predicted and measured angles differ in shape: {pred.shape} vs {meas.shape}")
+    return np.where(np.isfinite(meas), pred - meas, np.nan)
+
+
+def angle_rms(residuals, axis=None):
+    """Rms over the measured entries of ``residuals`` [rad] (NaN = not measured; NaN when none is).
+
+    ``axis=None``: one number over every sample and joint (the "rms per notch"
+    of the real-tube literature); ``axis=1``: per sample; ``axis=0``: per joint.
+    """
+    r = np.asarray(residuals, dtype=float)
+    ok = np.isfinite(r)
+    n = ok.sum(axis=axis)
+    sq = np.where(ok, r * r, 0.0).sum(axis=axis)
+    if axis is None:
+        return float(np.sqrt(sq / n)) if n else float("nan")
+    return np.where(n > 0, np.sqrt(sq / np.maximum(n, 1)), np.nan)
+
+
+@dataclass(frozen=True)
+class AngleComparison:
+    """Predicted against measured joint angles of one experiment (S samples, n joints).
+
+    Attributes
+    ----------
+    samples : tuple
+    theta_meas, theta_sim : ndarray (S, n) [rad]
+        Measured (NaN = not measured) and predicted angles.
+    a_meas, b_meas : ndarray (S,) [rad]
+        The linear model ``θ_j = a + b j`` fitted to the measured angles
+        (:func:`notchfit.fitting.fit_angles`; NaN with fewer than two).
+    a_sim, b_sim : ndarray (S,) [rad]
+        The least-squares line through the predicted angles.
+    residuals : ndarray (S, n) [rad]
+        ``θ_sim − θ_meas`` (:func:`angle_residuals`).
+    """
+
+    samples: tuple
+    theta_meas: np.ndarray = field(repr=False)
+    theta_sim: np.ndarray = field(repr=False)
+    a_meas: np.ndarray = field(repr=False)
+    b_meas: np.ndarray = field(repr=False)
+    a_sim: np.ndarray = field(repr=False)
+    b_sim: np.ndarray = field(repr=False)
+    residuals: np.ndarray = field(repr=False)
+
+    @property
+    def rms(self) -> float:
+        """Rms over every measured angle [rad]."""
+        return angle_rms(self.residuals)
+
+    @property
+    def sample_rms(self) -> np.ndarray:
+        """Rms of each sample's measured angles [rad] (S,)."""
+        return angle_rms(self.residuals, axis=1)
+
+    @property
+    def sample_max(self) -> np.ndarray:
+        """Largest ``|θ_sim − θ_meas|`` of each sample [rad] (S,)."""
+        return nan_rms_max(np.abs(self.residuals))[1]
+
+    @property
+    def joint_rms(self) -> np.ndarray:
+        """Rms of each joint over the samples [rad] (n,)."""
+        return angle_rms(self.residuals, axis=0)
+
+
+def compare_angles(result, angles, *, sigma: float | None = None, samples=None) -> AngleComparison:
+    """Compare a simulation with the measured joint angles of the same experiment.
+
+    Parameters
+    ----------
+    result : notchfit.friction.SimulationResult
+        The prediction, S samples.
+    angles : array_like, shape (S, n) [rad]
+        Measured angles (rest angles included), NaN where not measured.
+    sigma : float, optional
+        Angle uncertainty [rad], for the linear fit of the measured angles.
+    samples : sequence, optional
+        Sample ids (default 0..S-1).
+
+    Returns
+    -------
+    AngleComparison
+    """
+    theta = np.asarray(result.theta, dtype=float)
+    meas = np.asarray(angles, dtype=float)
+    res = angle_residuals(theta, meas)
+    ids = tuple(range(theta.shape[0])) if samples is None else tuple(samples)
+    lin = fit_angles(meas, ("linear",), sigma=sigma, samples=ids).get("linear")
+    a_s, b_s = line_fit(theta)
+    return AngleComparison(ids, meas, theta, lin.a, lin.b, a_s, b_s, res)
+
+
+def angle_comparison_table(comp: AngleComparison, result) -> pd.DataFrame:
+    """``simulation_vs_angles.csv``: one row per sample (docs/data-formats.md).
+
+    Columns: ``sample, tension_left_N, tension_right_N, regime, a_meas, b_meas,
+    a_sim, b_sim`` [rad], ``rms_deg, max_deg, n_angles``, then ``err_1_deg …
+    err_n_deg`` (``θ_sim − θ_meas`` per joint [deg], empty where not measured).
+    """
+    cols = {"sample": list(comp.samples), "tension_left_N": np.asarray(result.input_left),
+            "tension_right_N": np.asarray(result.input_right), "regime": np.asarray(result.regime).astype(str),
+            "a_meas": comp.a_meas, "b_meas": comp.b_meas, "a_sim": comp.a_sim, "b_sim": comp.b_sim,
+            "rms_deg": comp.sample_rms / DEG, "max_deg": comp.sample_max / DEG,
+            "n_angles": np.isfinite(comp.theta_meas).sum(axis=1)}
+    for j in range(comp.residuals.shape[1]):
+        cols[f"err_{j + 1}_deg"] = comp.residuals[:, j] / DEG
+    return pd.DataFrame(cols)

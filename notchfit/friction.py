@@ -124,6 +124,7 @@ __all__ = [
     "params_from_mapping",
     "params_to_mapping",
     "simulate",
+    "simulate_angles",
     "simulation_table",
     "stepwise_regimes",
 ]
@@ -502,6 +503,41 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         Bad input (shapes, NaN, negative tension, a tension on a missing
         tendon, time not increasing) or options.
     """
+    fast = dict(h_min=h_min, h_max=h_max, growth=growth, dtheta_max=dtheta_max, order=order,
+                land_sticks=land_sticks, max_events=max_events, max_micro=max_micro, settle_tol=settle_tol,
+                settle_maxiter=settle_maxiter)
+    run = _solve(time, tension_left, tension_right, params, geom, method=method, dt=dt, ramp_time=ramp_time,
+                 settle_time=settle_time, tension_sigma=tension_sigma, fast=fast)
+    return _result(*run, tension_tol, hold_fraction)
+
+
+#: The fast solver's defaults (those of :func:`simulate`'s signature), for :func:`simulate_angles`.
+_FAST_DEFAULTS = dict(h_min=3e-3, h_max=0.05, growth=1.5, dtheta_max=5e-4, order=None, land_sticks=True,
+                      max_events=None, max_micro=None, settle_tol=1e-13, settle_maxiter=200)
+
+
+def simulate_angles(time, tension_left, tension_right, params: FrictionParams | None = None,
+                    geom: Geometry | None = None, *, method: str = "fast", dt: float | None = None,
+                    ramp_time: float = 0.0, settle_time: float | None = None, tension_sigma: float | None = None,
+                    **fast) -> np.ndarray:
+    """The joint angles (S, n) [rad] of :func:`simulate`, without its other outputs.
+
+    The same model, inputs, checks and solver (bit for bit); no tension
+    profiles, regimes or displacements are built, which makes it the inner
+    loop of an identification (:mod:`notchfit.identify`). ``fast``: the fast
+    solver's options of :func:`simulate` (``h_min``, ``dtheta_max``, ...).
+    """
+    bad = set(fast) - set(_FAST_DEFAULTS)
+    if bad:
+        raise TypeError(f"simulate_angles got unknown option(s) {', '.join(sorted(bad))}")
+    run = _solve(time, tension_left, tension_right, params, geom, method=method, dt=dt, ramp_time=ramp_time,
+                 settle_time=settle_time, tension_sigma=tension_sigma, fast={**_FAST_DEFAULTS, **fast})
+    return run[0][0]
+
+
+def _solve(time, tension_left, tension_right, params, geom, *, method, dt, ramp_time, settle_time, tension_sigma,
+           fast: dict):
+    """Check the inputs and run a solver: ``(kernel output, t, T_L, T_R, params, geom, method, n_clipped)``."""
     geom = default_geometry() if geom is None else geom
     params = default_params(geom) if params is None else params
     if not isinstance(params, FrictionParams):
@@ -516,15 +552,13 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
             raise ValueError(f"dt must be > 0 s, got {dt}")
         out = _k.reference_kernel(t, tl, tr, par, J, dt, float(ramp_time), float(settle_time))
     elif method == "fast":
-        if order is None:
-            order = 2 if (params.tip_force_x != 0.0 or params.tip_force_z != 0.0) else 1
-        out = _fast(t, tl, tr, par, J, float(ramp_time), float(settle_time), n=geom.n_joints, h_min=h_min,
-                    h_max=h_max, growth=growth, dtheta_max=dtheta_max, order=order, land_sticks=land_sticks,
-                    max_events=max_events, max_micro=max_micro, settle_tol=settle_tol,
-                    settle_maxiter=settle_maxiter)
+        fast = dict(fast)
+        if fast["order"] is None:
+            fast["order"] = 2 if (params.tip_force_x != 0.0 or params.tip_force_z != 0.0) else 1
+        out = _fast(t, tl, tr, par, J, float(ramp_time), float(settle_time), n=geom.n_joints, **fast)
     else:
         raise ValueError(f"method must be 'fast' or 'reference', got {method!r}")
-    return _result(out, t, tl, tr, params, geom, method, n_clipped, tension_tol, hold_fraction)
+    return out, t, tl, tr, params, geom, method, n_clipped
 
 
 def _result(out, t, tl, tr, params, geom, method, n_clipped, tension_tol, hold_fraction) -> SimulationResult:

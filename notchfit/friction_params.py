@@ -62,12 +62,16 @@ PARAM_KEYS = {
     "E_se": "E_se_Pa",
     "strain_lower": "strain_lower",
     "stop_ratio": "stop_ratio",
+    "rest_angle": "rest_angle_rad",
+    "slot_depth_offset": "slot_depth_offset_m",
 }
 #: the keys every model file holds (the seed paper's model and its extensions)
 _SEED_KEYS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop", "mu_d", "mu_s", "b", "v_thr",
               "proximal_beta", "hysteresis_torque", "tip_force_x", "tip_force_z", "stiffness_gradient")
 #: fields that may be one value per joint (a tuple, base to tip)
 PER_JOINT_FIELDS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop")
+#: per-joint properties of one tube that a model may hold in place of its geometry's (None: the geometry's)
+_TUBE_FIELDS = ("rest_angle", "slot_depth_offset")
 SPRING_LAWS = ("rates", "material")
 FRICTION_LAWS = ("channel", "capstan")
 #: The seed tube's damping as a time constant, ``b / k_lin`` = 0.03 / 0.4829 s (Sec. IV-B):
@@ -125,6 +129,17 @@ class FrictionParams:
     stop_ratio : float
         Slot-closure stop rate over the linear rate (material law; the seed's
         ``k_stop / k_lin``).
+    rest_angle : float, tuple of n floats, or None
+        Rest angles ``θ0_j`` [rad] of the tube this model was identified on
+        (``notchfit identify``), in place of the geometry's ``rest_angle_rad``;
+        None (default): the geometry's. A pre-curve is a property of one tube:
+        a model meant for other tubes of the same stock leaves it None.
+    slot_depth_offset : float, tuple of n floats, or None
+        Effective cut depth of each notch less the geometry's [m] (``notchfit
+        identify``: a cut a few µm off the drawing changes the thin wall's
+        stiffness by tens of per cent); the springs, the closure angles and the
+        tendon's moment arms follow the corrected sections (:meth:`tube_geometry`).
+        None (default): the geometry's depths. A property of one tube, like ``rest_angle``.
     """
 
     k_lin: float = paper.FRICTION_K_LIN
@@ -148,13 +163,15 @@ class FrictionParams:
     E_se: float = 4e9
     strain_lower: float = 0.015
     stop_ratio: float = paper.FRICTION_K_STOP / paper.FRICTION_K_LIN
+    rest_angle: float | tuple | None = None
+    slot_depth_offset: float | tuple | None = None
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name in ("spring_law", "friction_law"):
+            if f.name in ("spring_law", "friction_law") or (f.name in _TUBE_FIELDS and v is None):
                 continue
-            if f.name in PER_JOINT_FIELDS and isinstance(v, (tuple, list, np.ndarray)):
+            if f.name in PER_JOINT_FIELDS + _TUBE_FIELDS and isinstance(v, (tuple, list, np.ndarray)):
                 v = tuple(_number(f.name, x) for x in v)
                 if not v:
                     raise ValueError(f"friction parameter {f.name} needs at least one value")
@@ -223,16 +240,59 @@ class FrictionParams:
         rates = np.stack([col(self.k_lin), col(self.k_mid), col(self.k_stop)], axis=-1)
         return PiecewiseLinearSpring(breaks, rates, scale)
 
+    def _per_joint(self, name: str, geom: Geometry) -> np.ndarray:
+        v = getattr(self, name)
+        if isinstance(v, tuple) and len(v) != geom.n_joints:
+            raise ValueError(f"the model's {PARAM_KEYS[name]} is given for {len(v)} joints, the geometry "
+                             f"{geom.name!r} has {geom.n_joints}")
+        return np.broadcast_to(np.asarray(v, dtype=float), (geom.n_joints,)).copy()
+
+    def depth_geometry(self, geom: Geometry) -> Geometry:
+        """``geom`` with the model's effective cut depths (``slot_depth_offset``), or ``geom`` when None (cached).
+
+        Raises
+        ------
+        ValueError
+            Offsets given for another number of joints, or a depth outside the tube.
+        """
+        if self.slot_depth_offset is None:
+            return geom
+        return _depth_geometry(geom, tuple(self._per_joint("slot_depth_offset", geom)))
+
+    def rest_angles(self, geom: Geometry) -> np.ndarray:
+        """Rest angles ``θ0_j`` (n,) [rad]: the model's (``rest_angle``), else the geometry's.
+
+        Raises
+        ------
+        ValueError
+            Rest angles given for another number of joints, or not inside a slot's closure.
+        """
+        if self.rest_angle is None:
+            return geom.rest_angles
+        rest = self._per_joint("rest_angle", geom)
+        if np.any(np.abs(rest) >= self.depth_geometry(geom).closure_angles):
+            raise ValueError(f"the model's rest angles (rest_angle_rad) must be smaller in magnitude than the "
+                             f"slots' closure angles of geometry {geom.name!r}")
+        return rest
+
+    def tube_geometry(self, geom: Geometry) -> Geometry:
+        """``geom`` with this model's rest angles and cut depths (:meth:`rest_angles`, :meth:`depth_geometry`)."""
+        g = self.depth_geometry(geom)
+        return g if self.rest_angle is None else g.replace(rest_angle=tuple(self.rest_angles(geom)))
+
     def joint_spring(self, geom: Geometry) -> PiecewiseLinearSpring:
         """The spring of every joint of ``geom`` (breaks (n, 2), rates (n, 3), scale (n,)).
 
         The rates law (:meth:`spring`) or the material law
         (:func:`notchfit.springs.material_spring`), with the gradient scale. The
-        spring acts on the deflection from the rest angle, ``θ_j - θ0_j``.
+        spring acts on the deflection from the rest angle, ``θ_j - θ0_j``
+        (:meth:`rest_angles`); the material law takes the model's cut depths
+        (:meth:`depth_geometry`).
         """
         n = geom.n_joints
         if self.spring_law == "material":
-            sp = material_spring(geom, self.E_lin, self.E_se, self.strain_lower, self.stop_ratio)
+            sp = material_spring(self.depth_geometry(geom), self.E_lin, self.E_se, self.strain_lower,
+                                 self.stop_ratio, rest_angles=self.rest_angles(geom))
             return sp.with_scale(self.joint_scale(n))
         sp = self.spring(n)
         b = np.broadcast_to(sp.breaks, (n, 2))
@@ -261,7 +321,7 @@ class FrictionParams:
         out = {}
         for f in PARAM_KEYS:
             v = getattr(self, f)
-            if f in _SEED_KEYS or v != getattr(default, f):
+            if f in _SEED_KEYS or (v is not None and v != getattr(default, f)):
                 out[f] = list(v) if isinstance(v, tuple) else v
         return out
 
@@ -285,9 +345,10 @@ class FrictionParams:
         J[_k.J_TM], J[_k.J_TS] = sp.breaks[:, 0], sp.breaks[:, 1]
         J[_k.J_S] = np.broadcast_to(sp.scale, (n,))
         J[_k.J_B] = self.joint_damping(sp)
-        J[_k.J_TH0] = geom.rest_angles
-        J[_k.J_AR], J[_k.J_AL] = geom.moment_arms(+1), geom.moment_arms(-1)
-        ch = chain(geom)
+        J[_k.J_TH0] = self.rest_angles(geom)
+        g = self.depth_geometry(geom)
+        J[_k.J_AR], J[_k.J_AL] = g.moment_arms(+1), g.moment_arms(-1)
+        ch = chain(g)
         J[_k.J_DX, :-1], J[_k.J_DZ, :-1] = ch.steps[1:, 0], ch.steps[1:, 1]
         J[_k.J_DX, -1], J[_k.J_DZ, -1] = ch.tip
         return readonly(J)
@@ -313,6 +374,11 @@ class FrictionParams:
         par[_k.P_RX] = arms[0, 0]
         par[_k.P_LAW] = _k.LAW_CAPSTAN if self.friction_law == "capstan" else _k.LAW_CHANNEL
         return par
+
+
+@functools.lru_cache(maxsize=256)
+def _depth_geometry(geom: Geometry, offsets: tuple) -> Geometry:
+    return geom.replace(slot_depth=tuple(geom.slot_depths + np.asarray(offsets)))
 
 
 @functools.lru_cache(maxsize=64)
@@ -407,7 +473,7 @@ def _mapping_value(field: str, key: str, val, origin: str):
         if not isinstance(val, str):
             raise ValueError(f"{origin}: {key} must be a string, got {val!r}")
         return val
-    if field in PER_JOINT_FIELDS and isinstance(val, list):
+    if field in PER_JOINT_FIELDS + _TUBE_FIELDS and isinstance(val, list):
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in val):
             raise ValueError(f"{origin}: {key} must be a number or a list of numbers, got {val!r}")
         return tuple(float(v) for v in val)

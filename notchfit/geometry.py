@@ -325,12 +325,19 @@ class Geometry:
         return tuple(_TENDON_SIDES[t] for t in self.tendons)
 
     # ------------------------------------------------------------------ section
-    @property
+    @functools.cached_property
     def section(self) -> NotchSection:
-        """Section properties left by each joint's slot (arrays (n,), :mod:`notchfit.section`)."""
+        """Section properties left by each joint's slot (read-only arrays (n,), :mod:`notchfit.section`).
+
+        Computed once per geometry (the spring law, the closure angles, the
+        moment arms and the kinematics all read it).
+        """
         if self.inner_radius is None:
             raise ValueError(f"geometry {self.name!r} has no inner_radius: section properties are unknown")
-        return notch_section(self.outer_radius, self.inner_radius, self.slot_depths)
+        sec = notch_section(self.outer_radius, self.inner_radius, self.slot_depths)
+        for f in dataclasses.fields(sec):
+            getattr(sec, f.name).flags.writeable = False
+        return sec
 
     @property
     def neutral_axis_x(self) -> np.ndarray:

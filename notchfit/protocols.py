@@ -53,7 +53,8 @@ def bend_unbend(peak: float = 25.0, counter: float = 0.45, *, pull: str = "left"
     pull : {"left", "right"}
         The pulled cable (left: the manipulator bends toward -x, θ < 0).
     n_up, n_down : int
-        Samples on the way up (incl. start and peak) and down (excl. peak).
+        Samples on the way up (incl. start and peak) and down (excl. peak);
+        ``n_down = 0``: loading only (how real-tube labs often test a wrist).
     interval : float
         Time between samples [s].
     start : float, optional
@@ -79,8 +80,8 @@ def bend_unbend(peak: float = 25.0, counter: float = 0.45, *, pull: str = "left"
         raise ValueError(f"peak ({peak} N) must exceed the starting tension ({start} N)")
     if interval <= 0:
         raise ValueError(f"interval must be > 0 s, got {interval}")
-    if int(n_up) != n_up or int(n_down) != n_down or n_up < 2 or n_down < 1:
-        raise ValueError(f"need integers n_up >= 2 and n_down >= 1, got {n_up}, {n_down}")
+    if int(n_up) != n_up or int(n_down) != n_down or n_up < 2 or n_down < 0:
+        raise ValueError(f"need integers n_up >= 2 and n_down >= 0, got {n_up}, {n_down}")
     up = np.linspace(start, peak, int(n_up))
     down = np.linspace(peak, start, int(n_down) + 1)[1:]
     pulled = np.concatenate([up, down])

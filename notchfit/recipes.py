@@ -82,9 +82,13 @@ class ProtocolSpec:
     peak_N : float or (lo, hi)
         Peak tension of the pulled cable [N] (a range is drawn per experiment).
     n_up, n_down : int
-        Samples on the loading and the unloading ramp (n_up + n_down + 1 in all).
+        Samples on the loading and the unloading ramp (n_up + n_down + 1 in all);
+        ``n_down = 0``: a loading-only trial.
     dt_s : float
         Time between samples [s].
+    geometry : str, optional
+        This experiment's geometry (a tube of the same stock), in place of the
+        recipe's: a shipped geometry name or a path.
     """
 
     name: str
@@ -94,14 +98,15 @@ class ProtocolSpec:
     n_up: int = 18
     n_down: int = 22
     dt_s: float = 5.0
+    geometry: str | None = None
 
     def __post_init__(self):
         if self.pull not in ("left", "right"):
             raise ValueError(f"experiment {self.name!r}: pull must be 'left' or 'right', got {self.pull!r}")
         if not (self.counter_N >= 0):
             raise ValueError(f"experiment {self.name!r}: counter_N must be >= 0")
-        if self.n_up < 1 or self.n_down < 1:
-            raise ValueError(f"experiment {self.name!r}: n_up and n_down must be >= 1")
+        if self.n_up < 1 or self.n_down < 0:
+            raise ValueError(f"experiment {self.name!r}: n_up must be >= 1 and n_down >= 0 (0: loading only)")
         if not self.dt_s > 0:
             raise ValueError(f"experiment {self.name!r}: dt_s must be > 0")
 
@@ -152,7 +157,8 @@ class Recipe:
         exps = list(self.experiments)
         if n_experiments is not None:
             exps = exps[:n_experiments]
-        exps = [dataclasses.replace(e, n_up=n_up or e.n_up, n_down=n_down or e.n_down) for e in exps]
+        exps = [dataclasses.replace(e, n_up=e.n_up if n_up is None else n_up,
+                                    n_down=e.n_down if n_down is None else n_down) for e in exps]
         return self.replace(experiments=tuple(exps))
 
     def __post_init__(self):
@@ -197,6 +203,8 @@ class Recipe:
                              f"got {self.observe!r}")
         if not (self.angle_sigma_deg >= 0 and math.isfinite(self.angle_sigma_deg)):
             raise ValueError(f"recipe {self.name!r}: angle noise must be a finite number >= 0")
+        if self.images and any(e.geometry not in (None, self.geometry) for e in self.experiments):
+            raise ValueError(f"recipe {self.name!r}: rendered images need one geometry for the whole study")
         if self.observe == "angles" and (self.images or self.cause == "calibration_error"):
             raise ValueError(f"recipe {self.name!r}: rendered images and a calibration error act on notch "
                              "points: they need observe = 'points' or 'both'")
@@ -264,7 +272,7 @@ def recipe_from_dict(d: dict, origin: str = "<recipe>") -> Recipe:
     exps = []
     for i, e in enumerate(d.get("experiments", [])):
         spec = {**proto, **e}
-        bad = set(spec) - pkeys - {"name"}
+        bad = set(spec) - pkeys - {"name", "geometry"}
         if bad:
             raise ValueError(f"{origin}: experiment {i + 1}: unknown key(s) {', '.join(sorted(bad))}")
         if "name" not in spec or "pull" not in spec or "counter_N" not in spec:

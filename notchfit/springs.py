@@ -149,7 +149,8 @@ def friction_spring(k_lin: float = paper.FRICTION_K_LIN, k_mid: float = paper.FR
 
 
 def material_spring(geom: Geometry, E_lin: float, E_se: float, strain_lower: float,
-                    stop_ratio: float = paper.FRICTION_K_STOP / paper.FRICTION_K_LIN) -> PiecewiseLinearSpring:
+                    stop_ratio: float = paper.FRICTION_K_STOP / paper.FRICTION_K_LIN, *,
+                    rest_angles=None) -> PiecewiseLinearSpring:
     """Per-joint spring of a notched tube from its material and section (module docstring).
 
     Joint ``j`` (deflection ``δ = θ_j - θ0_j`` from its rest angle; the law is odd in ``δ``):
@@ -174,6 +175,8 @@ def material_spring(geom: Geometry, E_lin: float, E_se: float, strain_lower: flo
         Outer-fibre strain where the plateau starts [-], > 0.
     stop_ratio : float
         Stop rate over linear rate [-], > 0.
+    rest_angles : array_like (n,) [rad], optional
+        ``θ0_j`` in place of the geometry's (a model's identified rest angles).
 
     Returns
     -------
@@ -186,7 +189,8 @@ def material_spring(geom: Geometry, E_lin: float, E_se: float, strain_lower: flo
     sec = geom.section
     h = geom.slot_widths
     fibre = np.maximum(sec.back_fibre, sec.cut_fibre)
-    stop = geom.closure_angles - geom.sides * geom.rest_angles
+    rest = geom.rest_angles if rest_angles is None else np.asarray(rest_angles, dtype=float)
+    stop = geom.closure_angles - geom.sides * rest
     mid = np.minimum(strain_lower * h / fibre, stop)
     k = E_lin * sec.second_moment / h
     rates = np.stack([k, E_se * sec.second_moment / h, stop_ratio * k], axis=-1)

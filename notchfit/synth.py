@@ -131,6 +131,8 @@ class SynthExperiment:
     angles : ndarray (S, n) [rad] or None
         Measured joint angles (true angles plus Gaussian noise ``angle_sigma_deg``),
         when the recipe observes them.
+    geometry : str
+        The experiment's geometry as the recipe names it (its own, or the recipe's).
     """
 
     name: str
@@ -147,6 +149,7 @@ class SynthExperiment:
     plane: dict
     regime: np.ndarray
     angles: np.ndarray | None = None
+    geometry: str = "default"
 
 
 @dataclass(frozen=True)
@@ -185,6 +188,7 @@ class SynthStudy:
                 "true_tension_right_N": e.tension_right.tolist(),
                 "regime": [str(r) for r in e.regime],
                 "theta_rad": e.theta.tolist(),
+                **({"geometry": e.geometry} if e.geometry != self.recipe.geometry else {}),
             }
         return {
             "note": "ground truth of a synthetic study; no analysis command reads this file",
@@ -297,6 +301,7 @@ def statics_truth(time, tension_left, tension_right, params: FrictionParams, geo
         Residual torque tolerance [N m].
     """
     tl, tr = np.asarray(tension_left, float), np.asarray(tension_right, float)
+    geom = params.tube_geometry(geom)
     model = statics.QuasiStaticModel(geom, spring=params.joint_spring(geom))
     th = geom.rest_angles
     out = []
@@ -346,6 +351,9 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
         recipe = load_recipe(recipe)
     seed = recipe.seed if seed is None else int(seed)
     geom = load_geometry(_geometry_source(recipe.geometry))
+    sources = {spec.name: spec.geometry or recipe.geometry for spec in recipe.experiments}
+    geoms = {src: geom if src == recipe.geometry else load_geometry(_geometry_source(src))
+             for src in dict.fromkeys(sources.values())}
     ss = np.random.SeedSequence(seed)
     kids = ss.spawn(2 + len(recipe.experiments))
     rng_params, rng_warp = np.random.default_rng(kids[0]), np.random.default_rng(kids[1])
@@ -373,10 +381,11 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
                       np.asarray(tr, float), plane))
     truth_method = "statics" if _frictionless(params) else method
     for spec in recipe.experiments:
-        if spec.counter_N != 0 and ("left" if spec.pull == "right" else "right") not in geom.tendons:
+        other = "left" if spec.pull == "right" else "right"
+        if spec.counter_N != 0 and other not in geoms[sources[spec.name]].tendons:
             raise ValueError(f"recipe {recipe.name!r}: experiment {spec.name}: the geometry has only the "
                              f"{spec.pull} tendon, so counter_N must be 0")
-    items = [(p[3], p[4], p[5], params, geom, truth_method) for p in plans]
+    items = [(p[3], p[4], p[5], params, geoms[sources[p[0].name]], truth_method) for p in plans]
     if jobs > 1 and len(items) > 1:
         res = run_batch(_simulate_one, items, jobs=jobs, keys=[p[0].name for p in plans],
                         desc="truth simulation")
@@ -387,12 +396,13 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
 
     exps = []
     for (spec, rng, peak, time, tl, tr, plane), sim in zip(plans, results):
-        exps.append(_observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp))
+        exps.append(_observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geoms[sources[spec.name]], warp,
+                             sources[spec.name]))
     return SynthStudy(recipe=recipe, seed=seed, geometry=geom, params=params, effect=effect, warp=warp,
                       experiments=tuple(exps), truth_solver=truth_method)
 
 
-def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp) -> SynthExperiment:
+def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp, source="default") -> SynthExperiment:
     """Measurement model: points in the plane frame (+warp, noise, occlusion) and/or joint angles
     (+noise), noisy tensions."""
     theta = np.asarray(sim.theta, dtype=float)
@@ -439,7 +449,8 @@ def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp) -> S
     return SynthExperiment(name=spec.name, description=desc, pull=spec.pull, counter_N=spec.counter_N,
                            peak_N=peak, samples=samples, points=pts, true_points=true_pts, theta=theta,
                            tension_left=tl, tension_right=tr, plane=plane,
-                           regime=np.asarray(getattr(sim, "regime", np.full(S, ""))), angles=angles)
+                           regime=np.asarray(getattr(sim, "regime", np.full(S, ""))), angles=angles,
+                           geometry=source)
 
 
 def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool | None = None,
@@ -484,8 +495,8 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
                                 angle_sigma=r.angle_sigma_deg * DEG if (e.angles is not None
                                                                          and r.angle_sigma_deg > 0) else None,
                                 mirror=e.plane["mirror"], description=e.description,
-                                geometry=("default" if r.geometry == "default"
-                                          else str(Path(_geometry_source(r.geometry)).resolve())),
+                                geometry=("default" if e.geometry == "default"
+                                          else str(Path(_geometry_source(e.geometry)).resolve())),
                                 calibration=calib_rel, point_sigma=r.point_sigma_mm * MM if
                                 (r.point_sigma_mm > 0 and not images) else None,
                                 tension_sigma=r.tension_sigma_N if r.tension_sigma_N > 0 else None,

@@ -1,8 +1,10 @@
-"""Where an experiment's notch points come from, and whether they are enough for a fit.
+"""Where an experiment's measured data come from, and whether they are enough for a fit.
 
-Shared by ``fit`` and ``diagnose`` so that an experiment without usable
-points is reported with its name, its points file and the step the user
-asked for (not a model the user never named).
+Shared by ``fit``, ``simulate``, ``identify`` and ``diagnose`` so that an
+experiment without usable data is reported with its name, its points file and
+the step the user asked for (not a model the user never named). Measured data
+are notch points (``notch_points.csv`` or detect's ``detections.csv``) or
+joint angles (``angles.csv``, :func:`with_measurements`).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import numpy as np
 
 from .. import io
 
-__all__ = ["points_file", "points_problem"]
+__all__ = ["points_file", "points_problem", "with_measurements"]
 
 
 def points_file(exp, points_dir) -> Path:
@@ -41,3 +43,28 @@ def points_problem(exp, source, what: str) -> str | None:
                 f"than {n // 2} points of one sample, the most is {counts.max()}")
     return None
 
+
+
+def with_measurements(exps, points_dir) -> tuple[list, dict]:
+    """The experiments with measured data: notch points (own or detected) or joint angles.
+
+    :func:`notchfit.io.attach_detections` gives experiments without
+    ``notch_points.csv`` the points of a detect run; one with ``angles.csv`` is
+    kept without points. Order is kept.
+
+    Returns
+    -------
+    experiments : list of Experiment
+    problems : dict
+        ``{name: reason}`` for those with neither points nor angles.
+    """
+    with_pts, problems = io.attach_detections(exps, points_dir, require=False)
+    by_name = {e.name: e for e in with_pts}
+    out = []
+    for e in exps:
+        if e.name in by_name:
+            out.append(by_name[e.name])
+        elif e.angles is not None:
+            problems.pop(e.name, None)
+            out.append(e)
+    return out, problems

@@ -14,6 +14,7 @@ from ..report import build_report, summary_lines
 from ..synth import generate_study, load_recipe
 from . import detect, fit, simulate
 from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call, count_option, jobs_option
+from ._wrist_demo import run_wrist_demo
 from .diagnose import write_diagnosis
 
 NAME = "demo"
@@ -41,6 +42,7 @@ Examples:
   notchfit demo --small                       # a smaller, faster study (points, no images)
   notchfit demo --no-images                   # the full study from notch points
   notchfit demo --cause stiffness_gradient --seed 3
+  notchfit demo --tube wrist                  # two nitinol wrists of one stock, notch angles -> identify
 """
 
 #: Built-in sizes: (experiments, samples on the loading ramp, on the unloading ramp).
@@ -59,6 +61,9 @@ def add_arguments(parser) -> None:
                              "full demo, no with --small, which then uses the notch points directly)")
     parser.add_argument("--jobs", type=jobs_option, default=None, help="worker processes (default: up to 2)")
     parser.add_argument("--force", action="store_true", help="replace an earlier demo in --out")
+    parser.add_argument("--tube", choices=("seed", "wrist"), default="seed",
+                        help="seed: the paper's tube (default); wrist: two synthetic nitinol wrists of one stock "
+                             "measured as notch angles, ending in identify and simulate with the identified model")
 
 
 def _step(name: str, t0: float) -> float:
@@ -68,6 +73,8 @@ def _step(name: str, t0: float) -> float:
 
 
 def run(args) -> int:
+    if args.tube == "wrist":
+        return run_wrist_demo(args)
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
     out = Path(args.out)
     study_dir, res_dir = out / "study", out / "results"

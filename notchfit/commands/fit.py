@@ -4,21 +4,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from .. import io
 from ..batch import run_batch
 from ..figures.fitting import experiment_figures, fig12_sample_index
-from ..fitting import failed_fits, fit_experiment, fit_summary, fits_table, pointwise_table
+from ..fitting import (angle_fits_table, failed_fits, fit_angles, fit_experiment, fit_summary, fits_table,
+                       jointwise_table, pointwise_table)
 from ..shapes import get_model
 from ..units import MM
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
                       check_points_dir, list_failures)
-from ._points import points_file, points_problem
+from ._points import points_file, points_problem, with_measurements
 
 NAME = "fit"
 ORDER = 40
-HELP = "fit shape models (cc, linear, ...) to the notch points of an experiment or a study"
+HELP = "fit shape models (cc, linear, ...) to the notch points or measured angles of an experiment or a study"
 DESCRIPTION = """Fit shape models to every sample of an experiment (or of every experiment of a
 study): the plane transform of each experiment is estimated once for all its samples, then
 each sample is fitted with each model (Sec. IV-A, Figs. 12-15). Points come from the
@@ -27,7 +29,10 @@ experiment's notch_points.csv, or from detect's detections.csv (--points DIR, de
 
 Writes fits.csv (one row per sample and model: sample,model,a,b,...,base_x_mm,base_y_mm,
 base_phi_rad,rms_mm,max_mm,n_points,...), pointwise.csv (sample,model,point,err_mm) and the
-figures of Figs. 12-15; for a study, into OUT/<experiment>/. Experiments run in parallel
+figures of Figs. 12-15; for a study, into OUT/<experiment>/. An experiment with measured joint
+angles (angles.csv) and no points is fitted in angle space (theta = B params, no plane
+transform): angle_fits.csv (sample,model,a,b,...,rms_deg,max_deg,n_angles,...) and
+jointwise.csv (sample,model,joint,err_deg). Experiments run in parallel
 (--jobs, or a Dask cluster with --scheduler); one that fails is listed and the others finish
 (exit code 1).
 
@@ -56,7 +61,10 @@ def add_arguments(parser) -> None:
 
 
 def fit_one(item: dict) -> dict:
-    """Fit one experiment (a batch item; module level so that it pickles)."""
+    """Fit one experiment (a batch item; module level so that it pickles): its points, else its angles."""
+    if item.get("angles") is not None:
+        res = fit_angles(item["angles"], item["models"], sigma=item["sigma"], samples=item["samples"])
+        return {"result": res, "angle_fits": angle_fits_table(res), "jointwise": jointwise_table(res)}
     res = fit_experiment(item["points"], item["geometry"], item["models"], mirror=item["mirror"],
                          sigma=item["sigma"], loss=item["loss"], samples=item["samples"])
     return {"result": res, "fits": fits_table(res), "pointwise": pointwise_table(res)}
@@ -113,11 +121,14 @@ def _fittable(args, models) -> tuple[list, dict, bool]:
     scan = io.scan_study(args.input)
     _check_models(models, scan.experiments[0].geometry.n_joints)
     points_dir = args.points if args.points is not None else args.out
-    exps, problems = io.attach_detections(scan.experiments, points_dir, require=False)
+    exps, problems = with_measurements(scan.experiments, points_dir)
     problems = {**scan.problems, **problems}
     what = f"fitting --models {','.join(models)}"
     keep = []
     for e in exps:
+        if e.points is None:            # measured joint angles: fitted in angle space
+            keep.append(e)
+            continue
         why = points_problem(e, points_file(e, points_dir), what)
         if why is None:
             keep.append(e)
@@ -133,13 +144,10 @@ def run(args) -> int:
     check_out_dir(args.out, args.input)
     check_points_dir(args.points)
     exps, problems, study = _fittable(args, models)
-    sigma_cli = None if args.sigma_mm is None else args.sigma_mm * MM
-    items = [{"points": e.points, "geometry": e.geometry, "models": models, "mirror": e.mirror,
-              "sigma": sigma_cli if sigma_cli is not None else e.point_sigma, "loss": args.loss,
-              "samples": tuple(int(s) for s in e.sample_ids)} for e in exps]
+    items = [_item(e, models, args) for e in exps]
     names = [e.name for e in exps]
-    outputs = ["fit_run.json"] + [str(io.experiment_output_dir("", n, study) / f)
-                                  for n in names for f in ("fits.csv", "pointwise.csv")]
+    outputs = ["fit_run.json"] + [str(io.experiment_output_dir("", e.name, study) / f) for e in exps
+                                  for f in _FILES[e.points is None]]
     with io.OutputRun(args.out, outputs=outputs, force=args.force, name="fit") as run_:
         res = run_batch(fit_one, items, keys=names, jobs=args.jobs, scheduler=args.scheduler,
                         desc="fit")
@@ -150,6 +158,9 @@ def run(args) -> int:
             if not r.ok:
                 continue
             sub = io.experiment_output_dir("", e.name, study)
+            if "angle_fits" in r.value:
+                _write_angle_fits(r.value, run_, sub, e.name, bad_samples)
+                continue
             io.write_table_atomic(r.value["fits"], run_.path(sub / "fits.csv"))
             io.write_table_atomic(r.value["pointwise"], run_.path(sub / "pointwise.csv"))
             for row in failed_fits(r.value["fits"]).itertuples(index=False):
@@ -166,12 +177,40 @@ def run(args) -> int:
     return EXIT_ITEMS_FAILED if (failed or bad_samples) else 0
 
 
+#: Files written per experiment: from notch points, from measured angles.
+_FILES = {False: ("fits.csv", "pointwise.csv"), True: ("angle_fits.csv", "jointwise.csv")}
+
+
+def _item(e, models, args) -> dict:
+    """The batch item of one experiment: its points (σ from --sigma-mm or the experiment), else its angles."""
+    base = {"geometry": e.geometry, "models": models, "samples": tuple(int(s) for s in e.sample_ids)}
+    if e.points is None:
+        return {**base, "angles": e.angles, "sigma": e.angle_sigma}
+    sigma = args.sigma_mm * MM if args.sigma_mm is not None else e.point_sigma
+    return {**base, "points": e.points, "mirror": e.mirror, "sigma": sigma, "loss": args.loss}
+
+
+def _write_angle_fits(value, run_, sub, name, bad_samples) -> None:
+    """angle_fits.csv and jointwise.csv of an experiment fitted in angle space; failed samples listed."""
+    io.write_table_atomic(value["angle_fits"], run_.path(sub / "angle_fits.csv"))
+    io.write_table_atomic(value["jointwise"], run_.path(sub / "jointwise.csv"))
+    for row in failed_fits(value["angle_fits"]).itertuples(index=False):
+        bad_samples.append(f"{name} sample {row.sample} ({row.model}): {getattr(row, 'message', '')}")
+
+
 def _print_summary(res, n_total, failed, bad_samples, out):
-    frames = [r.value["fits"] for r in res.items if r.ok]
+    frames = [r.value["fits"] for r in res.items if r.ok and "fits" in r.value]
     if frames:
         for row in fit_summary(pd.concat(frames, ignore_index=True)).itertuples(index=False):
             print(f"  {row.model:12s} rms {row.rms_mm:.4f} mm, max {row.max_mm:.4f} mm "
                   f"over {row.n_samples} samples")
+    frames = [r.value["angle_fits"] for r in res.items if r.ok and "angle_fits" in r.value]
+    if frames:
+        df = pd.concat(frames, ignore_index=True)
+        for model, g in df[df["success"]].groupby("model", sort=False):
+            rms = float(np.sqrt(np.mean(g["rms_deg"].to_numpy(float) ** 2)))
+            print(f"  {model:12s} rms {rms:.3f} deg, max {g['max_deg'].max():.3f} deg over {len(g)} samples "
+                  "(measured angles)")
     n_ok = sum(r.ok for r in res.items)
     print(f"fit: {n_ok} of {n_total} experiments fitted in {res.seconds:.1f} s; outputs in {out}")
     list_failures(failed, limit=len(failed))

@@ -9,11 +9,13 @@ import numpy as np
 
 from .. import io
 from ..batch import run_batch
-from ..comparison import compare_simulation, comparison_table
+from ..comparison import angle_comparison_table, compare_angles, compare_simulation, comparison_table
 from ..figures.friction import plot_fig18, plot_fig19
 from ..friction import FrictionParams, default_params, simulate, simulation_table
+from ..units import DEG
 from ._common import (EXIT_ITEMS_FAILED, add_batch_options, add_points_option, check_out_dir, check_points_dir,
                       list_failures)
+from ._points import with_measurements
 
 NAME = "simulate"
 ORDER = 50
@@ -29,8 +31,10 @@ saves), then any --param overrides (SI units: k_lin N m/rad, mu_d, b N m s/rad, 
 Writes simulation.csv (sample, regime, a, b, theta_1..theta_n, base tensions, predicted
 cable displacements) and, when the experiment has measured points, simulation_vs_measured.csv
 (measured vs predicted shape parameters a, b of theta_j = a + b j and the notch-point error of
-the prediction, Sec. IV-A) with Figs. 18 (joint angles) and 19 (a and b vs tension, and
-the point error) as PNG and CSV; for a study, into OUT/<experiment>/.
+the prediction, Sec. IV-A); when it has measured joint angles (angles.csv),
+simulation_vs_angles.csv (the angle error per sample and per joint, in degrees); with Figs. 18
+(joint angles) and 19 (a and b vs tension, and the point error) as PNG and CSV; for a study,
+into OUT/<experiment>/.
 
 Examples:
   notchfit simulate study/ --out out/
@@ -81,6 +85,9 @@ def simulate_one(item: dict) -> dict:
     res = simulate(item["time"], item["tension_left"], item["tension_right"], item["params"],
                    item["geometry"], method=item["method"], ramp_time=item["ramp_time"])
     out = {"result": res, "table": simulation_table(res, item["samples"])}
+    if item.get("angles") is not None:
+        comp = compare_angles(res, item["angles"], sigma=item.get("angle_sigma"), samples=item["samples"])
+        out.update(angle_comparison=comp, angle_compare=angle_comparison_table(comp, res))
     if item["points"] is not None:
         try:
             comp = compare_simulation(res, item["points"], mirror=item["mirror"], sigma=item["sigma"],
@@ -93,13 +100,18 @@ def simulate_one(item: dict) -> dict:
 
 
 def simulation_figures(value: dict, out_dir: Path) -> list[Path]:
-    """Figs. 18 (joint angles: prediction vs the linear fit) and 19 (a, b vs tension) of one experiment."""
-    if "comparison" not in value:
+    """Figs. 18 (joint angles: prediction vs the measured ones or the linear fit of the points) and 19
+    (a, b vs tension) of one experiment."""
+    res = value["result"]
+    if "comparison" in value:
+        comp, rms = value["comparison"], value["compare"]["point_rms_mm"]
+    elif "angle_comparison" in value:
+        comp, rms = value["angle_comparison"], None
+    else:
         return []
-    res, comp = value["result"], value["comparison"]
     return (plot_fig18(res, out_dir, measured_theta=comp.theta_meas, name="fig18_joint_angles")
             + plot_fig19(res, out_dir, measured_a=comp.a_meas, measured_b=comp.b_meas,
-                         name="fig19_shape_parameters", point_rms_mm=value["compare"]["point_rms_mm"]))
+                         name="fig19_shape_parameters", point_rms_mm=rms))
 
 
 def _experiment_params(exps, args) -> dict:
@@ -117,14 +129,14 @@ def _params_record(params: dict) -> dict:
 
 
 def _items(exps, params: dict, args) -> list[dict]:
-    """One batch item per experiment: the measured tensions (clipped at 0 N) and the points, if any."""
-    with_pts, _ = io.attach_detections(exps, args.points if args.points is not None else args.out,
-                                       require=False)
-    pts = {e.name: e.points for e in with_pts}
+    """One batch item per experiment: the measured tensions (clipped at 0 N), the points and angles, if any."""
+    measured, _ = with_measurements(exps, args.points if args.points is not None else args.out)
+    pts = {e.name: e.points for e in measured}
     return [{"time": e.time, "tension_left": e.tension_left,
              "tension_right": e.tension_right, "params": params[e.name], "geometry": e.geometry,
              "method": args.method, "samples": [int(s) for s in e.sample_ids], "points": pts.get(e.name),
-             "mirror": e.mirror, "sigma": e.point_sigma, "ramp_time": e.ramp_time or 0.0} for e in exps]
+             "mirror": e.mirror, "sigma": e.point_sigma, "ramp_time": e.ramp_time or 0.0,
+             "angles": e.angles, "angle_sigma": e.angle_sigma} for e in exps]
 
 
 def run(args) -> int:
@@ -158,15 +170,17 @@ def run(args) -> int:
             io.write_table_atomic(r.value["table"], run_.path(sub / "simulation.csv"))
             if "compare_error" in r.value:
                 failed[f"{e.name} comparison with the points"] = r.value["compare_error"]
+            if "angle_compare" in r.value:
+                io.write_table_atomic(r.value["angle_compare"], run_.path(sub / "simulation_vs_angles.csv"))
             if "compare" in r.value:
                 io.write_table_atomic(r.value["compare"], run_.path(sub / "simulation_vs_measured.csv"))
-                if not args.no_figures:
-                    try:
-                        simulation_figures(r.value, run_.path(sub / "x").parent)
-                    except Exception as exc:  # noqa: BLE001 - a figure must not lose the simulation
-                        failed[f"{e.name} figures"] = f"{type(exc).__name__}: {exc}"
+            if ("compare" in r.value or "angle_compare" in r.value) and not args.no_figures:
+                try:
+                    simulation_figures(r.value, run_.path(sub / "x").parent)
+                except Exception as exc:  # noqa: BLE001 - a figure must not lose the simulation
+                    failed[f"{e.name} figures"] = f"{type(exc).__name__}: {exc}"
         io.write_json_atomic(io.provenance("simulate", args.input,
-                                           **_params_record(params),
+                                           **_params_record(params), **_angle_record(exps, res),
                                            clipped_tensions={e.name: e.n_clipped for e in exps if e.n_clipped},
                                            model_file=str(args.model) if args.model else None,
                                            method=args.method, experiments=names, failures=failed),
@@ -175,15 +189,30 @@ def run(args) -> int:
     return EXIT_ITEMS_FAILED if failed else 0
 
 
+def _angle_record(exps, res) -> dict:
+    """The run record's angle errors [deg]: rms over every measured angle, and per joint, per experiment."""
+    comps = {e.name: r.value["angle_comparison"] for e, r in zip(exps, res.items)
+             if r.ok and "angle_comparison" in r.value}
+    if not comps:
+        return {}
+    return {"angle_rms_deg": {k: c.rms / DEG for k, c in comps.items()},
+            "angle_rms_deg_by_joint": {k: [float(v) for v in c.joint_rms / DEG] for k, c in comps.items()}}
+
+
 def _print_summary(exps, res, failed, out, n_unread: int = 0) -> None:
     for e, r in zip(exps, res.items):
+        if r.ok and "angle_comparison" in r.value:
+            c = r.value["angle_comparison"]
+            per = ", ".join(f"{v:.2f}" for v in c.joint_rms / DEG)
+            print(f"  {e.name:10s} prediction rms {c.rms / DEG:.3f} deg over {int(np.isfinite(c.theta_meas).sum())} "
+                  f"measured angles (per joint: {per})")
         if r.ok and "compare" in r.value:
             c = r.value["compare"]
             v = c["point_rms_mm"].to_numpy(float)
             v = v[np.isfinite(v)]
             txt = f"{np.sqrt(np.mean(v ** 2)):.3f} mm" if v.size else "n/a (no measured points)"
             print(f"  {e.name:10s} prediction rms {txt} over {v.size} of {len(c)} samples")
-        elif r.ok:
-            print(f"  {e.name:10s} simulated ({len(r.value['table'])} samples; no measured points)")
+        elif r.ok and "angle_comparison" not in r.value:
+            print(f"  {e.name:10s} simulated ({len(r.value['table'])} samples; no measured points or angles)")
     print(f"simulate: {res.n_ok} of {len(exps) + n_unread} experiments in {res.seconds:.1f} s; outputs in {out}")
     list_failures(failed, limit=len(failed))

@@ -72,19 +72,24 @@ Modules: :mod:`~notchfit.fitting.results` (result types),
 :mod:`~notchfit.fitting.first_pass` (input checks and the closed-form
 start), :mod:`~notchfit.fitting.lm` (the batched Levenberg–Marquardt),
 :mod:`~notchfit.fitting.core` (the fits), :mod:`~notchfit.fitting.tables`
-(file tables and model comparison). Synthetic points for tests and demos:
+(file tables and model comparison), :mod:`~notchfit.fitting.angles` (the
+shape models fitted to measured joint angles, ``angles.csv``). Synthetic points for tests and demos:
 :func:`notchfit.synth.synthetic_points`.
 """
 
 from __future__ import annotations
 
+from .angles import AngleFit, ModelAngleFit, angle_fits_table, fit_angles, jointwise_table
 from .core import fit_experiment, fit_sample, fit_samples, fit_transform
 from .first_pass import estimate_angles, initial_transform
 from .results import ExperimentFit, PlaneTransform, SampleFit
 from .tables import compare_models, failed_fits, fit_summary, fits_table, pointwise_table
 
 __all__ = [
+    "AngleFit",
     "ExperimentFit",
+    "ModelAngleFit",
+    "angle_fits_table",
     "PlaneTransform",
     "SampleFit",
     "compare_models",
@@ -94,8 +99,10 @@ __all__ = [
     "fit_sample",
     "fit_samples",
     "fit_summary",
+    "fit_angles",
     "fit_transform",
     "fits_table",
     "initial_transform",
+    "jointwise_table",
     "pointwise_table",
 ]

@@ -1,0 +1,180 @@
+"""The parameters ``notchfit identify`` can fit: bounds and starts from physics, the defaults.
+
+Every fitted parameter is a :class:`notchfit.diagnosis.specs.ParamSpec` (bounds,
+start, log scale, probe values for the multi-start search). The seed tube's
+(``spring_law = "rates"``) are the diagnosis baseline's: ``k_lin``, ``k_mid`` and
+``μ_d`` (docs/models.md, "The baseline of the diagnosis"). A real tube's
+material law (``spring_law = "material"``, :func:`notchfit.springs.material_spring`)
+has the material of superelastic nitinol:
+
+* ``E_lin`` — the austenite modulus, 30–80 GPa in the literature (Duerig,
+  Pelton & Stöckel 1999; manufacturers' sheets 41–75 GPa); bounds 15–150 GPa
+  leave room for cut depths a few per cent off the drawing (the thin wall's
+  ``I`` goes with its thickness cubed), start 50 GPa;
+* ``E_se`` — the slope of the moment past the transformation onset, where the
+  transformed zone spreads through the wall: a few GPa; bounds 0.2–30 GPa;
+* ``strain_lower`` — the outer-fibre strain of the transformation onset,
+  1–2 % in tension (onset stress ~400–500 MPa over E_lin); bounds 0.4–4 %;
+* ``μ_d`` — tendon on the cut edges (capstan law): ~0.05–0.3 for a steel or
+  polymer tendon on nitinol; bounds 0–0.8, start 0.1.
+
+Positive moduli and the strain threshold are fitted in log space. ``μ_s`` is
+tied to ``μ_d`` plus the base model's excess (0.01, the paper's).
+
+Per tube and per notch (real tubes):
+
+* ``rest_angle`` — the rest angles, within ``±REST_RANGE`` of the geometry
+  file's (and inside the slot's closure), started from the samples taken at
+  rest: cutting and heat treatment leave a few degrees of pre-curve that a
+  geometry file rarely knows to a tenth of a degree;
+* ``slot_depth`` — the effective cut depth, within ``±DEPTH_RANGE`` of the
+  drawing, with a Gaussian prior of ``DEPTH_TOLERANCE`` (a cutting and
+  measuring tolerance of ~10–20 µm): the wall left by a deep one-sided cut is
+  ~0.2 mm thick and its stiffness goes with its thickness cubed, so 10 µm off
+  is ~15 % off in a notch's stiffness, more than the angle noise of a
+  measurement. The material stays shared by every notch and tube.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from ..diagnosis.specs import BASELINE, CANDIDATES, ParamSpec
+from ..friction_params import PARAM_KEYS, FrictionParams, default_params
+
+__all__ = ["DEPTH", "DEPTH_COMMON", "DEPTH_RANGE", "DEPTH_TOLERANCE", "MATERIAL", "QUASI_STATIC_DAMPING_TIME",
+           "REST", "REST_RANGE", "SPECS", "TUBE_FREE", "base_model", "default_free", "parse_free", "specs_for"]
+
+#: Damping time of the real-tube models identify fits [s] (docs/models.md, "Identification"): a
+#: link of the friction model sticks once its cable speed falls below ``v_thr``, so the rest
+#: state after a load step depends on how fast the joints relax; the ``τ_b → 0`` limit is the
+#: quasi-static rest state that measurements at rest see, independent of the sample timing.
+#: At 1 ms the rest states of the shipped wrists are within 0.1° of that limit and the same for
+#: samples 0.5 s or 5 s apart (the default 62 ms: up to 1.7° and 8.7° off).
+QUASI_STATIC_DAMPING_TIME = 1e-3
+#: The name of the per-tube, per-joint rest angles in ``--free``.
+REST = "rest_angle"
+#: Rest angles are fitted within this distance of the geometry file's [rad] (~11°).
+REST_RANGE = 0.2
+#: The name of the per-tube, per-notch cut depths in ``--free``.
+DEPTH = "slot_depth"
+#: Cut depths are fitted within this distance of the geometry file's [m] ...
+DEPTH_RANGE = 60e-6
+#: ... with a zero-mean Gaussian prior of this standard deviation [m] (the cutting tolerance) ...
+DEPTH_TOLERANCE = 15e-6
+#: ... and the mean of a tube's offsets held near 0 [m]: a depth error common to a tube's
+#: notches scales its stiffness like the material does, so it is left to the shared material.
+DEPTH_COMMON = 2e-6
+#: Names of the per-tube unknowns in ``--free``, with their spellings.
+TUBE_FREE = {REST: REST, "rest_angle_rad": REST, DEPTH: DEPTH, "slot_depth_offset": DEPTH,
+             "slot_depth_offset_m": DEPTH}
+
+#: Material of superelastic nitinol (module docstring).
+MATERIAL = (
+    ParamSpec("E_lin", 15e9, 150e9, 50e9, log=True, probes=(35e9, 70e9)),
+    ParamSpec("E_se", 0.2e9, 30e9, 4e9, log=True, probes=(1.5e9, 6e9)),
+    ParamSpec("strain_lower", 0.004, 0.04, 0.012, log=True, probes=(0.008, 0.018)),
+)
+_CAPSTAN_MU = ParamSpec("mu_d", 0.0, 0.8, 0.1, probes=(0.03, 0.2))
+
+#: Every scalar parameter identify may fit, by FrictionParams field name.
+SPECS = {
+    **{s.name: s for s in BASELINE},
+    **{s.name: s for s in MATERIAL},
+    "k_stop": ParamSpec("k_stop", 0.5, 100.0, 10.0, log=True),
+    "theta_mid": ParamSpec("theta_mid", 0.005, 0.5, 0.07, log=True),
+    "theta_stop": ParamSpec("theta_stop", 0.01, 1.0, 0.14, log=True),
+    "stop_ratio": ParamSpec("stop_ratio", 2.0, 500.0, 20.7, log=True),
+    **{s.name: s for c in ("proximal_friction", "joint_hysteresis", "stiffness_gradient") for s in CANDIDATES[c]},
+}
+
+
+#: The spring law a parameter acts through (the others act on every tube).
+_LAW_OF = {**{k: "rates" for k in ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop")},
+           **{k: "material" for k in ("E_lin", "E_se", "strain_lower", "stop_ratio", DEPTH)}}
+
+
+def parse_free(names) -> tuple[str, ...]:
+    """``--free`` names (field names or model-file keys, e.g. ``E_lin`` or ``E_lin_Pa``) as field names.
+
+    Raises
+    ------
+    ValueError
+        An unknown name, or one given twice.
+    """
+    by_key = {v: k for k, v in PARAM_KEYS.items() if k not in ("rest_angle", "slot_depth_offset")}
+    out = []
+    for raw in names:
+        name = raw.strip()
+        field = TUBE_FREE.get(name, by_key.get(name, name))
+        if field not in SPECS and field not in (REST, DEPTH):
+            known = ", ".join(sorted(SPECS)) + f", {REST}, {DEPTH}"
+            raise ValueError(f"--free {name!r}: not a parameter identify can fit (known: {known})")
+        if field in out:
+            raise ValueError(f"--free names {field} twice")
+        out.append(field)
+    if not out:
+        raise ValueError("--free needs at least one parameter")
+    return tuple(out)
+
+
+def default_free(models, geoms) -> tuple[str, ...]:
+    """The parameters identified by default, by the physics of the study's tubes.
+
+    The material law's ``E_lin``, ``E_se``, ``strain_lower`` when a tube uses it,
+    the rates law's ``k_lin``, ``k_mid`` when one does (the diagnosis baseline),
+    ``μ_d`` always, and for real tubes (a section backbone) each notch's rest
+    angle and, with the material law, its cut depth (module docstring).
+    """
+    laws = {m.spring_law for m in models}
+    free = []
+    if "material" in laws:
+        free += [s.name for s in MATERIAL]
+    if "rates" in laws:
+        free += ["k_lin", "k_mid"]
+    free.append("mu_d")
+    real = [m for m, g in zip(models, geoms) if g.backbone == "section"]
+    if real:
+        free.append(REST)
+    if any(m.spring_law == "material" for m in real):
+        free.append(DEPTH)
+    return tuple(free)
+
+
+def base_model(geom) -> FrictionParams:
+    """The model identify starts from without ``--model``: :func:`notchfit.friction.default_params`,
+    with the material law's damping at :data:`QUASI_STATIC_DAMPING_TIME`."""
+    p = default_params(geom)
+    if p.spring_law == "material" and p.damping_time == 0.0:
+        p = p.replace(damping_time=QUASI_STATIC_DAMPING_TIME)
+    return p
+
+
+def specs_for(free, models, *, start: FrictionParams | None = None) -> tuple[ParamSpec, ...]:
+    """The specs of the scalar free parameters (the per-tube ``rest_angle``, ``slot_depth`` left out), in order.
+
+    ``μ_d`` starts at the capstan value (0.1) when every tube has the capstan
+    law, else at the paper's 0.29. ``start`` (a ``--model`` file) moves each
+    start to its value, clipped into the bounds.
+
+    Raises
+    ------
+    ValueError
+        A parameter of a spring law no tube uses (it would have no effect).
+    """
+    capstan = all(m.friction_law == "capstan" for m in models)
+    laws = {m.spring_law for m in models}
+    out = []
+    for name in free:
+        need = _LAW_OF.get(name)
+        if need is not None and need not in laws:
+            raise ValueError(f"--free {name}: no tube of this study uses spring_law = {need!r} "
+                             f"(they use {', '.join(sorted(laws))}), so {name} has no effect")
+        if name in (REST, DEPTH):
+            continue
+        spec = _CAPSTAN_MU if (name == "mu_d" and capstan) else SPECS[name]
+        if start is not None:
+            v = min(max(float(getattr(start, name)), spec.lower), spec.upper)
+            spec = dataclasses.replace(spec, start=v)
+        out.append(spec)
+    return tuple(out)
