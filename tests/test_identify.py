@@ -104,7 +104,8 @@ def test_material_from_two_wrists_predicts_a_third(tmp_path, capsys):
     truth = json.loads((tmp_path / "ab" / "truth.json").read_text())["experiments"]
     assert truth["B1"]["geometry"] == "wrist_tip_first" and "geometry" not in truth["A1"]   # per-experiment tubes
     assert set(data["tubes"]) == {"wrist_asymmetric", "wrist_tip_first"}
-    assert data["free"][-2:] == ["rest_angle_rad", "slot_depth_offset_m"]
+    assert data["free_per_tube"] == ["rest_angle_rad", "slot_depth_offset_m"]
+    assert set(data["free"]) == set(data["params"]) == set(data["se"])      # every free name has a value
     assert (out / "model_wrist_tip_first.toml").is_file()
     model = load_params(out / "model.toml")
     assert model.rest_angle is None and model.slot_depth_offset is None    # shared: no one tube's values

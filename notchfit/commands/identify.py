@@ -10,7 +10,8 @@ from .. import io
 from ..identify import identify
 from ..identify.data import tube_labels
 from ..units import DEG, MM
-from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir, list_failures
+from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
+                      check_points_dir, list_failures)
 from ._points import with_measurements
 
 NAME = "identify"
@@ -73,7 +74,8 @@ def _tube_file(tube: str) -> str:
 
 def _model_metadata(result, data: dict) -> dict:
     """The ``[metadata]`` of model.toml: source, metric, free parameters, standard errors, errors."""
-    meta = {"source": "notchfit identify", "metric": result.metric, "free": data["free"], "se": data["se"],
+    meta = {"source": "notchfit identify", "metric": result.metric, "free": data["free"] + data["free_per_tube"],
+            "se": data["se"],
             "train_rms": result.train_rms, "heldout_rms": result.heldout_rms, "tubes": list(result.tubes)}
     if len(meta["tubes"]) > 1:
         meta["note"] = ("shared parameters of every tube; each tube's rest angles and cut depths are in "
@@ -114,6 +116,7 @@ def run(args) -> int:
     if args.starts < 1:
         raise InputError("--starts must be at least 1")
     check_out_dir(args.out, args.study)
+    check_points_dir(args.points)
     free = None if args.free is None else [f for f in args.free.split(",") if f.strip()]
     model = io.load_params(args.model) if args.model is not None else None
     exps, left_out = _experiments(args)
@@ -126,7 +129,7 @@ def run(args) -> int:
         data = write_identification(result, run_.stage)
         io.write_json_atomic(io.provenance("identify", args.study, experiments=[e.name for e in exps],
                                            failures=left_out, model_file=str(args.model) if args.model else None,
-                                           free=data["free"], starts=args.starts, loss=args.loss),
+                                           free=data["free"] + data["free_per_tube"], starts=args.starts, loss=args.loss),
                              run_.path("identify_run.json"))
     _print_summary(result, data, args.out)
     if left_out:

@@ -125,7 +125,10 @@ class Identification:
         tube_keys = {REST: "rest_angle_rad", DEPTH: "slot_depth_offset_m"}
         sol = self.solution
         return {
-            "free": [key[f] for f in self.free] + [tube_keys[f] for f in self.tube_free],
+            # `free` names exactly the keys of `params` and `se` (readers of the contract's form can
+            # look every free name up); the per-tube parameters are listed apart, values under `tubes`
+            "free": [key[f] for f in self.free],
+            "free_per_tube": [tube_keys[f] for f in self.tube_free],
             "params": {key[f]: self.values[f] for f in self.free},
             "se": {key[f]: self.se[f] for f in self.free},
             "metric": self.metric, "train_rms": self.train_rms, "heldout_rms": self.heldout_rms,
