@@ -104,7 +104,7 @@ from .geometry import Geometry, default_geometry
 from .notches import notch_points
 from .shapes import line_fit
 from .friction_params import (DEFAULT_DAMPING_TIME, FRICTION_LAWS, PARAM_KEYS, PER_JOINT_FIELDS,  # noqa: F401
-                              SPRING_LAWS, FrictionParams, _kernel_inputs, default_params, params_from_mapping,
+                              QUASI_STATIC_DAMPING_TIME, SPRING_LAWS, FrictionParams, _kernel_inputs, default_params, params_from_mapping,
                               params_to_mapping)
 from .units import MM
 from .validation import readonly
@@ -115,6 +115,7 @@ __all__ = [
     "FRICTION_LAWS",
     "PARAM_KEYS",
     "PER_JOINT_FIELDS",
+    "QUASI_STATIC_DAMPING_TIME",
     "SPRING_LAWS",
     "FrictionParams",
     "SimulationResult",

@@ -42,16 +42,9 @@ import dataclasses
 from ..diagnosis.specs import BASELINE, CANDIDATES, ParamSpec
 from ..friction_params import PARAM_KEYS, FrictionParams, default_params
 
-__all__ = ["DEPTH", "DEPTH_COMMON", "DEPTH_RANGE", "DEPTH_TOLERANCE", "MATERIAL", "QUASI_STATIC_DAMPING_TIME",
+__all__ = ["DEPTH", "DEPTH_COMMON", "DEPTH_RANGE", "DEPTH_TOLERANCE", "MATERIAL",
            "REST", "REST_RANGE", "SPECS", "TUBE_FREE", "base_model", "default_free", "parse_free", "specs_for"]
 
-#: Damping time of the real-tube models identify fits [s] (docs/models.md, "Identification"): a
-#: link of the friction model sticks once its cable speed falls below ``v_thr``, so the rest
-#: state after a load step depends on how fast the joints relax; the ``τ_b → 0`` limit is the
-#: quasi-static rest state that measurements at rest see, independent of the sample timing.
-#: At 1 ms the rest states of the shipped wrists are within 0.1° of that limit and the same for
-#: samples 0.5 s or 5 s apart (the default 62 ms: up to 1.7° and 8.7° off).
-QUASI_STATIC_DAMPING_TIME = 1e-3
 #: The name of the per-tube, per-joint rest angles in ``--free``.
 REST = "rest_angle"
 #: Rest angles are fitted within this distance of the geometry file's [rad] (~11°).
@@ -142,12 +135,10 @@ def default_free(models, geoms) -> tuple[str, ...]:
 
 
 def base_model(geom) -> FrictionParams:
-    """The model identify starts from without ``--model``: :func:`notchfit.friction.default_params`,
-    with the material law's damping at :data:`QUASI_STATIC_DAMPING_TIME`."""
-    p = default_params(geom)
-    if p.spring_law == "material" and p.damping_time == 0.0:
-        p = p.replace(damping_time=QUASI_STATIC_DAMPING_TIME)
-    return p
+    """The model identify starts from without ``--model``: :func:`notchfit.friction.default_params`
+    (for a real tube the material law at the damping time
+    :data:`notchfit.friction.QUASI_STATIC_DAMPING_TIME`)."""
+    return default_params(geom)
 
 
 def specs_for(free, models, *, start: FrictionParams | None = None) -> tuple[ParamSpec, ...]:
