@@ -726,7 +726,8 @@ def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_p
     for k, ((name, s), th, pl) in enumerate(zip(keys, clip, planes)):
         out = Path(experiment_dir(name)) / "images" / f"{s:04d}.png"
         items.append((th, geom, cam, pl, [base, k], out, render_kw))
-    res = run_batch(_render_one, items, keys=[f"{n}/{s}" for n, s in keys], jobs=jobs, desc="render")
+    res = run_batch(_render_one, items, keys=[f"{n}/{s}" for n, s in keys], jobs=jobs, desc="render",
+                    unit="images")
     if res.failures:
         raise ValueError("rendering failed: " + "; ".join(f"{r.key}: {r.error}" for r in res.failures[:5]))
     return Path(os.path.relpath(calib_dir / "camera.yml", Path(experiment_dir(keys[0][0])))).as_posix() \
