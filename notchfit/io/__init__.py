@@ -35,7 +35,7 @@ _HOME = {
                     "load_detected_points", "points_from_table", "points_table", "read_experiment",
                     "read_experiment_toml", "read_points_table", "read_samples", "read_study", "scan_study",
                     "with_points", "write_experiment"),
-    "images": ("image_info", "load_image"),
+    "images": ("PNG_SETTINGS", "image_info", "load_image", "write_image"),
     "models": ("load_fea_reference", "load_geometry", "load_params", "save_params"),
     "outputs": ("LOCK_NAME", "STAGE_PREFIX", "OutputLockedError", "OutputRun", "atomic_write",
                 "experiment_output_dir", "find_output", "prepare_output_dir", "provenance", "read_detections",

@@ -44,7 +44,7 @@ import numpy as np
 from ..batch import run_batch
 from ..camera import Board, CameraModel
 from ..geometry import Geometry
-from ..io import write_camera
+from ..io import write_camera, write_image
 from ..kinematics import chain, link_origins
 from ..notches import notch_points, to_plane
 from ..units import MM
@@ -737,7 +737,5 @@ def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_p
 def _render_one(item):
     th, geom, cam, pl, seed, out, kw = item
     r = render_manipulator(th, geom, cam, plane=pl, rng=np.random.default_rng(seed), **kw)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), r.image):
-        raise OSError(f"could not write {out}")
+    write_image(out, r.image, png="noisy")       # lossless; noise-dominated: Huffman only
     return str(out)
