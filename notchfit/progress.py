@@ -6,7 +6,8 @@ results:
 
 - on a terminal (stderr is a TTY) a tqdm bar that is removed when the stage ends;
 - otherwise (a log file, a pipe, a test) one line when the stage starts,
-  ``"detect: 162 images ..."``, so that a log says what is running.
+  ``"detect: 162 images ..."``, so that a log says what is running (every
+  such line ends with ``" ..."``: a reader can tell them from messages).
 
 ``enabled=False`` silences a stage (a batch inside another stage's bar);
 ``enabled=True`` forces the bar.
@@ -73,7 +74,7 @@ class Steps:
 
     On a terminal one line shows the current step and the time since the
     stage started (redrawn when the next step starts); piped, each step is a
-    line ``"prefix: step"``. A context manager; :meth:`__call__` starts a
+    line ``"prefix: step ..."``. A context manager; :meth:`__call__` starts a
     step, so an instance is a ``progress=`` callback.
     """
 
@@ -87,7 +88,7 @@ class Steps:
         if self._silent:
             return
         if not self._terminal:
-            say(f"{self.prefix}: {step}")
+            say(f"{self.prefix}: {step} ...")
             return
         if self._bar is None:
             self._bar = _Bar(total=None, file=sys.stderr, leave=False, dynamic_ncols=True,

@@ -113,8 +113,8 @@ def test_progress_steps_when_piped(capsys):
     with Steps("diagnose") as step:
         step("calibrating the baseline")
         step("fitting 6 candidate extensions")
-    assert capsys.readouterr().err.splitlines() == ["diagnose: calibrating the baseline",
-                                                     "diagnose: fitting 6 candidate extensions"]
+    assert capsys.readouterr().err.splitlines() == ["diagnose: calibrating the baseline ...",
+                                                     "diagnose: fitting 6 candidate extensions ..."]
 
 
 def test_progress_starts_no_thread():

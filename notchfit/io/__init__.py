@@ -31,8 +31,8 @@ import importlib
 _HOME = {
     "camera": ("load_board", "read_camera", "write_camera"),
     "errors": ("InputFileError", "InputFileNotFoundError"),
-    "experiments": ("Experiment", "StudyScan", "attach_detections", "is_experiment_dir",
-                    "load_detected_points", "points_from_table", "points_table", "read_experiment",
+    "experiments": ("Experiment", "PointsLookup", "StudyScan", "find_points", "has_own_points",
+                    "is_experiment_dir", "load_detected_points", "points_from_table", "points_table", "read_experiment",
                     "read_experiment_toml", "read_points_table", "read_samples", "read_study", "scan_study",
                     "with_points", "write_experiment"),
     "images": ("PNG_SETTINGS", "image_info", "load_image", "write_image"),
