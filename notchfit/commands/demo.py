@@ -10,8 +10,8 @@ from pathlib import Path
 
 from .. import io
 from .. import diagnosis
-from ..progress import Steps
-from ..report import build_report, summary_lines
+from ..progress import Steps, bar as progress_bar
+from ..report import SECTIONS, build_report, summary_lines
 from ..synth import generate_study, load_recipe
 from . import detect, fit, simulate
 from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call
@@ -111,8 +111,9 @@ def run(args) -> int:
     with Steps("diagnose") as steps:
         diagnose(study_dir, res_dir, jobs=jobs, seed=args.seed, progress=steps)
     _step("report", t0)
-    path = build_report(res_dir, study=study_dir, force=True,
-                        title=f"notchfit demo: hidden effect '{recipe.cause}' (seed {args.seed})")
+    with progress_bar(len(SECTIONS), "report", unit="sections") as bar:
+        path = build_report(res_dir, study=study_dir, force=True, progress=lambda _: bar.update(1),
+                            title=f"notchfit demo: a synthetic study with a hidden effect (seed {args.seed})")
     t = time.perf_counter() - t0
     print(f"\nreport: {path.resolve()}   ({t:.0f} s)")
     for line in summary_lines(res_dir):
