@@ -75,32 +75,49 @@ def _step(name: str, t0: float) -> float:
     return t
 
 
+def demo_study(study_dir, *, cause: str = "proximal_friction", small: bool = False, images=None, seed: int = 7,
+               jobs: int = 1) -> tuple:
+    """Write the demo's synthetic study into ``study_dir`` (what ``notchfit demo`` analyses).
+
+    Returns
+    -------
+    recipe : notchfit.synth.Recipe
+        The recipe as scaled for the demo.
+    images : bool
+        Whether images were rendered (default: yes for the full demo, no with
+        ``small``; never for ``calibration_error``, whose warp acts on points).
+    """
+    n_exp, n_up, n_down = SIZES["small" if small else "full"]
+    images = (not small) if images is None else bool(images)
+    if images and load_recipe(cause).cause == "calibration_error":
+        images = False          # its warp acts on points (notchfit.synth.write_study)
+    recipe = load_recipe(cause).scaled(n_experiments=n_exp, n_up=n_up, n_down=n_down)
+    recipe = recipe.replace(image_options={"mm_per_px": IMAGE_MM_PER_PX, **recipe.image_options})
+    generate_study(recipe, study_dir, seed=seed, force=True, jobs=jobs, images=images)
+    return recipe, images
+
+
 def run(args) -> int:
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
     out = Path(args.out)
     study_dir, res_dir = out / "study", out / "results"
     if out.exists() and any(out.iterdir()) and not args.force:
         raise FileExistsError(f"{out}: holds an earlier demo; use --force to replace it or --out elsewhere")
-    n_exp, n_up, n_down = SIZES["small" if args.small else "full"]
-    images = (not args.small) if args.images is None else bool(args.images)
-    if images and load_recipe(args.cause).cause == "calibration_error":
-        images = False          # its warp acts on points (notchfit.synth.write_study)
-    recipe = load_recipe(args.cause).scaled(n_experiments=n_exp, n_up=n_up, n_down=n_down)
-    recipe = recipe.replace(image_options={"mm_per_px": IMAGE_MM_PER_PX, **recipe.image_options})
     t0 = time.perf_counter()
-    _step(f"synth: recipe {recipe.name}, {n_exp} experiments, seed {args.seed}"
-          f"{', rendering images' if images else ''} -> {study_dir}", t0)
-    generate_study(recipe, study_dir, seed=args.seed, force=True, jobs=jobs, images=images)
+    _step(f"synth: recipe {args.cause}, the {'small' if args.small else 'full'} study, seed {args.seed} "
+          f"-> {study_dir}", t0)
+    recipe, images = demo_study(study_dir, cause=args.cause, small=args.small, images=args.images,
+                                seed=args.seed, jobs=jobs)
     if res_dir.exists() and args.force:
         shutil.rmtree(res_dir)
     common = ["--out", str(res_dir), "--jobs", str(jobs)]
-    steps = []
+    commands = []
     if images:
-        steps.append((detect, [str(study_dir), *common]))
-    steps += [(fit, [str(study_dir), "--models", "cc,linear", *common]),
-              (simulate, [str(study_dir), *common])]
+        commands.append((detect, [str(study_dir), *common]))
+    commands += [(fit, [str(study_dir), "--models", "cc,linear", *common]),
+                 (simulate, [str(study_dir), *common])]
     failed = []
-    for command, argv in steps:
+    for command, argv in commands:
         _step(f"{command.NAME}", t0)
         rc = call(command, argv)
         if rc == EXIT_INPUT_ERROR:
@@ -115,7 +132,7 @@ def run(args) -> int:
         path = build_report(res_dir, study=study_dir, force=True, progress=lambda _: bar.update(1),
                             title=f"notchfit demo: a synthetic study with a hidden effect (seed {args.seed})")
     t = time.perf_counter() - t0
-    print(f"\nreport: {path.resolve()}   ({t:.0f} s)")
+    print(f"\nreport: {path}   ({t:.0f} s; open it in a browser)")
     for line in summary_lines(res_dir):
         print(line)
     try:
