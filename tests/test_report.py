@@ -196,6 +196,12 @@ def test_every_simulation_states_its_parameters(full_run):
     sim = re.search(r'<p class="params">(.*?)</p>', sections(report.build_report(out, force=True).read_text())
                     ["simulation"], re.S).group(1)
     assert "model file <code>ext/extended_model.toml</code>" in sim and "extension β = 0.1" in sim
+    # --param overrides: named with their values
+    io.write_json_atomic({**rec, "param_overrides": ["mu_d=0.25"], "params": {**rec["params"], "mu_d": 0.25}},
+                         out / "simulate_run.json")
+    sim = re.search(r'<p class="params">(.*?)</p>', sections(report.build_report(out, force=True).read_text())
+                    ["simulation"], re.S).group(1)
+    assert "--param mu_d=0.25" in sim and "μ_d = 0.25" in sim and "default values" not in sim
 
 
 def b_signs(html) -> dict:

@@ -169,6 +169,7 @@ def run(args) -> int:
                                            **_params_record(params),
                                            clipped_tensions={e.name: e.n_clipped for e in exps if e.n_clipped},
                                            model_file=str(args.model) if args.model else None,
+                                           param_overrides=list(args.param),
                                            method=args.method, experiments=names, failures=failed),
                              run_.path("simulate_run.json"))
     _print_summary(exps, res, failed, args.out, len(scan.problems))

@@ -36,9 +36,6 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
-
 from .. import io as nio
 from .._version import __version__
 from ..cables import pulled_side

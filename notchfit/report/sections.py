@@ -299,12 +299,15 @@ def _sim_params_text(inp) -> str:
     paper = {k: getattr(_PAPER, k) for k in fields}
     changed = {k: v for k, v in params.items() if k in paper and not np.isclose(v, paper[k])}
     core = {k: params[k] for k in ("k_lin", "k_mid", "mu_d", "mu_s", "b", "v_thr") if k in params}
+    overrides = rec.get("param_overrides") or []
     if model:
         what = f"from the model file <code>{esc(model)}</code>"
-    elif changed:
-        what = "the paper's values with " + esc(_params(changed))
-    else:
+    elif not changed:
         what = "<b>the paper's default values</b>, not calibrated to this tube (the diagnosis below calibrates them)"
+    elif overrides:
+        what = f"the defaults with <code>--param {esc(' --param '.join(overrides))}</code>"
+    else:
+        what = "<b>notchfit's default values for this geometry</b> (notchfit.friction.default_params), not calibrated"
     ext = {k: v for k, v in changed.items() if k in ("proximal_beta", "hysteresis_torque", "tip_force_x",
                                                       "tip_force_z", "stiffness_gradient")}
     return (f'<p class="params"><b>Parameters:</b> {what}: {esc(_params(core))}'
