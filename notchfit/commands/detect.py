@@ -26,8 +26,8 @@ slots recognised by their width and depth, sub-pixel line fits to edge profiles.
 
 Writes detections.csv (sample,point,x_mm,y_mm,u_px,v_px,sigma_mm,status; status ok,
 ambiguous or occluded; NaN where a point was not found, never a guess), an overlay per
-sample in overlays/NNNN.jpg (a crop around the tube, 1000 px high, with the outline and the
-numbered corners coloured by status; --full-overlays adds the whole view beside it), and
+sample in overlays/NNNN.jpg (a crop around the tube, its longer side 1000 px, with the outline
+and the numbered corners coloured by status; --full-overlays adds the whole view beside it), and
 detect_run.json (per-sample image status and messages); for a study, into
 OUT/<experiment>/. A missing or corrupt image is reported and the other samples finish
 (exit code 1 listing them).

@@ -1,4 +1,4 @@
-"""``notchfit report``: one self-contained HTML report of an output folder."""
+"""``notchfit report``: one HTML report of an output folder that reads at a glance."""
 
 from __future__ import annotations
 
