@@ -38,13 +38,16 @@ CAUSE_TEXT = {
     "none": "nothing beyond the measurement noise: the calibrated paper model explains the data",
     "unexplained": "a significant error that none of the candidate effects removes",
 }
-#: Symbols and units of the friction parameters, for the parameter statements.
+#: Symbols and units of the model parameters, for the parameter statements (and the factor from the SI
+#: value in diagnosis.json to the unit shown: lengths in mm).
 PARAM_TEXT = {"k_lin": ("k_lin", "N m/rad"), "k_mid": ("k_mid", "N m/rad"), "k_stop": ("k_stop", "N m/rad"),
               "theta_mid": ("θ_mid", "rad"), "theta_stop": ("θ_stop", "rad"), "mu_d": ("μ_d", ""),
               "mu_s": ("μ_s", ""), "b": ("damping b", "N m s/rad"), "v_thr": ("v_thr", "m/s"),
               "proximal_beta": ("β", ""), "hysteresis_torque": ("play torque", "N m"),
               "tip_force_x": ("F_x", "N"), "tip_force_z": ("F_z", "N"), "stiffness_gradient": ("gradient", ""),
-              "mu_s_minus_mu_d": ("μ_s − μ_d", ""), "mu_s_excess": ("μ_s − μ_d", "")}
+              "mu_s_minus_mu_d": ("μ_s − μ_d", ""), "mu_s_excess": ("μ_s − μ_d", ""),
+              "scale_error": ("scale error", ""), "k_radial": ("radial k", ""),
+              "warp_center_x": ("warp centre x", "mm", 1e3), "warp_center_y": ("warp centre y", "mm", 1e3)}
 _PAPER = FrictionParams()
 
 
@@ -55,8 +58,9 @@ def causes_of(d: dict) -> list[str]:
 
 
 def _param(name: str, value, se=None) -> str:
-    sym, unit = PARAM_TEXT.get(name, (name, ""))
-    txt = f"{sym} = {num(value, 4, trim=True)}" + (f" ± {num(se, 2)}" if se is not None else "")
+    sym, unit, *factor = PARAM_TEXT.get(name, (name, ""))
+    f = factor[0] if factor else 1.0
+    txt = f"{sym} = {num(value * f, 4, trim=True)}" + (f" ± {num(se * f, 2)}" if se is not None else "")
     return txt + (f" {unit}" if unit else "")
 
 
