@@ -104,7 +104,7 @@ def fit_errors_figure(by_point: pd.DataFrame, by_sample: pd.DataFrame):
     ax1, ax2 = fig.subplots(1, 2)
     for model, g in by_point.groupby("model", sort=False):
         ax1.plot(g["point"], g["rms_mm"], marker=".", lw=1, label=model)
-    ax1.set_xlabel("notch point (1–29 one side base → tip, 30–58 the other, tip → base)")
+    ax1.set_xlabel("notch point (right side 2–29 base → tip, left side 30–58 tip → base)")
     ax1.set_ylabel("fit error, rms [mm]")
     ax1.set_title("where along the tube the fits miss", fontsize=10)
     ax1.legend(fontsize=8)
