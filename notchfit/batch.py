@@ -6,8 +6,9 @@ distributed cluster (``scheduler="tcp://host:8786"``, needs the ``dask``
 extra). One item failing (an exception, a corrupt image, even a worker
 process that dies) never stops the others: its reason is recorded in the
 :class:`BatchResult`, whose :meth:`~BatchResult.summary` lists every failure.
-A tqdm progress bar is shown on a terminal (disabled when stderr is not a
-TTY).
+Progress (:mod:`notchfit.progress`): a tqdm bar on a terminal, one line
+``"desc: N items ..."`` on stderr when it is not a terminal. A Dask scheduler
+that does not answer is reported after ``connect_timeout`` seconds.
 
 ``func`` must be picklable (a module-level function) for ``jobs>1`` and for
 Dask.
@@ -41,7 +42,8 @@ from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
 from threadpoolctl import threadpool_limits
-from tqdm.auto import tqdm
+
+from .progress import bar as progress_bar
 
 __all__ = ["BatchResult", "ItemResult", "run_batch", "single_threaded_worker", "worker_init"]
 
@@ -157,9 +159,10 @@ def _call(func, item):
         return False, None, _describe(exc), time.perf_counter() - t0
 
 
-def _progress(total, desc, progress):
-    disable = (not sys.stderr.isatty()) if progress is None else (not progress)
-    return tqdm(total=total, desc=desc, disable=disable, leave=False, file=sys.stderr)
+def _progress(total, desc, progress, jobs: int = 1, unit: str = "items"):
+    """The batch's bar (:func:`notchfit.progress.bar`); piped, its line names the processes."""
+    label = desc if (desc is None or jobs <= 1) else f"{desc} ({jobs} processes)"
+    return progress_bar(total, label, enabled=progress, unit=unit)
 
 
 def _mp_context(start_method: str | None = None):
@@ -178,7 +181,8 @@ def _mp_context(start_method: str | None = None):
 
 def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = None, jobs: int = 1,
               scheduler=None, desc: str | None = None, progress: bool | None = None,
-              start_method: str | None = None) -> BatchResult:
+              start_method: str | None = None, connect_timeout: float = 5.0,
+              unit: str = "items") -> BatchResult:
     """Call ``func(item)`` for every item, isolating failures.
 
     Parameters
@@ -197,11 +201,17 @@ def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = N
     desc : str, optional
         Progress-bar label.
     progress : bool, optional
-        Force the bar on/off (default: on when stderr is a terminal).
+        Force the bar on/off (default: a bar on a terminal, else one line
+        when ``desc`` is given; :func:`notchfit.progress.bar`).
     start_method : str, optional
         ``multiprocessing`` start method of the worker processes (``"fork"``,
         ``"spawn"``, ``"forkserver"``); default: fork when this process runs
         no other thread, else spawn.
+    unit : str
+        What an item is, for the progress line (``"images"``, ``"experiments"``).
+    connect_timeout : float
+        Seconds to wait for a Dask scheduler to answer before the run fails
+        with ``ValueError`` naming the address [s].
 
     Returns
     -------
@@ -216,24 +226,24 @@ def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = N
         jobs = os.cpu_count() or 1
     t0 = time.perf_counter()
     if scheduler is not None:
-        out = _run_dask(func, items, scheduler, desc, progress)
+        out = _run_dask(func, items, scheduler, desc, progress, connect_timeout, unit)
     elif jobs == 1 or len(items) <= 1:
         out = []
-        with _progress(len(items), desc, progress) as bar:
+        with _progress(len(items), desc, progress, unit=unit) as bar:
             for it in items:
                 out.append(_call(func, it))
                 bar.update(1)
     else:
-        out = _run_pool(func, items, min(jobs, len(items)), desc, progress, _mp_context(start_method))
+        out = _run_pool(func, items, min(jobs, len(items)), desc, progress, _mp_context(start_method), unit)
     res = tuple(ItemResult(key=k, ok=o[0], value=o[1], error=o[2], seconds=o[3]) for k, o in zip(keys, out))
     return BatchResult(items=res, seconds=time.perf_counter() - t0)
 
 
-def _run_pool(func, items, jobs, desc, progress, ctx):
+def _run_pool(func, items, jobs, desc, progress, ctx, unit="items"):
     """Process pool with at most ``jobs`` items in flight, so a dead worker blames few items."""
     out: list = [None] * len(items)
     todo = list(range(len(items)))[::-1]
-    with _progress(len(items), desc, progress) as bar:
+    with _progress(len(items), desc, progress, jobs, unit) as bar:
         while todo:
             pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=worker_init)
             inflight: dict = {}
@@ -287,22 +297,23 @@ def _run_isolated(func, item, ctx):
             raise
 
 
-def _run_dask(func, items, scheduler, desc, progress):
+def _run_dask(func, items, scheduler, desc, progress, connect_timeout: float = 5.0, unit="items"):
     try:  # Dask is an optional extra, slow to import: only with a scheduler
         from distributed import Client, as_completed
     except ImportError:
         raise ValueError("--scheduler needs Dask distributed: pip install 'notchfit[dask]'") from None
     own = not isinstance(scheduler, Client)
     try:
-        client = Client(scheduler) if own else scheduler
-    except OSError as exc:
-        raise ValueError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None
+        client = Client(scheduler, timeout=connect_timeout) if own else scheduler
+    except Exception as exc:  # noqa: BLE001 - OSError/TimeoutError, or garbage from a non-Dask server
+        raise ValueError(f"cannot connect to the Dask scheduler at {scheduler} (no answer within "
+                         f"{connect_timeout:g} s): {_describe(exc)}") from None
     futures = []
     try:
         futures = [client.submit(_call, func, it, pure=False) for it in items]
         index = {f.key: i for i, f in enumerate(futures)}
         out: list = [None] * len(items)
-        with _progress(len(items), desc, progress) as bar:
+        with _progress(len(items), desc, progress, unit=unit) as bar:
             for f in as_completed(futures):
                 i = index[f.key]
                 try:

@@ -68,9 +68,15 @@ def prior_outputs(out: Path) -> dict:
     return snapshot(out)
 
 
+def messages(err: str) -> list[str]:
+    """The stderr lines that are not progress lines (notchfit.progress: those end with " ...")."""
+    return [ln for ln in err.splitlines() if ln.strip() and not ln.endswith(" ...")]
+
+
 def assert_one_line_error(rc: int, err: str, *needles: str, code: int = 2) -> str:
-    """Exit ``code``, exactly one stderr line, no traceback, every needle in that line; returns it."""
-    lines = [ln for ln in err.splitlines() if ln.strip()]
+    """Exit ``code``, exactly one stderr line besides the progress lines of the stages that ran
+    (notchfit.progress: they end with " ..."), no traceback, every needle in that line; returns it."""
+    lines = messages(err)
     assert rc == code, (rc, err)
     assert "Traceback" not in err, err
     assert len(lines) == 1, err

@@ -94,3 +94,49 @@ def test_workers_start_after_the_parent_used_native_thread_pools():
     )
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+def test_progress_is_one_line_per_batch_when_piped(capsys):
+    """Not a terminal (pytest captures stderr): one line naming the stage and its size, no bar."""
+    res = run_batch(abs, [-1, -2, -3], desc="square")
+    assert res.values() == [1, 2, 3]
+    err = capsys.readouterr().err
+    assert err == "square: 3 items ...\n"
+    run_batch(abs, [-1], desc="quiet", progress=False)
+    run_batch(abs, [-1])                                   # no stage name: nothing to say
+    assert capsys.readouterr().err == ""
+
+
+def test_progress_steps_when_piped(capsys):
+    from notchfit.progress import Steps
+
+    with Steps("diagnose") as step:
+        step("calibrating the baseline")
+        step("fitting 6 candidate extensions")
+    assert capsys.readouterr().err.splitlines() == ["diagnose: calibrating the baseline ...",
+                                                     "diagnose: fitting 6 candidate extensions ..."]
+
+
+def test_progress_starts_no_thread():
+    """A thread in the parent would make the worker processes start by spawn, not fork (batch._mp_context)."""
+    import threading
+
+    from notchfit.progress import Steps, bar
+
+    before = threading.active_count()
+    with bar(2, "x", enabled=True) as b:
+        b.update(2)
+    with Steps("y", enabled=True) as step:
+        step("one")
+    assert threading.active_count() == before
+
+
+def test_dead_scheduler_is_reported_within_the_connect_timeout():
+    """A scheduler address where nothing answers fails in seconds (Dask's own default waits 30 s)."""
+    import time
+
+    pytest.importorskip("distributed")
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=r"tcp://127\.0\.0\.1:9 \(no answer within 2 s\)"):
+        run_batch(abs, [-1, -2], scheduler="tcp://127.0.0.1:9", connect_timeout=2.0)
+    assert time.perf_counter() - t0 < 25.0          # the bound is the timeout, not a speed claim

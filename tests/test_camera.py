@@ -220,3 +220,29 @@ def test_camera_file_has_normal_permissions(tmp_path):
         os.umask(mask)
     assert path.stat().st_mode & 0o777 == 0o644
     assert [p.name for p in tmp_path.iterdir()] == ["camera.yml"]
+
+
+def test_shipped_sample_views_are_the_rendered_board():
+    """calibration/samples/charuco_a4 (README: `calibrate` in one command) are the views
+    notchfit.render.boards renders (JPEG quality 90: a few DN apart), small, and they calibrate
+    to the camera they were rendered with."""
+    from notchfit.io import calibration_dir, load_image
+    from notchfit.render.boards import SAMPLE_CAMERA, SAMPLE_PLANE_POSE, sample_board_views
+
+    folder = calibration_dir() / "samples" / "charuco_a4"
+    board = load_board("charuco_a4")
+    views = sample_board_views(board)
+    assert sorted(p.stem for p in folder.glob("*.jpg")) == sorted(views)
+    for name, v in views.items():
+        path = folder / f"{name}.jpg"
+        assert path.stat().st_size < 80_000
+        diff = np.abs(load_image(path).astype(float) - v.image)
+        assert diff.mean() < 2.0 and np.percentile(diff, 99) < 12, name
+    images = [load_image(folder / f"view{k}.jpg") for k in range(1, 6)]
+    cal = calibrate_camera(images, board)
+    K = cal.camera.camera_matrix
+    assert cal.n_used == 5 and cal.rms < 0.2
+    assert np.allclose(K[[0, 1, 0, 1], [0, 1, 2, 2]], SAMPLE_CAMERA.camera_matrix[[0, 1, 0, 1], [0, 1, 2, 2]],
+                       rtol=0.01)
+    pose = estimate_plane_pose(load_image(folder / "plane.jpg"), board, cal.camera)
+    assert np.allclose(np.ravel(pose.tvec), SAMPLE_PLANE_POSE[1], atol=3e-3)

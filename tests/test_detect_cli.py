@@ -45,10 +45,16 @@ def test_detect_cli_writes_detections_and_overlays(tmp_path, geom, capsys):
     assert (df["status"] == "ok").all() and len(df) == 116
     exp = io.load_detected_points(io.read_experiment(folder), out / "detections.csv")
     assert np.abs(exp.points - truth).max() < 0.03e-3
-    assert (out / "overlays" / "0001.png").is_file() and (out / "detect_run.json").is_file()
-    # nothing overwritten without --force
+    assert (out / "detect_run.json").is_file()
+    # the overlay: a JPEG crop around the tube, its longer side 1000 px, fewer pixels than the image
+    crop = cv2.imread(str(out / "overlays" / "0001.jpg"))
+    img = cv2.imread(str(folder / "images" / "0001.png"), cv2.IMREAD_UNCHANGED)
+    assert max(crop.shape[:2]) == 1000 and crop.shape[0] * crop.shape[1] < img.size
+    # nothing overwritten without --force; --full-overlays adds the whole view beside the crop
     assert main(["detect", str(folder), "--out", str(out)]) == 2
-    assert main(["detect", str(folder), "--out", str(out), "--force"]) == 0
+    assert main(["detect", str(folder), "--out", str(out), "--force", "--full-overlays"]) == 0
+    both = cv2.imread(str(out / "overlays" / "0001.jpg"))
+    assert both.shape[0] == 1000 and both.shape[1] > 1000 * img.shape[1] / img.shape[0]
 
 
 def test_detect_cli_reports_corrupt_and_missing_images(tmp_path, geom, capsys):
@@ -117,5 +123,5 @@ def test_detect_cli_photo_without_calibration_and_stated_base(tmp_path, capsys):
     assert abs(run["scale_mm_per_px"] - 1 / 40) < 0.01 / 40
     det = pd.read_csv(out / "detections.csv")
     assert (det["status"] == "ok").sum() == r.visible.sum()
-    ov = cv2.imread(str(out / "overlays" / "0001.png"))
-    assert ov.shape[0] == 1000                      # readable at any photo size: the composed view
+    ov = cv2.imread(str(out / "overlays" / "0001.jpg"))
+    assert max(ov.shape[:2]) == 1000                # readable at any photo size: the crop at 1000 px

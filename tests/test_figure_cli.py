@@ -58,10 +58,36 @@ def test_discover_broken_module_is_named(tmp_path, monkeypatch):
 
 
 def test_cli_list(capsys):
+    """Every figure, in natural order (fig3 before fig11), described in plain text (no reST markup)."""
     assert main(["figure", "--list"]) == 0
     out = capsys.readouterr().out
     for name in MINE:
         assert name in out
+    names = [ln.split()[0] for ln in out.splitlines()]
+    assert names.index("fig3") < names.index("fig8") < names.index("fig11") < names.index("fig19")
+    assert "``" not in out and ":func:" not in out and "`" not in out
+    assert "error L_Ri - L_RSi of the simplified segment length" in out
+
+
+def test_natural_key_and_plain_text():
+    from notchfit.commands.figure import plain_text
+    from notchfit.figures import natural_key
+
+    assert sorted(["fig11", "fig3", "hysteresis", "fig_fea", "fig19"], key=natural_key) == \
+        ["fig3", "fig11", "fig19", "fig_fea", "hysteresis"]
+    assert plain_text("see :func:`notchfit.x` and ``a + b`` or `c`") == "see notchfit.x and a + b or c"
+
+
+def test_cli_all_names_every_figure_and_keeps_existing_files(tmp_path, capsys):
+    """`figure all` = every listed figure; with every file present nothing is redrawn (exit 0)."""
+    names = list(discover())
+    for n in names:
+        (tmp_path / f"{n}.png").write_bytes(PNG_MAGIC)
+    assert main(["figure", "all", "--out", str(tmp_path)]) == 0
+    kept = [ln.split(":")[0] for ln in capsys.readouterr().out.splitlines() if ": kept " in ln]
+    assert kept == names
+    assert main(["figure", "all", "fig99", "--out", str(tmp_path)]) == 2
+    assert "available: all, fig3" in capsys.readouterr().err
 
 
 def test_cli_writes_data_and_png_and_refuses_overwrite(tmp_path, capsys):
@@ -82,13 +108,14 @@ def test_cli_writes_data_and_png_and_refuses_overwrite(tmp_path, capsys):
     assert row.error_um == pytest.approx(expect, rel=1e-6, abs=1e-9)
     df6 = pd.read_csv(out / "fig6.csv")
     assert df6.length_um.min() == pytest.approx(810 - 2 * 0.14 * 2500, abs=1e-6)   # Fig. 6 range
-    # no silent overwrite: exit 2 and the file is untouched
+    # existing files are kept (README "Paper figures"): said, exit 0, the file untouched; --force redraws
     before = (out / "fig7.png").stat().st_mtime_ns
     capsys.readouterr()
-    assert main(["figure", "fig7", "--out", str(out)]) == 2
-    assert "--force" in capsys.readouterr().err
+    assert main(["figure", "fig7", "--out", str(out)]) == 0
+    assert f"fig7: kept {out / 'fig7.csv'}, {out / 'fig7.png'} (exist; --force" in capsys.readouterr().out
     assert (out / "fig7.png").stat().st_mtime_ns == before
     assert main(["figure", "fig7", "--out", str(out), "--force"]) == 0
+    assert (out / "fig7.png").stat().st_mtime_ns > before
 
 
 def test_cli_input_errors(tmp_path, capsys):

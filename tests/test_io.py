@@ -376,3 +376,22 @@ def test_friction_aliases_do_not_import_io_early():
             "assert load_params is io.load_params and save_params is io.save_params\n"
             "assert notchfit.load_geometry is io.load_geometry\n")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_write_image_png_is_lossless_and_jpeg_is_small(tmp_path):
+    """Study images round-trip exactly (they are measured again); overlays may be lossy but are small."""
+    rng = np.random.default_rng(3)
+    noisy = np.clip(160 + rng.normal(0, 3.2, (300, 400)), 0, 255).astype(np.uint8)     # a render's noise
+    for png in ("noisy", "graphics"):
+        p = io.write_image(tmp_path / f"{png}.png", noisy, png=png)
+        assert np.array_equal(io.load_image(p), noisy)
+    colour = np.dstack([noisy] * 3)
+    j = io.write_image(tmp_path / "o.jpg", colour, jpeg_quality=85)
+    back = io.load_image(j)
+    assert back.shape == colour.shape and np.abs(back.astype(int) - colour).mean() < 3
+    assert j.stat().st_size < (tmp_path / "noisy.png").stat().st_size
+    # Huffman coding alone is the smaller PNG for noise-dominated pixels (docs/history.md)
+    assert (tmp_path / "noisy.png").stat().st_size <= (tmp_path / "graphics.png").stat().st_size
+    with pytest.raises(ValueError, match=r"\.tif"):
+        io.write_image(tmp_path / "x.tif", noisy)
+    assert not list(tmp_path.glob("*.tmp*"))

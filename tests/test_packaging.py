@@ -19,7 +19,9 @@ def test_every_package_is_listed():
     code = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "notchfit").rglob("__init__.py")}
     assert code <= listed, f"add to pyproject.toml [tool.setuptools] packages: {sorted(code - listed)}"
     data = {"notchfit.datasets", "notchfit.calibration"}
-    data |= {"notchfit.datasets." + p.name for p in (ROOT / "datasets").iterdir() if p.is_dir()}
+    for top in ("datasets", "calibration"):
+        data |= {".".join(("notchfit", top) + p.relative_to(ROOT / top).parts)
+                 for p in (ROOT / top).rglob("*") if p.is_dir() and p.name != "__pycache__"}
     assert listed == code | data
     assert cfg["package-dir"] == {"notchfit.datasets": "datasets", "notchfit.calibration": "calibration"}
 
@@ -38,6 +40,7 @@ def test_every_shipped_file_is_package_data():
 def test_shipped_folders_and_overrides(tmp_path, monkeypatch):
     assert (datasets_dir() / "geometry" / "default.toml").is_file()
     assert (calibration_dir() / "charuco_a4.toml").is_file()
+    assert len(list((calibration_dir() / "samples" / "charuco_a4").glob("*.jpg"))) == 6   # README calibrate
     monkeypatch.setenv("NOTCHFIT_DATASETS", str(tmp_path))
     assert datasets_dir() == tmp_path
     with pytest.raises(FileNotFoundError, match="default.toml"):

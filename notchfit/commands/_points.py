@@ -1,30 +1,74 @@
-"""Where an experiment's measured data come from, and whether they are enough for a fit.
+"""Where an experiment's measured data come from, said in one line, and whether they are enough for a fit.
 
-Shared by ``fit``, ``simulate``, ``identify`` and ``diagnose`` so that an
-experiment without usable data is reported with its name, its points file and
-the step the user asked for (not a model the user never named). Measured data
-are notch points (``notch_points.csv`` or detect's ``detections.csv``) or
-joint angles (``angles.csv``, :func:`with_measurements`).
+Every command that needs measured data (``fit``, ``simulate``, ``identify``,
+``diagnose``, and ``demo`` through them) looks in the same places in the
+same order (:func:`notchfit.io.find_points`): the experiment's own
+``notch_points.csv``, then the detect run named by ``--points DIR``, then the
+``--out`` folder, then the experiment's own ``angles.csv`` (measured joint
+angles); and says which it used (:func:`source_lines`). An experiment without
+usable data is reported with its name, its file and the step the user asked
+for (not a model the user never named).
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 
 from .. import io
 
-__all__ = ["points_file", "points_problem", "with_measurements"]
+__all__ = ["MISSING_HINT", "lookup_points", "points_problem", "source_lines"]
+
+#: How to give an experiment without points its points (appended to the messages).
+MISSING_HINT = ("run `notchfit detect STUDY --out DIR` first and give the same --out, or --points DIR of "
+                "that detect run, or give the experiment an angles.csv of measured joint angles")
 
 
-def points_file(exp, points_dir) -> Path:
-    """Where ``exp``'s notch points come from: its ``notch_points.csv``, else detect's ``detections.csv``."""
-    own = Path(exp.path) / "notch_points.csv"
-    if own.is_file() or points_dir is None:
-        return own
-    found = io.find_output(points_dir, "detections.csv")
-    return found.get(exp.name) or found.get("", Path(points_dir) / exp.name / "detections.csv")
+def _where(path: Path) -> str:
+    """A path as the user would type it: relative to the working folder when inside it."""
+    try:
+        rel = os.path.relpath(path)
+    except ValueError:                      # another drive (Windows)
+        return str(path)
+    return str(path) if rel.startswith("..") else rel
+
+
+def _names(names: list[str], limit: int = 6) -> str:
+    shown = ", ".join(names[:limit])
+    return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
+
+
+def source_lines(lookup, command: str) -> list[str]:
+    """One line per place the points came from, e.g.
+    ``fit: points of L045, L150 from detections.csv in out (--out)``."""
+    groups: dict = {}
+    for name, (where, path) in lookup.sources.items():
+        if where == "own" and path.name == "angles.csv":
+            where = "own angles"
+        folder = None if where.startswith("own") else (path.parent.parent if path.parent.name == name
+                                                        else path.parent)
+        key = (where, folder)
+        groups.setdefault(key, []).append(name)
+    lines = []
+    for (where, folder), names in groups.items():
+        if where == "own":
+            lines.append(f"{command}: points of {_names(names)} from their own notch_points.csv")
+        elif where == "own angles":
+            lines.append(f"{command}: joint angles of {_names(names)} from their own angles.csv")
+        else:
+            lines.append(f"{command}: points of {_names(names)} from detections.csv in {_where(folder)} ({where})")
+    return lines
+
+
+def lookup_points(exps, args, command: str, *, say=print) -> "io.PointsLookup":
+    """:func:`notchfit.io.find_points` over the experiment's own files, ``--points``, ``--out``; the
+    sources said in one line each (``say``)."""
+    lookup = io.find_points(exps, [("--points", getattr(args, "points", None)), ("--out", args.out)])
+    for line in source_lines(lookup, command):
+        say(line)
+    return lookup
 
 
 def points_problem(exp, source, what: str) -> str | None:
@@ -42,29 +86,3 @@ def points_problem(exp, source, what: str) -> str | None:
         return (f"{source}: no sample has enough notch points for {what}: the plane transform needs more "
                 f"than {n // 2} points of one sample, the most is {counts.max()}")
     return None
-
-
-
-def with_measurements(exps, points_dir) -> tuple[list, dict]:
-    """The experiments with measured data: notch points (own or detected) or joint angles.
-
-    :func:`notchfit.io.attach_detections` gives experiments without
-    ``notch_points.csv`` the points of a detect run; one with ``angles.csv`` is
-    kept without points. Order is kept.
-
-    Returns
-    -------
-    experiments : list of Experiment
-    problems : dict
-        ``{name: reason}`` for those with neither points nor angles.
-    """
-    with_pts, problems = io.attach_detections(exps, points_dir, require=False)
-    by_name = {e.name: e for e in with_pts}
-    out = []
-    for e in exps:
-        if e.name in by_name:
-            out.append(by_name[e.name])
-        elif e.angles is not None:
-            problems.pop(e.name, None)
-            out.append(e)
-    return out, problems

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..io import load_board, load_image, write_camera
+from ..progress import bar as progress_bar
 from ._common import EXIT_ITEMS_FAILED, InputError
 
 NAME = "calibrate"
@@ -43,21 +44,26 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     # slow optional dependency: notchfit.camera imports cv2
-    from ..camera import calibrate_camera, estimate_plane_pose
+    from ..camera import calibrate_camera, detect_board, estimate_plane_pose
 
     if args.out.exists() and not args.force:
         raise InputError(f"{args.out} exists; use --force to replace it")
     board = load_board(args.board)
-    images, names, unreadable = [], [], {}
-    for p in args.images:
-        try:
-            images.append(load_image(p))
+    images, names, found, unreadable = [], [], [], {}
+    with progress_bar(len(args.images), "calibrate: finding the board", unit="images") as bar:
+        for p in args.images:
+            bar.update(1)
+            try:
+                img = load_image(p)
+            except (FileNotFoundError, ValueError) as exc:
+                unreadable[p.name] = str(exc)
+                continue
+            images.append(img)
             names.append(p.name)
-        except (FileNotFoundError, ValueError) as exc:
-            unreadable[p.name] = str(exc)
+            found.append(detect_board(img, board))
     if not images:
         raise InputError("no readable calibration image: " + "; ".join(unreadable.values()))
-    cal = calibrate_camera(images, board, names=names, dist_model=args.dist_model,
+    cal = calibrate_camera(images, board, names=names, detections=found, dist_model=args.dist_model,
                            max_view_rms=args.max_view_rms)
     cam = cal.camera
     if args.plane_image is not None:

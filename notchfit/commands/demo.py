@@ -10,10 +10,12 @@ from pathlib import Path
 
 from .. import io
 from .. import diagnosis
-from ..report import build_report, summary_lines
+from ..progress import Steps, bar as progress_bar
+from ..report import SECTIONS, build_report, summary_lines
 from ..synth import generate_study, load_recipe
 from . import detect, fit, simulate
 from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call, count_option, jobs_option
+from ._points import MISSING_HINT, source_lines
 from ._wrist_demo import run_wrist_demo
 from .diagnose import write_diagnosis
 
@@ -30,11 +32,13 @@ and print where the report is and a three-line summary: the shape-fit errors, th
 diagnosis names, and the gain of the extended model on held-out experiments. The hidden
 truth (OUT/study/truth.json) is read only to print it after the summary.
 
-The full demo has 6 experiments and 162 rendered images; --small has 4 experiments and
-notch points without images (much faster; docs/history.md has measured run times).
+The full demo has 6 experiments and 162 rendered images (0.05 mm per pixel, lossless PNG);
+--small has 4 experiments and notch points without images (much faster; docs/history.md has
+measured run times and output sizes).
 
-Outputs: OUT/study/ (the synthetic study) and OUT/results/ (fits, simulation, diagnosis,
-report.html).
+Outputs: OUT/study/ (the synthetic study) and OUT/results/ (detections and their overlays,
+fits, simulation, diagnosis, report.html); about 150 MB for the full demo, 10 MB with --small.
+The default OUT, ./notchfit-demo, is in the repository's .gitignore.
 
 Examples:
   notchfit demo
@@ -47,6 +51,10 @@ Examples:
 
 #: Built-in sizes: (experiments, samples on the loading ramp, on the unloading ramp).
 SIZES = {"full": (6, 12, 14), "small": (4, 8, 10)}
+#: Pixel size of the rendered images [mm/px] (unless the recipe's [images] sets one): every
+#: corner is still found with 0.0035 mm rms (docs/robustness.md), and the study's lossless
+#: images take a third of the space of 0.03 mm/px (docs/history.md).
+IMAGE_MM_PER_PX = 0.05
 
 
 def add_arguments(parser) -> None:
@@ -72,6 +80,28 @@ def _step(name: str, t0: float) -> float:
     return t
 
 
+def demo_study(study_dir, *, cause: str = "proximal_friction", small: bool = False, images=None, seed: int = 7,
+               jobs: int = 1) -> tuple:
+    """Write the demo's synthetic study into ``study_dir`` (what ``notchfit demo`` analyses).
+
+    Returns
+    -------
+    recipe : notchfit.synth.Recipe
+        The recipe as scaled for the demo.
+    images : bool
+        Whether images were rendered (default: yes for the full demo, no with
+        ``small``; never for ``calibration_error``, whose warp acts on points).
+    """
+    n_exp, n_up, n_down = SIZES["small" if small else "full"]
+    images = (not small) if images is None else bool(images)
+    if images and load_recipe(cause).cause == "calibration_error":
+        images = False          # its warp acts on points (notchfit.synth.write_study)
+    recipe = load_recipe(cause).scaled(n_experiments=n_exp, n_up=n_up, n_down=n_down)
+    recipe = recipe.replace(image_options={"mm_per_px": IMAGE_MM_PER_PX, **recipe.image_options})
+    generate_study(recipe, study_dir, seed=seed, force=True, jobs=jobs, images=images)
+    return recipe, images
+
+
 def run(args) -> int:
     if args.tube == "wrist":
         return run_wrist_demo(args)
@@ -80,25 +110,21 @@ def run(args) -> int:
     study_dir, res_dir = out / "study", out / "results"
     if out.exists() and any(out.iterdir()) and not args.force:
         raise FileExistsError(f"{out}: holds an earlier demo; use --force to replace it or --out elsewhere")
-    n_exp, n_up, n_down = SIZES["small" if args.small else "full"]
-    images = (not args.small) if args.images is None else bool(args.images)
-    if images and load_recipe(args.cause).cause == "calibration_error":
-        images = False          # its warp acts on points (notchfit.synth.write_study)
-    recipe = load_recipe(args.cause).scaled(n_experiments=n_exp, n_up=n_up, n_down=n_down)
     t0 = time.perf_counter()
-    _step(f"synth: recipe {recipe.name}, {n_exp} experiments, seed {args.seed}"
-          f"{', rendering images' if images else ''} -> {study_dir}", t0)
-    generate_study(recipe, study_dir, seed=args.seed, force=True, jobs=jobs, images=images)
+    _step(f"synth: recipe {args.cause}, the {'small' if args.small else 'full'} study, seed {args.seed} "
+          f"-> {study_dir}", t0)
+    recipe, images = demo_study(study_dir, cause=args.cause, small=args.small, images=args.images,
+                                seed=args.seed, jobs=jobs)
     if res_dir.exists() and args.force:
         shutil.rmtree(res_dir)
     common = ["--out", str(res_dir), "--jobs", str(jobs)]
-    steps = []
+    commands = []
     if images:
-        steps.append((detect, [str(study_dir), *common]))
-    steps += [(fit, [str(study_dir), "--models", "cc,linear", *common]),
-              (simulate, [str(study_dir), *common])]
+        commands.append((detect, [str(study_dir), *common]))
+    commands += [(fit, [str(study_dir), "--models", "cc,linear", *common]),
+                 (simulate, [str(study_dir), *common])]
     failed = []
-    for command, argv in steps:
+    for command, argv in commands:
         _step(f"{command.NAME}", t0)
         rc = call(command, argv)
         if rc == EXIT_INPUT_ERROR:
@@ -106,12 +132,14 @@ def run(args) -> int:
         if rc == EXIT_ITEMS_FAILED:
             failed.append(command.NAME)
     _step("diagnose", t0)
-    diagnose(study_dir, res_dir, jobs=jobs, seed=args.seed)
+    with Steps("diagnose") as steps:
+        diagnose(study_dir, res_dir, jobs=jobs, seed=args.seed, progress=steps)
     _step("report", t0)
-    path = build_report(res_dir, study=study_dir, force=True,
-                        title=f"notchfit demo: hidden effect '{recipe.cause}' (seed {args.seed})")
+    with progress_bar(len(SECTIONS), "report", unit="sections") as bar:
+        path = build_report(res_dir, study=study_dir, force=True, progress=lambda _: bar.update(1),
+                            title=f"notchfit demo: a synthetic study with a hidden effect (seed {args.seed})")
     t = time.perf_counter() - t0
-    print(f"\nreport: {path.resolve()}   ({t:.0f} s)")
+    print(f"\nreport: {path}   ({t:.0f} s; open it in a browser)")
     for line in summary_lines(res_dir):
         print(line)
     try:
@@ -126,9 +154,21 @@ def run(args) -> int:
     return 0
 
 
-def diagnose(study_dir: Path, out_dir: Path, *, jobs: int = 1, seed: int = 0) -> dict:
-    """The diagnose step: the study's experiments diagnosed, the results written into ``out_dir``."""
-    exps, problems = io.attach_detections(io.read_study(study_dir), out_dir)
-    for name, why in problems.items():
-        print(f"  diagnose: leaving out {name}: {why}")
-    return write_diagnosis(diagnosis.diagnose(exps, jobs=jobs, seed=seed), out_dir)
+def diagnose(study_dir: Path, out_dir: Path, *, jobs: int = 1, seed: int = 0, progress=None) -> dict:
+    """The diagnose step: the study's experiments diagnosed, the results written into ``out_dir``.
+
+    Points are looked for as ``notchfit diagnose`` looks for them (the
+    experiments' own files, then ``out_dir``); ``progress`` is called with
+    each step of the diagnosis.
+    """
+    lookup = io.find_points(io.read_study(study_dir), [("--out", out_dir)])
+    for line in source_lines(lookup, "diagnose"):
+        print(f"  {line}")
+    for name, why in lookup.problems.items():
+        print(f"  diagnose: leaving out {name}: {why}; {MISSING_HINT}")
+    if not lookup.experiments:
+        raise InputError("diagnose: no experiment has notch points")
+    diag = diagnosis.diagnose(list(lookup.experiments), jobs=jobs, seed=seed, progress=progress)
+    if progress is not None:
+        progress("writing diagnosis.json and the figures")
+    return write_diagnosis(diag, out_dir)

@@ -25,23 +25,31 @@ silhouette only (no kinematic model): sharp corners of the outline in the calibr
 slots recognised by their width and depth, sub-pixel line fits to edge profiles.
 
 Writes detections.csv (sample,point,x_mm,y_mm,u_px,v_px,sigma_mm,status; status ok,
-ambiguous or occluded; NaN where a point was not found, never a guess), an overlay PNG per
-sample in overlays/, and detect_run.json (per-sample image status and messages); for a
-study, into OUT/<experiment>/. A missing or corrupt image is reported and the other samples
-finish (exit code 1 listing them).
+ambiguous or occluded; NaN where a point was not found, never a guess), an overlay per
+sample in overlays/NNNN.jpg (a crop around the tube, its longer side 1000 px, with the outline
+and the numbered corners coloured by status; --full-overlays adds the whole view beside it), and
+detect_run.json (per-sample image status and messages); for a study, into
+OUT/<experiment>/. A missing or corrupt image is reported and the other samples finish
+(exit code 1 listing them).
 
 Examples:
   notchfit detect study/ --out out/
   notchfit detect study/ct045 --out out_ct045/ --jobs 2
   notchfit detect study/ --out out/ --no-overlays --force
+  notchfit detect study/L045 --out out_L045/ --full-overlays
 """
+
+#: JPEG quality of the overlays (they are looked at, never measured again: lossy is fine).
+OVERLAY_JPEG_QUALITY = 85
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("input", type=Path, help="experiment folder or study folder")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     add_batch_options(parser)
-    parser.add_argument("--no-overlays", action="store_true", help="skip the overlay PNGs")
+    parser.add_argument("--no-overlays", action="store_true", help="skip the overlay images")
+    parser.add_argument("--full-overlays", action="store_true",
+                        help="overlays show the whole view beside the crop around the tube (larger files)")
     parser.add_argument("--force", action="store_true", help="replace existing detections in --out")
 
 
@@ -53,9 +61,7 @@ def _camera(path: str):
 
 def detect_one(item: dict) -> dict:
     """Detect the corners of one sample image (a batch item; module level so that it pickles)."""
-    # slow optional dependency: the detector and the image writer are OpenCV
-    import cv2
-
+    # slow optional dependency: the detector and the overlay are OpenCV
     from ..detection import detect_notches, detections_table
     from ..figures.detection import detection_overlay
 
@@ -63,11 +69,10 @@ def detect_one(item: dict) -> dict:
     cam = _camera(str(item["calibration"])) if item["calibration"] is not None else None
     det = detect_notches(img, cam, item["geometry"], mirror=item["mirror"], base=item["base"])
     if item["overlay"] is not None:
-        ov = detection_overlay(img, det, item["sample"])
+        ov = detection_overlay(img, det, item["sample"], full=item.get("full_overlay", False))
         # the run made the folder in its staging area; no mkdir here: a task still running on a Dask
         # worker after the run was interrupted must not bring back the staging folder it removed
-        if not cv2.imwrite(str(item["overlay"]), ov):
-            raise OSError(f"could not write {item['overlay']}")
+        io.write_image(item["overlay"], ov, jpeg_quality=OVERLAY_JPEG_QUALITY)
     return {"table": detections_table(item["sample"], det), "image_status": det.image_status,
             "message": det.message, "n_ok": det.n_ok, "base_side": det.base_side,
             "scale_mm_per_px": det.scale_mm_per_px, "scale_sigma_mm_per_px": det.scale_sigma,
@@ -110,13 +115,14 @@ def run(args) -> int:
         for e in plan:
             sub = io.experiment_output_dir("", e.name, study)
             for s, img in zip(e.sample_ids, e.image_paths):
-                ov = None if args.no_overlays else run_.path(sub / "overlays" / f"{int(s):04d}.png")
+                ov = None if args.no_overlays else run_.path(sub / "overlays" / f"{int(s):04d}.jpg")
                 items.append({"image": img, "calibration": e.calibration_path, "geometry": e.geometry,
-                              "base": e.base,
-                              "mirror": e.mirror, "sample": int(s), "overlay": ov})
+                              "base": e.base, "mirror": e.mirror, "sample": int(s), "overlay": ov,
+                              "full_overlay": args.full_overlays})
                 keys.append(f"{e.name}/{int(s)}" if study else f"sample {int(s)}")
                 owners.append(e.name)
-        res = run_batch(detect_one, items, keys=keys, jobs=args.jobs, scheduler=args.scheduler, desc="detect")
+        res = run_batch(detect_one, items, keys=keys, jobs=args.jobs, scheduler=args.scheduler, desc="detect",
+                        unit="images")
         n_total = len(items)
         for e in plan:
             sub = io.experiment_output_dir("", e.name, study)

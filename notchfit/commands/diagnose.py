@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from .. import io
 from ..diagnosis import CAUSES, Diagnosis, diagnose
 from ..figures.diagnosis import write_diagnosis_figures
 from ..friction import save_params
+from ..progress import Steps
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
                       check_points_dir, count_option, list_failures)
-from ._points import points_file, points_problem
+from ._points import MISSING_HINT, lookup_points, points_problem
 
 NAME = "diagnose"
 ORDER = 60
@@ -28,9 +28,10 @@ stiffness_gradient, calibration_error), names the cause (or "none" /
 Writes into --out: diagnosis.json (docs/data-formats.md), extended_model.toml
 (read by `notchfit simulate --model`), diagnosis_*.png and their data.
 
-Notch points come from each experiment's notch_points.csv, or, for an
-experiment without one, from the detections.csv of a `notchfit detect` run
-(--points DIR, default: the --out folder; --detections is the old name).
+Notch points come from each experiment's own notch_points.csv, else from
+detections.csv of the `notchfit detect` run given with --points DIR
+(--detections is the old name), else from detections.csv in the --out
+folder (the log says which).
 The (model x fold) calibrations run in parallel (--jobs, or a Dask cluster
 with --scheduler); --seed seeds the noise floor's Monte Carlo draws.
 
@@ -50,8 +51,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--force", action="store_true", help="replace existing diagnosis outputs")
     add_points_option(parser, "--detections",
-                      help="folder with detect's detections.csv (default: --out) for experiments "
-                           "without notch_points.csv (--detections: the old name)")
+                      help="a detect run's output folder, for experiments without notch_points.csv "
+                           "(looked for after them, before --out; --detections: the old name)")
     parser.add_argument("--causes", help="comma-separated candidate causes to try (default: all)")
     parser.add_argument("--max-folds", type=count_option(1), default=6,
                         help="leave-one-experiment-out up to this many experiments, else k-fold")
@@ -86,11 +87,12 @@ def _experiments(args) -> tuple[list, dict]:
     An experiment without usable notch points is an input error naming it and its points file.
     """
     scan = io.scan_study(args.study, missing_images="keep")
-    points_dir = args.points if args.points is not None else args.out
-    exps, problems = io.attach_detections(scan.experiments, points_dir, require=False)
-    if problems:
-        raise InputError("no notch points for " + "; ".join(f"{k}: {v}" for k, v in problems.items()))
-    bad = {e.name: points_problem(e, points_file(e, points_dir), "the diagnosis") for e in exps}
+    lookup = lookup_points(scan.experiments, args, "diagnose")
+    if lookup.problems:
+        raise InputError("no notch points for " + "; ".join(f"{k}: {v}" for k, v in lookup.problems.items())
+                         + f"; {MISSING_HINT}")
+    exps = list(lookup.experiments)
+    bad = {e.name: points_problem(e, lookup.sources[e.name][1], "the diagnosis") for e in exps}
     bad = {k: v for k, v in bad.items() if v is not None}
     if bad:
         raise InputError("; ".join(f"experiment {k}: {v}" for k, v in bad.items()))
@@ -107,10 +109,11 @@ def run(args) -> int:
     check_out_dir(args.out, args.study)
     check_points_dir(args.points)
     exps, unread = _experiments(args)
-    with io.OutputRun(args.out, outputs=list(OUTPUTS), force=args.force, name="diagnose") as run_:
+    with io.OutputRun(args.out, outputs=list(OUTPUTS), force=args.force, name="diagnose") as run_, \
+            Steps("diagnose") as steps:
         diag = diagnose(exps, jobs=args.jobs, scheduler=args.scheduler, seed=args.seed,
-                              causes=causes, max_folds=args.max_folds,
-                              progress=lambda m: print(f"diagnose: {m}", file=sys.stderr))
+                        causes=causes, max_folds=args.max_folds, progress=steps)
+        steps("writing diagnosis.json and the figures")
         data = write_diagnosis(diag, run_.stage, figures=not args.no_figures)
     g = data["gain"]
     print(f"cause: {data['cause']}")

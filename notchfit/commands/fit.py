@@ -12,11 +12,12 @@ from ..batch import run_batch
 from ..figures.fitting import experiment_figures, fig12_sample_index
 from ..fitting import (angle_fits_table, failed_fits, fit_angles, fit_experiment, fit_summary, fits_table,
                        jointwise_table, pointwise_table)
+from ..progress import bar as progress_bar
 from ..shapes import get_model
 from ..units import MM
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
                       check_points_dir, list_failures)
-from ._points import points_file, points_problem, with_measurements
+from ._points import MISSING_HINT, lookup_points, points_problem
 
 NAME = "fit"
 ORDER = 40
@@ -24,8 +25,8 @@ HELP = "fit shape models (cc, linear, ...) to the notch points or measured angle
 DESCRIPTION = """Fit shape models to every sample of an experiment (or of every experiment of a
 study): the plane transform of each experiment is estimated once for all its samples, then
 each sample is fitted with each model (Sec. IV-A, Figs. 12-15). Points come from the
-experiment's notch_points.csv, or from detect's detections.csv (--points DIR, default: the
---out folder).
+experiment's own notch_points.csv, else from detections.csv of the detect run given with
+--points DIR, else from detections.csv in the --out folder (the log says which).
 
 Writes fits.csv (one row per sample and model: sample,model,a,b,...,base_x_mm,base_y_mm,
 base_phi_rad,rms_mm,max_mm,n_points,...), pointwise.csv (sample,model,point,err_mm) and the
@@ -50,8 +51,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("input", type=Path, help="experiment folder or study folder")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--models", default="cc,linear", help="comma-separated shape models (default cc,linear)")
-    add_points_option(parser, help="folder with detect's detections.csv (default: --out) for experiments "
-                                   "without notch_points.csv")
+    add_points_option(parser, help="a detect run's output folder, for experiments without notch_points.csv "
+                                   "(looked for after them, before --out)")
     parser.add_argument("--sigma-mm", type=float, default=None,
                         help="point uncertainty [mm] (default: [uncertainty] point_mm, else estimated)")
     parser.add_argument("--loss", default="linear", help="linear, soft_l1, huber, cauchy or arctan")
@@ -120,16 +121,15 @@ def _fittable(args, models) -> tuple[list, dict, bool]:
     """The experiments to fit, ``{name: reason}`` for those that cannot be, and whether it is a study."""
     scan = io.scan_study(args.input)
     _check_models(models, scan.experiments[0].geometry.n_joints)
-    points_dir = args.points if args.points is not None else args.out
-    exps, problems = with_measurements(scan.experiments, points_dir)
-    problems = {**scan.problems, **problems}
+    lookup = lookup_points(scan.experiments, args, "fit")
+    problems = {**scan.problems, **{k: f"{v}; {MISSING_HINT}" for k, v in lookup.problems.items()}}
     what = f"fitting --models {','.join(models)}"
     keep = []
-    for e in exps:
+    for e in lookup.experiments:
         if e.points is None:            # measured joint angles: fitted in angle space
             keep.append(e)
             continue
-        why = points_problem(e, points_file(e, points_dir), what)
+        why = points_problem(e, lookup.sources[e.name][1], what)
         if why is None:
             keep.append(e)
         else:
@@ -150,11 +150,24 @@ def run(args) -> int:
                                   for f in _FILES[e.points is None]]
     with io.OutputRun(args.out, outputs=outputs, force=args.force, name="fit") as run_:
         res = run_batch(fit_one, items, keys=names, jobs=args.jobs, scheduler=args.scheduler,
-                        desc="fit")
+                        desc="fit", unit="experiments")
         failed = {r.key: r.error for r in res.failures}
         failed.update(problems)
-        bad_samples = []
+        bad_samples = _write_outputs(exps, res, run_, study, failed, figures=not args.no_figures)
+        io.write_json_atomic(io.provenance("fit", args.input, models=list(models), experiments=names,
+                                           failures=failed, failed_samples=bad_samples),
+                             run_.path("fit_run.json"))
+    _print_summary(res, len(exps) + len(problems), failed, bad_samples, args.out)
+    return EXIT_ITEMS_FAILED if (failed or bad_samples) else 0
+
+
+def _write_outputs(exps, res, run_, study, failed: dict, *, figures: bool) -> list[str]:
+    """fits.csv, pointwise.csv and (``figures``) Figs. 12-15 of each fitted experiment, with a
+    progress bar; a figure that fails is recorded in ``failed``. Returns the failed samples."""
+    bad_samples = []
+    with progress_bar(len(exps), "fit: tables and figures" if figures else None, unit="experiments") as bar:
         for e, r in zip(exps, res.items):
+            bar.update(1)
             if not r.ok:
                 continue
             sub = io.experiment_output_dir("", e.name, study)
@@ -165,16 +178,12 @@ def run(args) -> int:
             io.write_table_atomic(r.value["pointwise"], run_.path(sub / "pointwise.csv"))
             for row in failed_fits(r.value["fits"]).itertuples(index=False):
                 bad_samples.append(f"{e.name} sample {row.sample} ({row.model}): {getattr(row, 'message', '')}")
-            if not args.no_figures:
+            if figures:
                 try:
                     fit_figures(r.value["result"], run_.path(sub / "x").parent, e.name, e)
                 except Exception as exc:  # noqa: BLE001 - a figure must not lose the fits
                     failed[f"{e.name} figures"] = f"{type(exc).__name__}: {exc}"
-        io.write_json_atomic(io.provenance("fit", args.input, models=list(models), experiments=names,
-                                           failures=failed, failed_samples=bad_samples),
-                             run_.path("fit_run.json"))
-    _print_summary(res, len(exps) + len(problems), failed, bad_samples, args.out)
-    return EXIT_ITEMS_FAILED if (failed or bad_samples) else 0
+    return bad_samples
 
 
 #: Files written per experiment: from notch points, from measured angles.

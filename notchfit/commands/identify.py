@@ -12,7 +12,7 @@ from ..identify.data import tube_labels
 from ..units import DEG, MM
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
                       check_points_dir, list_failures)
-from ._points import with_measurements
+from ._points import MISSING_HINT, lookup_points
 
 NAME = "identify"
 ORDER = 55
@@ -103,7 +103,9 @@ def write_identification(result, out_dir) -> dict:
 def _experiments(args) -> tuple[list, dict]:
     """The study's experiments with measured data; the sub-folders and experiments left out ``{name: reason}``."""
     scan = io.scan_study(args.study, missing_images="keep")
-    exps, problems = with_measurements(scan.experiments, args.points if args.points is not None else args.out)
+    lookup = lookup_points(scan.experiments, args, "identify")
+    exps = list(lookup.experiments)
+    problems = {k: f"{v}; {MISSING_HINT}" for k, v in lookup.problems.items()}
     if not exps:
         raise InputError("nothing to identify: " + "; ".join(f"{k}: {v}" for k, v in
                                                              {**scan.problems, **problems}.items()))

@@ -1,21 +1,25 @@
-"""``notchfit report``: one self-contained HTML report of an output folder."""
+"""``notchfit report``: one HTML report of an output folder that reads at a glance."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from .. import io
-from ..report import build_report, summary_lines
+from ..progress import bar as progress_bar
+from ..report import SECTIONS, build_report, summary_lines
 from ._common import InputError, check_out_dir
 
 NAME = "report"
 ORDER = 80
-HELP = "build one self-contained HTML report (report.html) from an output folder"
-DESCRIPTION = """Build DIR/report.html from what the other commands wrote into DIR: calibration
-quality, detection statistics and overlays, shape-fit errors (Figs. 12-15), simulation vs
-measurement (Figs. 18-19) and the diagnosis (diagnosis.json and its figures). Figures are
-embedded as PNG data: the file opens from disk in any browser, with no server and no other
-file. A section whose input is absent says "not available" and why.
+HELP = "build one HTML report (report.html) that reads at a glance from an output folder"
+DESCRIPTION = """Build DIR/report.html from what the other commands wrote into DIR: first the
+question and the answer (what was measured, the cause, the gain, what was assumed) and the
+units and signs used throughout, then the study, the camera and the detected corners,
+shape-fit errors (Figs. 12-15), simulation vs measurement with its parameters (Figs. 18-19)
+and the diagnosis with the parameters of the calibrated baseline and of the extended model.
+Its figures are drawn for the page and embedded (the file opens alone in any browser); the
+per-experiment figures and the raw files are linked relative to DIR (keep the folder
+together). A section whose input is absent says "not available" and why.
 
 The study folder is found from the provenance files (fit_run.json, simulate_run.json) in
 DIR, or given with --study.
@@ -40,8 +44,10 @@ def run(args) -> int:
                   "the --out folder of fit/simulate/diagnose")
     if not args.dir.is_dir():
         raise InputError(f"{args.dir}: output folder not found")
-    with io.OutputRun(args.dir, outputs=["report.html"], force=args.force, name="report"):
-        path = build_report(args.dir, study=args.study, title=args.title, force=args.force)
+    with io.OutputRun(args.dir, outputs=["report.html"], force=args.force, name="report"), \
+            progress_bar(len(SECTIONS), "report", unit="sections") as bar:
+        path = build_report(args.dir, study=args.study, title=args.title, force=args.force,
+                            progress=lambda _: bar.update(1))
     for line in summary_lines(args.dir):
         print(line)
     print(f"report: {path}")

@@ -12,10 +12,11 @@ from ..batch import run_batch
 from ..comparison import angle_comparison_table, compare_angles, compare_simulation, comparison_table
 from ..figures.friction import plot_fig18, plot_fig19
 from ..friction import FrictionParams, default_params, simulate, simulation_table
+from ..progress import bar as progress_bar
 from ..units import DEG
 from ._common import (EXIT_ITEMS_FAILED, add_batch_options, add_points_option, check_out_dir, check_points_dir,
                       list_failures)
-from ._points import with_measurements
+from ._points import MISSING_HINT, lookup_points
 
 NAME = "simulate"
 ORDER = 50
@@ -27,6 +28,10 @@ and the manipulator comes to rest before that sample is taken. Parameters are th
 those of a model file (--model: a TOML file written by notchfit.io.save_params, e.g. the
 extended model that `notchfit diagnose`
 saves), then any --param overrides (SI units: k_lin N m/rad, mu_d, b N m s/rad, ...).
+
+Measured points, to compare with, come from the experiment's own notch_points.csv, else
+from detections.csv of the detect run given with --points DIR, else from detections.csv in
+the --out folder (the log says which, and names the experiments simulated without them).
 
 Writes simulation.csv (sample, regime, a, b, theta_1..theta_n, base tensions, predicted
 cable displacements) and, when the experiment has measured points, simulation_vs_measured.csv
@@ -49,8 +54,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="override one parameter (repeatable), e.g. --param mu_d=0.25")
     parser.add_argument("--method", default="fast", help="solver: fast (default) or reference")
-    add_points_option(parser, help="folder with detect's detections.csv for experiments without "
-                                   "notch_points.csv")
+    add_points_option(parser, help="a detect run's output folder, for experiments without notch_points.csv "
+                                   "(looked for after them, before --out)")
     parser.add_argument("--no-figures", action="store_true", help="skip Figs. 18-19")
     add_batch_options(parser)
     parser.add_argument("--force", action="store_true", help="replace existing outputs in --out")
@@ -128,10 +133,21 @@ def _params_record(params: dict) -> dict:
     return {"params": None, "params_by_experiment": {n: p.to_dict() for n, p in params.items()}}
 
 
+def _measured_points(exps, args) -> dict:
+    """``{name: points}`` of the experiments with measured points or angles (:func:`lookup_points`;
+    an experiment measured as angles has None points and is compared through its ``angles``); those
+    with neither are named with the fix."""
+    lookup = lookup_points(exps, args, "simulate")
+    if lookup.problems:
+        names = ", ".join(lookup.problems)
+        print(f"simulate: no measured points or angles for {names}: simulated without a comparison with the "
+              f"measured shapes (no simulation_vs_measured.csv, no Figs. 18-19); {MISSING_HINT}")
+    return {e.name: e.points for e in lookup.experiments}
+
+
 def _items(exps, params: dict, args) -> list[dict]:
     """One batch item per experiment: the measured tensions (clipped at 0 N), the points and angles, if any."""
-    measured, _ = with_measurements(exps, args.points if args.points is not None else args.out)
-    pts = {e.name: e.points for e in measured}
+    pts = _measured_points(exps, args)
     return [{"time": e.time, "tension_left": e.tension_left,
              "tension_right": e.tension_right, "params": params[e.name], "geometry": e.geometry,
              "method": args.method, "samples": [int(s) for s in e.sample_ids], "points": pts.get(e.name),
@@ -161,9 +177,26 @@ def run(args) -> int:
                                        for n in names]
     with io.OutputRun(args.out, outputs=outputs, force=args.force, name="simulate") as run_:
         res = run_batch(simulate_one, items, keys=names, jobs=args.jobs, scheduler=args.scheduler,
-                        desc="simulate")
+                        desc="simulate", unit="experiments")
         failed = {**scan.problems, **{r.key: r.error for r in res.failures}}
+        _write_outputs(exps, res, run_, study, failed, figures=not args.no_figures)
+        io.write_json_atomic(io.provenance("simulate", args.input,
+                                           **_params_record(params), **_angle_record(exps, res),
+                                           clipped_tensions={e.name: e.n_clipped for e in exps if e.n_clipped},
+                                           model_file=str(args.model) if args.model else None,
+                                           param_overrides=list(args.param),
+                                           method=args.method, experiments=names, failures=failed),
+                             run_.path("simulate_run.json"))
+    _print_summary(exps, res, failed, args.out, len(scan.problems))
+    return EXIT_ITEMS_FAILED if failed else 0
+
+
+def _write_outputs(exps, res, run_, study, failed: dict, *, figures: bool) -> None:
+    """simulation.csv, simulation_vs_measured.csv / simulation_vs_angles.csv and (``figures``)
+    Figs. 18-19 of each simulated experiment, with a progress bar; what fails is recorded in ``failed``."""
+    with progress_bar(len(exps), "simulate: tables and figures" if figures else None, unit="experiments") as bar:
         for e, r in zip(exps, res.items):
+            bar.update(1)
             if not r.ok:
                 continue
             sub = io.experiment_output_dir("", e.name, study)
@@ -174,19 +207,11 @@ def run(args) -> int:
                 io.write_table_atomic(r.value["angle_compare"], run_.path(sub / "simulation_vs_angles.csv"))
             if "compare" in r.value:
                 io.write_table_atomic(r.value["compare"], run_.path(sub / "simulation_vs_measured.csv"))
-            if ("compare" in r.value or "angle_compare" in r.value) and not args.no_figures:
+            if ("compare" in r.value or "angle_compare" in r.value) and figures:
                 try:
                     simulation_figures(r.value, run_.path(sub / "x").parent)
                 except Exception as exc:  # noqa: BLE001 - a figure must not lose the simulation
                     failed[f"{e.name} figures"] = f"{type(exc).__name__}: {exc}"
-        io.write_json_atomic(io.provenance("simulate", args.input,
-                                           **_params_record(params), **_angle_record(exps, res),
-                                           clipped_tensions={e.name: e.n_clipped for e in exps if e.n_clipped},
-                                           model_file=str(args.model) if args.model else None,
-                                           method=args.method, experiments=names, failures=failed),
-                             run_.path("simulate_run.json"))
-    _print_summary(exps, res, failed, args.out, len(scan.problems))
-    return EXIT_ITEMS_FAILED if failed else 0
 
 
 def _angle_record(exps, res) -> dict:

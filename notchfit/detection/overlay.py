@@ -8,7 +8,7 @@ import numpy as np
 from ..imaging import to_gray8
 from .result import Detection
 
-__all__ = ["draw_overlay", "overlay_with_crop"]
+__all__ = ["draw_overlay", "overlay_crop", "overlay_with_crop"]
 
 COLOURS = {"ok": (0, 200, 0), "ambiguous": (0, 200, 255), "occluded": (0, 0, 255)}
 
@@ -57,33 +57,64 @@ def draw_overlay(image, det: Detection, *, scale: float = 1.0, marker_scale: flo
     return img
 
 
+def _crop_box(det: Detection, shape, margin: float):
+    """``(u0, v0, u1, v1)`` [px]: the box of the detected corners (else the outline) enlarged by
+    ``margin`` of its size, inside the image; None when there is nothing to frame."""
+    H, W = shape
+    pts = det.points_px[np.isfinite(det.points_px).all(1)]
+    if len(pts) < 2:
+        pts = det.contour_px
+    if len(pts) < 2:
+        return None
+    lo, hi = pts.min(0), pts.max(0)
+    ext = np.maximum(hi - lo, 20.0)
+    lo, hi = np.maximum(lo - margin * ext, 0), np.minimum(hi + margin * ext, [W - 1, H - 1])
+    return int(lo[0]), int(lo[1]), int(hi[0]) + 1, int(hi[1]) + 1
+
+
+def overlay_crop(image, det: Detection, *, size: int = 1000, margin: float = 0.15) -> np.ndarray:
+    """A crop around the tube, its longer side ``size`` px, with the outline and numbered corners (BGR uint8).
+
+    The crop is the box of the detected corners (or the outline) enlarged by
+    ``margin`` of its size; markers and numbers are drawn at the crop's zoom
+    (1 unit per 1000 px), so they are readable at 100 % whatever the tube's
+    direction. The whole view, its longer side ``size``, is returned when
+    nothing was found.
+    """
+    g8 = to_gray8(image, stretch=True)
+    box = _crop_box(det, g8.shape, margin)
+    if box is None:
+        return draw_overlay(image, det, scale=size / max(g8.shape), marker_scale=1.0)
+    u0, v0, u1, v1 = box
+    z = size / max(v1 - v0, u1 - u0, 1)
+    crop = cv2.resize(g8[v0:v1, u0:u1], (max(1, round((u1 - u0) * z)), max(1, round((v1 - v0) * z))),
+                      interpolation=cv2.INTER_AREA if z < 1 else cv2.INTER_LINEAR)
+    crop = cv2.cvtColor(crop, cv2.COLOR_GRAY2BGR)
+    _marks(crop, det, max(1.0, size / 1000.0), offset=(u0 - 0.5 + 0.5 / z, v0 - 0.5 + 0.5 / z), zoom=z)
+    return crop
+
+
 def overlay_with_crop(image, det: Detection, *, height: int = 1000, margin: float = 0.15) -> np.ndarray:
     """The whole view beside a crop around the tube, both ``height`` px high (BGR uint8).
 
-    The crop is the box of the detected corners (or the outline) enlarged by
-    ``margin`` of its size; markers and numbers are drawn at the crop's
-    zoom, so they are readable in both panels.
+    The whole view marks the crop's box in magenta; markers and numbers are
+    drawn at the crop's zoom, so they are readable in both panels.
     """
     g8 = to_gray8(image, stretch=True)
     H, W = g8.shape
     s_full = height / H
     full = cv2.cvtColor(cv2.resize(g8, (max(1, round(W * s_full)), height), interpolation=cv2.INTER_AREA),
                         cv2.COLOR_GRAY2BGR)
-    _marks(full, det, 1.0, zoom=s_full)
-    pts = det.points_px[np.isfinite(det.points_px).all(1)]
-    if len(pts) < 2:
-        pts = det.contour_px
-    if len(pts) < 2:
+    _marks(full, det, max(1.0, height / 1000.0), zoom=s_full)
+    box = _crop_box(det, g8.shape, margin)
+    if box is None:
         return full
-    lo, hi = pts.min(0), pts.max(0)
-    ext = np.maximum(hi - lo, 20.0)
-    lo, hi = np.maximum(lo - margin * ext, 0), np.minimum(hi + margin * ext, [W - 1, H - 1])
-    u0, v0, u1, v1 = int(lo[0]), int(lo[1]), int(hi[0]) + 1, int(hi[1]) + 1
+    u0, v0, u1, v1 = box
     z = height / max(v1 - v0, 1)
     crop = cv2.resize(g8[v0:v1, u0:u1], (max(1, round((u1 - u0) * z)), height),
                       interpolation=cv2.INTER_AREA if z < 1 else cv2.INTER_LINEAR)
     crop = cv2.cvtColor(crop, cv2.COLOR_GRAY2BGR)
-    _marks(crop, det, 1.0, offset=(u0 - 0.5 + 0.5 / z, v0 - 0.5 + 0.5 / z), zoom=z)
+    _marks(crop, det, max(1.0, height / 1000.0), offset=(u0 - 0.5 + 0.5 / z, v0 - 0.5 + 0.5 / z), zoom=z)
     cv2.rectangle(full, (int(u0 * s_full), int(v0 * s_full)), (int(u1 * s_full), int(v1 * s_full)), (255, 0, 255), 1)
     sep = np.full((height, 8, 3), 255, np.uint8)
     return np.concatenate([full, sep, crop], axis=1)

@@ -11,15 +11,22 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import re
 from typing import Callable
 
 import pandas as pd
 
-__all__ = ["discover", "new_figure", "save_png", "write_csv"]
+__all__ = ["discover", "natural_key", "new_figure", "save_png", "write_csv"]
+
+
+def natural_key(name: str) -> tuple:
+    """Sort key that orders the numbers in a name by value: fig3 before fig11."""
+    return tuple(int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name))
 
 
 def discover(package: str = __name__) -> dict[str, Callable]:
-    """All figures of ``package``: ``{name: func}`` merged from every module's ``FIGURES``.
+    """All figures of ``package``: ``{name: func}`` merged from every module's ``FIGURES``, in
+    natural order of the names (fig3 before fig11).
 
     Parameters
     ----------
@@ -55,7 +62,7 @@ def discover(package: str = __name__) -> dict[str, Callable]:
                 raise ValueError(f"figure {name!r} is defined twice: in {where[name]} and {modname}")
             found[name] = func
             where[name] = modname
-    return dict(sorted(found.items()))
+    return dict(sorted(found.items(), key=lambda kv: natural_key(kv[0])))
 
 
 def new_figure(width: float = 6.4, height: float = 4.8):

@@ -11,8 +11,8 @@ import numpy as np
 __all__ = ["detection_overlay"]
 
 
-def detection_overlay(image, det, sample, *, height: int = 1000) -> np.ndarray:
-    """The detection drawn on its image, the whole view beside a crop around the tube, labelled.
+def detection_overlay(image, det, sample, *, size: int = 1000, full: bool = False) -> np.ndarray:
+    """The detection drawn on a crop around the tube (``full``: the whole view beside it), labelled.
 
     Parameters
     ----------
@@ -21,21 +21,26 @@ def detection_overlay(image, det, sample, *, height: int = 1000) -> np.ndarray:
     det : notchfit.detection.Detection
     sample : int
         Sample id for the label.
-    height : int
-        Height of the composed image [px]: markers, numbers and the label are
-        drawn at this scale, so they are readable whatever the photograph's size.
+    size : int
+        The crop's longer side (with ``full``: the height of both panels) [px]:
+        markers, numbers and the label are drawn at this scale, so they are
+        readable whatever the photograph's size.
+    full : bool
+        The whole view beside the crop (:func:`notchfit.detection.overlay_with_crop`);
+        default: the crop alone (:func:`notchfit.detection.overlay.overlay_crop`), a
+        few times smaller on disk.
 
     Returns
     -------
-    ndarray, shape (height, W', 3), uint8 (BGR)
-        :func:`notchfit.detection.overlay_with_crop` and a ``sample S: k/m ok`` label.
+    ndarray, shape (H', W', 3), uint8 (BGR)
+        The overlay and a ``sample S: k/m ok`` label.
     """
     # slow optional dependency: the overlay is drawn with cv2 (as is notchfit.detection)
     import cv2
 
-    from ..detection import overlay_with_crop
+    from ..detection.overlay import overlay_crop, overlay_with_crop
 
-    ov = overlay_with_crop(image, det, height=height)
+    ov = overlay_with_crop(image, det, height=size) if full else overlay_crop(image, det, size=size)
     cv2.putText(ov, f"sample {sample}: {det.n_ok}/{len(det.status)} ok", (10, 28),
                 cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 255), 2, cv2.LINE_AA)
     return ov

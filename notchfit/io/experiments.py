@@ -29,9 +29,11 @@ from .toml import TomlError, TomlFile, load_toml, toml_dumps
 __all__ = [
     "ANGLE_COLUMNS",
     "Experiment",
+    "PointsLookup",
     "angles_from_table",
     "angles_table",
-    "attach_detections",
+    "find_points",
+    "has_own_points",
     "is_experiment_dir",
     "load_detected_points",
     "points_from_table",
@@ -770,36 +772,88 @@ def load_detected_points(exp: Experiment, detections, *, ok_status=("ok",)) -> E
     return with_points(exp, points_from_table(df, exp.sample_ids, exp.geometry.n_points))
 
 
-def attach_detections(exps, detections_dir, *, require: bool = True) -> tuple[list, dict]:
-    """Give experiments without ``notch_points.csv`` the points ``detect`` found.
+def has_own_points(exp: Experiment) -> bool:
+    """Whether the experiment's own files hold its notch points (``notch_points.csv``).
 
-    Looks for ``detections.csv`` of each experiment in ``detections_dir``
-    (``DIR/<name>/detections.csv`` for a study run, ``DIR/detections.csv``
-    for a single experiment).
+    The first place :func:`find_points` looks. An experiment whose own
+    measurement is joint angles (``angles.csv``) is kept by :func:`find_points`
+    too, after the detect runs were searched for points of it.
+    """
+    return exp.points is not None
+
+
+@dataclass(frozen=True)
+class PointsLookup:
+    """Where each experiment's measured points came from (:func:`find_points`).
+
+    Attributes
+    ----------
+    experiments : tuple of Experiment
+        Those with points, in input order.
+    sources : dict
+        ``{name: (where, path)}``: ``where`` is ``"own"`` (the experiment's
+        own files) or the label of the folder they were found in (e.g.
+        ``"--points"``, ``"--out"``); ``path`` the file read.
+    problems : dict
+        ``{name: reason}`` for the experiments without points.
+    """
+
+    experiments: tuple
+    sources: dict
+    problems: dict
+
+
+def _detections_for(exp, found: dict, n_exps: int):
+    return found.get(exp.name) or (found.get("") if n_exps == 1 else None)
+
+
+def find_points(exps, folders=()) -> PointsLookup:
+    """The measured data of each experiment, looked for in one order.
+
+    First the experiment's own ``notch_points.csv`` (:func:`has_own_points`),
+    then ``detections.csv`` of each folder of ``folders`` in turn
+    (``DIR/<name>/detections.csv`` of a study run, ``DIR/detections.csv`` of
+    a single experiment), and last its own ``angles.csv`` (measured joint
+    angles: the experiment is kept without points). A ``detections.csv`` that
+    is found but cannot be read is a problem of that experiment (never
+    silently skipped for the next folder).
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+    folders : sequence of (str, path or None)
+        ``(label, folder)`` in search order, e.g.
+        ``[("--points", args.points), ("--out", args.out)]``; None folders are skipped.
 
     Returns
     -------
-    experiments : list of Experiment
-        Those that have points (measured or detected).
-    problems : dict
-        ``{name: reason}`` for experiments left out.
+    PointsLookup
+        ``sources[name]`` is ``("own", notch_points.csv)``, ``(label,
+        detections.csv)`` or ``("own", angles.csv)``.
     """
-    found = find_output(detections_dir, "detections.csv") if detections_dir is not None else {}
-    out, problems = [], {}
+    exps = list(exps)
+    searched = [(label, Path(f)) for label, f in folders if f is not None]
+    found = {label: find_output(f, "detections.csv") for label, f in searched}
+    out, sources, problems = [], {}, {}
     for e in exps:
-        if e.points is not None:
+        if has_own_points(e):
             out.append(e)
+            sources[e.name] = ("own", Path(e.path) / "notch_points.csv")
             continue
-        path = found.get(e.name) or (found.get("") if len(exps) == 1 else None)
-        if path is None:
-            problems[e.name] = ("no notch_points.csv and no detections.csv for it"
-                                + (f" in {detections_dir}" if detections_dir is not None else "")
-                                + " (run `notchfit detect` first)")
+        hit = next(((label, p) for label, _ in searched
+                    if (p := _detections_for(e, found[label], len(exps))) is not None), None)
+        if hit is None and e.angles is not None:
+            out.append(e)
+            sources[e.name] = ("own", Path(e.path) / "angles.csv")
+            continue
+        if hit is None:
+            where = " nor ".join(f"{f} ({label})" for label, f in searched)
+            problems[e.name] = ("no notch_points.csv, no angles.csv and no detections.csv for it"
+                                + (f" in {where}" if where else ""))
             continue
         try:
-            out.append(load_detected_points(e, path))
+            out.append(load_detected_points(e, hit[1]))
+            sources[e.name] = hit
         except (ValueError, FileNotFoundError) as exc:
             problems[e.name] = str(exc)
-    if require and not out:
-        raise ValueError("no experiment has notch points: " + "; ".join(f"{k}: {v}" for k, v in problems.items()))
-    return out, problems
+    return PointsLookup(tuple(out), sources, problems)

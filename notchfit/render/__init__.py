@@ -44,7 +44,7 @@ import numpy as np
 from ..batch import run_batch
 from ..camera import Board, CameraModel
 from ..geometry import Geometry
-from ..io import write_camera
+from ..io import write_camera, write_image
 from ..kinematics import chain, link_origins
 from ..notches import notch_points, to_plane
 from ..units import MM
@@ -726,7 +726,8 @@ def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_p
     for k, ((name, s), th, pl) in enumerate(zip(keys, clip, planes)):
         out = Path(experiment_dir(name)) / "images" / f"{s:04d}.png"
         items.append((th, geom, cam, pl, [base, k], out, render_kw))
-    res = run_batch(_render_one, items, keys=[f"{n}/{s}" for n, s in keys], jobs=jobs, desc="render")
+    res = run_batch(_render_one, items, keys=[f"{n}/{s}" for n, s in keys], jobs=jobs, desc="render",
+                    unit="images")
     if res.failures:
         raise ValueError("rendering failed: " + "; ".join(f"{r.key}: {r.error}" for r in res.failures[:5]))
     return Path(os.path.relpath(calib_dir / "camera.yml", Path(experiment_dir(keys[0][0])))).as_posix() \
@@ -736,7 +737,5 @@ def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_p
 def _render_one(item):
     th, geom, cam, pl, seed, out, kw = item
     r = render_manipulator(th, geom, cam, plane=pl, rng=np.random.default_rng(seed), **kw)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), r.image):
-        raise OSError(f"could not write {out}")
+    write_image(out, r.image, png="noisy")       # lossless; noise-dominated: Huffman only
     return str(out)
