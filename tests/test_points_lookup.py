@@ -88,7 +88,7 @@ def test_a_command_that_cannot_compare_says_how_to_fix_it(study, tmp_path, capsy
     bare = _without_own_points(study, tmp_path / "bare")
     assert main(["simulate", str(bare), "--out", str(tmp_path / "sim"), "--no-figures"]) == 0
     text = capsys.readouterr().out
-    assert "no measured points for L045, L150: simulated without a comparison" in text
+    assert "no measured points or angles for L045, L150: simulated without a comparison" in text
     assert "run `notchfit detect STUDY --out DIR` first" in text
     assert not (tmp_path / "sim" / "L045" / "simulation_vs_measured.csv").exists()
     for argv in (["fit", "--models", "linear"], ["diagnose"]):
