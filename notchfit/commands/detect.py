@@ -72,7 +72,7 @@ def detect_one(item: dict) -> dict:
         ov = detection_overlay(img, det, item["sample"], full=item.get("full_overlay", False))
         # the run made the folder in its staging area; no mkdir here: a task still running on a Dask
         # worker after the run was interrupted must not bring back the staging folder it removed
-        io.write_image(item["overlay"], ov, jpeg_quality=OVERLAY_JPEG_QUALITY)
+        io.write_image(item["overlay"], ov, jpeg_quality=OVERLAY_JPEG_QUALITY, make_folder=False)
     return {"table": detections_table(item["sample"], det), "image_status": det.image_status,
             "message": det.message, "n_ok": det.n_ok, "base_side": det.base_side,
             "scale_mm_per_px": det.scale_mm_per_px, "scale_sigma_mm_per_px": det.scale_sigma,

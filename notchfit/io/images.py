@@ -117,7 +117,7 @@ PNG_SETTINGS = {
 }
 
 
-def write_image(path, image, *, png: str = "noisy", jpeg_quality: int = 85) -> Path:
+def write_image(path, image, *, png: str = "noisy", jpeg_quality: int = 85, make_folder: bool = True) -> Path:
     """Write an image atomically, the format chosen by the extension.
 
     Parameters
@@ -131,6 +131,8 @@ def write_image(path, image, *, png: str = "noisy", jpeg_quality: int = 85) -> P
         ``"noisy"`` or ``"graphics"`` (:data:`PNG_SETTINGS`).
     jpeg_quality : int
         JPEG quality, 0-100.
+    make_folder : bool
+        Create the folder when absent (:func:`notchfit.io.atomic_write`).
 
     Returns
     -------
@@ -147,4 +149,4 @@ def write_image(path, image, *, png: str = "noisy", jpeg_quality: int = 85) -> P
     ok, buf = cv2.imencode(ext, np.asarray(image), params)
     if not ok:
         raise OSError(f"could not encode {path}")
-    return atomic_write(path, lambda tmp: Path(tmp).write_bytes(buf.tobytes()))
+    return atomic_write(path, lambda tmp: Path(tmp).write_bytes(buf.tobytes()), make_folder=make_folder)

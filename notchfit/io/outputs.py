@@ -91,18 +91,22 @@ def _tmp_path(path: Path, suffix: str = ".tmp") -> Path:
     return Path(tmp)
 
 
-def atomic_write(path, writer, *, suffix: str = ".tmp") -> Path:
+def atomic_write(path, writer, *, suffix: str = ".tmp", make_folder: bool = True) -> Path:
     """Write ``path`` atomically: ``writer(tmp)`` fills a temporary file that then replaces ``path``.
 
     Parameters
     ----------
     path : path
-        The file to write (its folder is created).
+        The file to write (its folder is created, unless ``make_folder`` is false).
     writer : callable
         ``writer(tmp_path)`` writes the whole content to ``tmp_path``.
     suffix : str
         Ending of the temporary file's name (for writers that choose the
         format by extension, e.g. ``".tmp.yml"``).
+    make_folder : bool
+        Create the file's folder when absent. False for a worker writing into a
+        run's staging folder: after an interrupt the run removes that folder, and
+        a task still running must fail instead of bringing it back.
 
     Returns
     -------
@@ -111,7 +115,8 @@ def atomic_write(path, writer, *, suffix: str = ".tmp") -> Path:
         ``path`` is left as it was.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    if make_folder:
+        path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _tmp_path(path, suffix)
     try:
         writer(tmp)
