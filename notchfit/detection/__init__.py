@@ -44,12 +44,12 @@ from ..imaging import to_gray
 from ..units import MM
 from .options import DetectorOptions
 from .overlay import draw_overlay, overlay_with_crop
-from .pipeline import run_at_scale
+from .pipeline import link_tolerance, run_at_scale
 from .plane import finish
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
 from .dims import slot_depths, slot_widths
-from .segment import downsample, fill_holes, fill_thin_lines, largest_region
+from .segment import band_directions, downsample, fill_holes, fill_thin_lines, largest_region
 from .segment import segment as _segment
 from .view import DiameterScale, view_orientation
 from .width import measure_diameter, rough_tube_radius
@@ -120,14 +120,21 @@ def _segmented(gray, f, opts, cache: dict):
         raise ValueError(f"image too small: {W}x{H} px")
     if f not in cache:
         small = downsample(gray, f)
-        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f)
+        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f, level=opts.segment_level)
         cache[f] = (small.shape, seg)
     return cache[f]
 
 
-def _fill_streaks(mask, length_px, *, holder_radius):
-    """:func:`fill_thin_lines`, except next to the holder (the corners where the tube meets it stay sharp)."""
-    filled = fill_thin_lines(mask, length_px)
+def _streak_length(geom, opts) -> float:
+    """Longest background line filled across the tube [m]: ``streak_fill_R`` R, but short enough that a
+    segment 25° off the direction across the tube cannot span a slot (1.5 w)."""
+    return min(opts.streak_fill_R * geom.outer_radius, 1.5 * float(slot_widths(geom).min()))
+
+
+def _fill_streaks(mask, length_px, *, holder_radius, bridge_px, radius_px):
+    """:func:`fill_thin_lines` across the tube (a streak along it, not a slot's mouth), except next to the
+    holder (the corners where the tube meets it stay sharp)."""
+    filled = fill_thin_lines(mask, length_px, across=band_directions(mask, bridge_px, radius_px))
     region, _ = largest_region(filled)
     holder = holder_mask(region, holder_radius, regrow=False)
     if holder.any():
@@ -147,10 +154,11 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
     R = geom.outer_radius
     exp_area = (2 * R * (geom.tip_z - geom.base_edge_z) - float(np.sum(slot_widths(geom) * slot_depths(geom)))) \
         / low_m ** 2
-    best = None
-    for fill in (0.0, 0.6 * float(slot_widths(geom).min()) / low_m):
-        mask = seg.mask if not fill else _fill_streaks(seg.mask, fill, holder_radius=opts.holder_width_factor * R
-                                                           / low_m)
+    best = conflict = None
+    for fill in (0.0, _streak_length(geom, opts) / low_m):
+        mask = seg.mask if not fill else _fill_streaks(
+            seg.mask, fill, holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
+            bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
         region, box = largest_region(mask)
         ratio = float(region.sum()) / exp_area
         if ratio < opts.area_range[0] or region.mean() > 0.95:
@@ -164,7 +172,10 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
             best = res
         if best[0].image_status == "ok":
             break
-    return best
+        if "opposite mirror flag" in res[0].message:
+            conflict = res
+    # slot counts that fit the opposite mirror flag are strong evidence: they win over a partial result
+    return best if best[0].image_status == "ok" or conflict is None else conflict
 
 
 def _stations(ref, n_per_edge):
@@ -201,7 +212,9 @@ def _uncalibrated(gray, geom, opts, *, mirror, base):
     max_close = int(opts.uncal_close_frac * max(shape_c))
     R_lo = rough_tube_radius(fill_holes(largest_region(seg_c.mask)[0]), max_close_px=max_close)
     if np.isfinite(R_lo):
-        filled = fill_thin_lines(seg_c.mask, 0.6 * float(slot_widths(geom).min()) / R * R_lo)
+        across = band_directions(seg_c.mask, opts.close_slot_factor * float(slot_widths(geom).max()) / R * R_lo + 1,
+                                 R_lo)
+        filled = fill_thin_lines(seg_c.mask, _streak_length(geom, opts) / R * R_lo, across=across)
         R2 = rough_tube_radius(fill_holes(largest_region(filled)[0]), max_close_px=max_close)
         R_lo = R2 if np.isfinite(R2) else R_lo
     f0 = fc
@@ -242,7 +255,7 @@ def _uncalibrated(gray, geom, opts, *, mirror, base):
         # the corners in pixels do not depend on the scale beyond the profile lengths: map them again
         pts_px, ideal, cov, status, msg, blur, contour, side = ref["finish_args"]
         return finish(cam, geom, pts_px, ideal, cov, status, msg, blur, contour, scale_tol=opts.scale_tol,
-                      base_edge_tol=opts.base_edge_tol, base_side=side, **extra)
+                      base_edge_tol=opts.base_edge_tol, base_side=side, link_tol=link_tolerance(geom, opts), **extra)
     kw["f"] = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
     det, _ = _detect_at(gray, cam, geom, opts, px_per_m=px_per_m, extra=extra, **kw)
     return det

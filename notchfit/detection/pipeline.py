@@ -18,18 +18,19 @@ from .plane import finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
 
-__all__ = ["locate", "refine_corners", "run_at_scale"]
+__all__ = ["link_tolerance", "locate", "refine_corners", "run_at_scale"]
 
 
 def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
-           exclude_holder):
+           exclude_holder, gray=None, dark=True):
     """Bridge, base end, slot numbering on one cropped silhouette. Returns a dict, or (None, Detection)."""
     lay = notch_layout(geom)
     m = lay.n_points
     R_lo = geom.outer_radius / low_m
     holder, strict = holders
     ol = bridge_slots(roi, offset, small_shape, r_close=r_close, slot_area=slot_area,
-                      slot_area_range=opts.slot_area_range, sgn=sgn, holder=strict if exclude_holder else None)
+                      slot_area_range=opts.slot_area_range, sgn=sgn, holder=strict if exclude_holder else None,
+                      holder_strict=strict)
     if ol is None:
         return None, empty_detection(m, "no_manipulator", "no manipulator outline")
     X0, Y0 = ol.offset
@@ -38,7 +39,7 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     contour_px = full(cnt)
     plane_px = camera.pixel_to_plane(contour_px) / low_m
     dist = lambda i, j: float(np.linalg.norm(plane_px[i] - plane_px[j]))
-    mouths = slot_mouths(ol)
+    mouths = slot_mouths(ol, max_wall=0.5 * R_lo, gray=gray, dark=dark)
     be, why = find_base(ol, (holder, strict), R_lo=R_lo, dist=dist, sgn=sgn, min_tube_run_R=opts.min_tube_run_R,
                         min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
                         pair_tol=opts.pair_tol, base=base, mouth_idx=[v[0] for v in mouths.values()])
@@ -74,7 +75,7 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
             "contour_px": contour_px}, None
 
 
-def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base):
+def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base, small=None, dark=True):
     """Stages 2-4 on the downsampled copy: outline, base end, numbering, first corner estimates.
 
     The slots are bridged with the holder left out of the closing (its
@@ -99,7 +100,9 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     roi, offset = crop_region(region, box, small_shape, r_close + 2, keep_holes=keep)
     strict, grown = holder_masks(roi, opts.holder_width_factor * R_lo)
     holders = (grown, strict)
-    kw = dict(f=f, low_m=low_m, sgn=sgn, base=base, r_close=r_close, slot_area=slot_area, holders=holders)
+    gray = None if small is None else small[offset[1]:offset[1] + roi.shape[0], offset[0]:offset[0] + roi.shape[1]]
+    kw = dict(f=f, low_m=low_m, sgn=sgn, base=base, r_close=r_close, slot_area=slot_area, holders=holders,
+              gray=gray, dark=dark)
     best = None
     for exclude in ((True, False) if holders[1].any() else (False,)):
         res, fail = _parse(roi, offset, small_shape, camera, geom, opts, exclude_holder=exclude, **kw)
@@ -211,12 +214,20 @@ def statuses(ref, m, status, shape, opts):
     return status, pts_px, ideal, cov
 
 
+def link_tolerance(geom, opts):
+    """(relative, absolute [m]) tolerance of the rigid-link check, or None at a rough scale (no checks)."""
+    if not math.isfinite(opts.scale_tol):
+        return None
+    return opts.link_rel_tol, opts.link_abs_w * float(slot_widths(geom).min())
+
+
 def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base,
                  extra=None, stations=None):
     """Stages 2-6 at a given scale. Returns (Detection, refinement dict or None)."""
     lay = notch_layout(geom)
     m = lay.n_points
-    specs, ctx = locate(region, box, small_shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base)
+    specs, ctx = locate(region, box, small_shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base,
+                        small=seg.image, dark=seg.contrast < 0)
     if specs is None:
         return ctx, None
     extra = extra or {}
@@ -233,6 +244,7 @@ def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, 
         ref["finish_args"] = (pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
                               ctx["contour_px"], ctx["side"])
     det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx["contour_px"],
-                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"], **extra)
+                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"],
+                 link_tol=link_tolerance(geom, opts), **extra)
     return det, ref
 

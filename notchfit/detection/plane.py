@@ -47,8 +47,52 @@ def base_edge_offset(plane, ok, geom) -> float:
     return float(np.linalg.norm(plane[ib] - plane[ip]) - expect)
 
 
+def rigid_link_outliers(plane, ok, geom, *, rel_tol: float, abs_tol: float) -> np.ndarray:
+    """Ok points that disagree with their own link's rigid shape (m,) bool.
+
+    The corners on one link keep their straight-configuration distances
+    whatever the joint angles (the links are rigid; geometry.md). For every
+    pair of ok points on a link the measured distance must match within
+    ``max(rel_tol d, abs_tol)`` [m]; a point that disagrees with more of its
+    link's points than it agrees with is an outlier (a slot numbered one off,
+    a holder corner taken for a base point). Two points that disagree are
+    both outliers.
+    """
+    lay = notch_layout(geom)
+    bad = np.zeros(len(ok), bool)
+    for link in np.unique(lay.link):
+        idx = [i for i in np.nonzero(lay.link == link)[0] if ok[i]]
+        if len(idx) < 2:
+            continue
+        votes = {i: [0, 0] for i in idx}
+        for a in range(len(idx)):
+            for b in range(a + 1, len(idx)):
+                i, j = idx[a], idx[b]
+                d_exp = float(np.linalg.norm(lay.straight[i] - lay.straight[j]))
+                good = abs(float(np.linalg.norm(plane[i] - plane[j])) - d_exp) <= max(rel_tol * d_exp, abs_tol)
+                votes[i][0 if good else 1] += 1
+                votes[j][0 if good else 1] += 1
+        for i, (yes, no) in votes.items():
+            bad[i] = no > yes
+    return bad
+
+
+def _drop_link_outliers(plane, sigma, status, msg, geom, link_tol):
+    """Mark the rigid-link outliers ambiguous (see :func:`rigid_link_outliers`)."""
+    ok = np.array([s == "ok" for s in status])
+    bad = rigid_link_outliers(plane, ok, geom, rel_tol=link_tol[0], abs_tol=link_tol[1])
+    if bad.any():
+        msg = [*msg, "points " + ", ".join(str(i + 1) for i in np.nonzero(bad)[0]) + " do not fit their rigid "
+               "links (numbered wrongly or not a notch corner): not used"]
+        for i in np.nonzero(bad)[0]:
+            status[i] = "ambiguous"
+            plane[i] = np.nan
+            sigma[i] = np.nan
+    return msg
+
+
 def finish(camera, geom, pts_px, ideal, cov, status, msg, blur, contour_px, *, scale_tol, base_edge_tol,
-           check_base=True, **extra) -> Detection:
+           check_base=True, link_tol=None, **extra) -> Detection:
     """Plane points, scale and base-edge checks, statuses and the message."""
     m = len(status)
     lay = notch_layout(geom)
@@ -91,6 +135,8 @@ def finish(camera, geom, pts_px, ideal, cov, status, msg, blur, contour_px, *, s
         status = ["ambiguous" if s == "ok" else s for s in status]
         plane[:] = np.nan
         sigma[:] = np.nan
+    if link_tol is not None and not (bad and len(bad) == len(widths)):
+        msg = _drop_link_outliers(plane, sigma, status, msg, geom, link_tol)
     n_ok = sum(s == "ok" for s in status)
     if n_ok == m:
         ist, text = "ok", ""
