@@ -253,9 +253,10 @@ def _uncalibrated(gray, geom, opts, *, mirror, base):
     cam = DiameterScale(1 / px_per_m, (W, H))
     if abs(px_per_m / rough - 1) <= opts.rescale_tol and "finish_args" in ref:
         # the corners in pixels do not depend on the scale beyond the profile lengths: map them again
-        pts_px, ideal, cov, status, msg, blur, contour, side = ref["finish_args"]
+        pts_px, ideal, cov, status, msg, blur, contour, side, guessed = ref["finish_args"]
         return finish(cam, geom, pts_px, ideal, cov, status, msg, blur, contour, scale_tol=opts.scale_tol,
-                      base_edge_tol=opts.base_edge_tol, base_side=side, link_tol=link_tolerance(geom, opts), **extra)
+                      base_edge_tol=opts.base_edge_tol, base_side=side, link_tol=link_tolerance(geom, opts),
+                      need_partner=guessed, **extra)
     kw["f"] = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
     det, _ = _detect_at(gray, cam, geom, opts, px_per_m=px_per_m, extra=extra, **kw)
     return det

@@ -54,7 +54,9 @@ class DetectorOptions:
     link_rel_tol, link_abs_w : float
         Rigid-link check: the distance between two ok corners of one link
         must match the geometry within ``link_rel_tol`` of it or
-        ``link_abs_w`` slot widths, whichever is larger.
+        ``link_abs_w`` slot widths, whichever is larger (a tube as built
+        differs from its drawing by a few %; a slot numbered one off or a
+        holder corner taken for a base point is off by a link).
     scale_tol : float
         Relative tolerance of the measured base and tip widths (``2R``) in mm;
         beyond it the camera file is taken to be wrong.
@@ -108,8 +110,8 @@ class DetectorOptions:
     corner_turn_deg: float = 50.0
     pair_tol: float = 0.3
     base_edge_tol: float = 0.25
-    link_rel_tol: float = 0.02
-    link_abs_w: float = 0.1
+    link_rel_tol: float = 0.15
+    link_abs_w: float = 0.5
     scale_tol: float = 0.05
     max_shift_px: float = 10.0
     max_sigma_px: float = 0.3

@@ -137,7 +137,7 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
                         geom=geom, low_m=low_m, raw_corners=rawc)
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
     return specs, {"contour_px": res["contour_px"], "status": num.status, "messages": num.messages,
-                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube]}
+                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube], "guessed": num.guessed}
 
 
 def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
@@ -152,7 +152,31 @@ def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
     return np.ascontiguousarray(gray[v0:v1, u0:u1], dtype=np.float32), np.array([u0, v0], float)
 
 
-def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opts, extra_px=None):
+def _curved_edges(pidx, geom, specs) -> np.ndarray:
+    """(2K,) bool: the edges that are circular faces of the tube (slot faces, the tip face)."""
+    lay = notch_layout(geom)
+    K = len(specs)
+    out = np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool)
+    for k, i in enumerate(pidx):
+        if lay.kind[i] == "tip":              # tip-right: the outgoing edge is the tip face; tip-left: incoming
+            out[K + k if lay.side[i] > 0 else k] = True
+    return out
+
+
+def _partners(pidx, geom) -> np.ndarray:
+    """(K,) index of the corner on the same slot (or the other tip corner), -1 where it is not refined."""
+    lay = notch_layout(geom)
+    key = {i: (lay.kind[i] == "tip", int(lay.joint[i]), int(lay.side[i]) if lay.kind[i] != "tip" else 0)
+           for i in pidx}
+    out = np.full(len(pidx), -1)
+    for a, i in enumerate(pidx):
+        for b, j in enumerate(pidx):
+            if a != b and lay.kind[i] != "base" and key[i] == key[j]:
+                out[a] = b
+    return out
+
+
+def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opts, extra_px=None, geom=None):
     """Stage 5 for all corners: first pass with long profiles, then passes sized by the measured blur.
 
     Returns
@@ -165,7 +189,10 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
     sp = CornerSpecs(full(np.array([s[1] for s in specs])), unit(np.array([s[2] for s in specs])),
                      unit(np.array([s[3] for s in specs])), np.array([s[4] for s in specs]) * px_per_m,
                      np.array([s[5] for s in specs]) * px_per_m,
-                     np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool))
+                     np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool),
+                     None if geom is None else _curved_edges(pidx, geom, specs),
+                     None if geom is None else _partners(pidx, geom))
+    radius_px = math.nan if geom is None else geom.outer_radius * px_per_m
     C0 = sp.C.copy()
     margin = 2 * max(opts.stage1_half_px, opts.stage1_face_px) * kf + 10
     extra = np.zeros((0, 2)) if extra_px is None else extra_px
@@ -181,7 +208,7 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
         Cn, Xi, Ci, ok, bl_new, Din, Dout = refine_pass(
             img, off, camera, sp, sgn, s0=s0, s_end=s_end, h=h, step=opts.profile_step_px, lim=lim,
             min_points=opts.min_edge_points, contrast=contrast, h_face=h_face,
-            blur_prior=bl if it > 0 else math.nan)
+            blur_prior=bl if it > 0 else math.nan, radius_px=radius_px)
         if np.isfinite(bl_new):
             bl = bl_new
         sp.C = np.where(np.isfinite(Cn).all(1)[:, None], Cn, sp.C)
@@ -238,13 +265,13 @@ def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, 
     if specs:
         far = ctx["tube_px"] if stations else None
         ref = refine_corners(gray, specs, camera, full=ctx["full"], px_per_m=px_per_m, sgn=sgn,
-                             contrast=seg.contrast, f=f, opts=opts, extra_px=far)
+                             contrast=seg.contrast, f=f, opts=opts, extra_px=far, geom=geom)
         status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
         blur = ref["blur"]
         ref["finish_args"] = (pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
-                              ctx["contour_px"], ctx["side"])
+                              ctx["contour_px"], ctx["side"], ctx["guessed"])
     det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx["contour_px"],
                  scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"],
-                 link_tol=link_tolerance(geom, opts), **extra)
+                 link_tol=link_tolerance(geom, opts), need_partner=ctx["guessed"], **extra)
     return det, ref
 

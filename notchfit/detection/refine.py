@@ -21,7 +21,8 @@ import numpy as np
 
 from .lines import group_median, robust_group_lines, unit
 
-__all__ = ["CornerSpecs", "Profiles", "corner_lines", "edge_crossings", "refine_pass", "sample_profiles"]
+__all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "refine_pass",
+           "sample_profiles"]
 
 
 @dataclass
@@ -40,6 +41,12 @@ class CornerSpecs:
     face : ndarray (2K,) bool
         Edge e < K is corner e's incoming edge, e >= K its outgoing edge;
         True for slot faces (whose background is the slot).
+    curved : ndarray (2K,) bool, optional
+        Edges that are the tube's circular faces (slot faces, the tip face):
+        seen a little from the side they are arcs of an ellipse that meets
+        the outer edge tangentially (:func:`curved_face_corners`).
+    partner : ndarray (K,) int, optional
+        The slot's or the tip's other corner (-1: none).
     """
 
     C: np.ndarray
@@ -48,6 +55,8 @@ class CornerSpecs:
     Lin: np.ndarray
     Lout: np.ndarray
     face: np.ndarray
+    curved: np.ndarray | None = None
+    partner: np.ndarray | None = None
 
 
 @dataclass
@@ -63,17 +72,21 @@ class Profiles:
     n_t: int
 
 
-def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, step) -> Profiles | None:
-    """Profiles every 1 px along each edge, from ``s0`` px after the corner to ``s_end`` px before its end."""
+def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, step, h_curved=0.0) -> Profiles | None:
+    """Profiles every 1 px along each edge, from ``s0`` px after the corner to ``s_end`` px before its end;
+    half length ``h``, ``h_face`` on slot faces, at least ``h_curved`` on curved edges (the arc of a face
+    seen from the side leaves its chord)."""
     K = len(sp.C)
     E_dir = np.concatenate([-sp.Din, sp.Dout])
     E_trav = np.concatenate([sp.Din, sp.Dout])
     E_nrm = sgn * np.stack([E_trav[:, 1], -E_trav[:, 0]], axis=1)
     E_len = np.concatenate([sp.Lin, sp.Lout])
     E_C = np.concatenate([sp.C, sp.C])
-    n_t = int(math.ceil(max(h, h_face) / step))
-    t = np.arange(-n_t, n_t + 1) * step
     kt = np.where(sp.face, int(math.ceil(h_face / step)), int(math.ceil(h / step)))
+    if sp.curved is not None and h_curved > 0:
+        kt = np.where(sp.curved, np.maximum(kt, int(math.ceil(h_curved / step))), kt)
+    n_t = int(kt.max())
+    t = np.arange(-n_t, n_t + 1) * step
     n_s = np.maximum(np.floor(E_len - s_end - s0).astype(int) + 1, 0)
     e_idx = np.repeat(np.arange(2 * K), n_s)
     Np = len(e_idx)
@@ -91,7 +104,7 @@ def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, ste
     return Profiles(np.where(win, prof, np.nan), base, nrm, e_idx, t, kp, n_t)
 
 
-def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True):
+def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True, own_level=None):
     """50 % crossings of the profiles between per-edge object and background levels.
 
     Returns
@@ -136,8 +149,10 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True)
     fp = face[e_idx]
     # a slot face's object level is its own (shading across the tube changes it along the face);
     # its background level is its partner's, whose background is open
-    lo_p = np.where(fp, lo_v, np.where(face, lo[partner], lo)[e_idx])          # plateau: validity
-    lo_c = np.where(fp, lo_v, np.where(face, lo_edge[partner], lo_edge)[e_idx])  # at the edge: crossing
+    # a curved face (the tip face, across the tube's shading) also takes its own level, profile by profile
+    fo = fp if own_level is None else (fp | own_level[e_idx])
+    lo_p = np.where(fo, lo_v, np.where(face, lo[partner], lo)[e_idx])          # plateau: validity
+    lo_c = np.where(fo, lo_v, np.where(face, lo_edge[partner], lo_edge)[e_idx])  # at the edge: crossing
     span = hi[e_idx] - lo_p
     with np.errstate(invalid="ignore", divide="ignore"):
         qa = (prof - lo_c[:, None]) / (hi[e_idx] - lo_c)[:, None]
@@ -219,6 +234,116 @@ def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0):
     return X, cov, okc, c, dd, good_e
 
 
+def _face_fit(u, v, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 0.15, n_iter: int = 3):
+    """Robust least squares ``v = v0 + c u (+ b g(u))`` with ``g(u) = sqrt(u (2 radius - u))``.
+
+    Returns (coefficients, their covariance, residual variance, kept count); None when too few points.
+    """
+    A = np.stack([np.ones_like(u), u] + ([np.sqrt(np.clip(u * (2 * radius - u), 0, None))] if curved else []), 1)
+    keep = np.ones(len(u), bool)
+    for _ in range(n_iter + 1):
+        if keep.sum() <= A.shape[1] + 2:
+            return None
+        coef, *_ = np.linalg.lstsq(A[keep], v[keep], rcond=None)
+        r = v - A @ coef
+        lim = max(k_mad * 1.4826 * float(np.median(np.abs(r[keep]))), floor)
+        new = np.abs(r) <= lim
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    n = int(keep.sum())
+    s2 = float(np.sum(r[keep] ** 2)) / max(n - A.shape[1], 1)
+    cov = s2 * np.linalg.inv(A[keep].T @ A[keep])
+    return coef, cov, s2, n
+
+
+def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: float, s2_floor: float = 0.0,
+                        min_points: int = 5, significance: float = 16.0, start_px: float = 0.0,
+                        max_start: float = 0.1, max_sin: float = 0.2, partner=None, lone_sigma: float = 6.0):
+    """Corners where a circular face meets the outer edge, the face seen a little from the side.
+
+    A slot or tip face is a circle of radius ``R`` about the tube's axis. Seen
+    exactly from the side it is a straight edge; when the view looks a little
+    along the tube (the tube tilted out of the image plane, or off the lens's
+    axis) it is an arc of an ellipse: ``R`` across the tube, ``R sin β``
+    along it, tangent to the outer edge (the limb) at the corner. A straight
+    line fitted to such an arc meets the limb up to ``0.3 R sin β`` off (0.01
+    mm at 3° on a 1.62 mm tube). In the limb's frame (``u`` across the tube
+    from the limb, ``v`` along it) the face is ``v = v0 + c u + b sqrt(u (2R -
+    u))``; the corner is the limb's point at ``v0``. The arc term is kept only
+    where it reduces the residual sum of squares by more than
+    ``significance`` times the residual variance (else the straight line's
+    intersection stands), where the face's crossings start within
+    ``max_start`` R of where the profiles start (``start_px`` from the
+    corner; the arc cannot be extrapolated from a face seen only far from
+    its corner, as next to a nearly closed mouth) and
+    ``|b| ≤ max_sin`` (a view within about 11° of the side).
+
+    Parameters
+    ----------
+    pts : ndarray (P, 2)
+        Undistorted 50 % crossings; ``grp`` (P,) their edge 0..2K-1.
+    c, dd : ndarray (2K, 2)
+        Robust line fits of every edge (centroid, direction).
+    curved : ndarray (2K,) bool
+    X, cov, okc : the straight-line corners (K, 2), covariances, ok flags; updated copies are returned.
+    radius_px : float
+        Tube radius in ideal pixels.
+    partner : ndarray (K,) int, optional
+        The corner whose face is seen from about the same side (the slot's
+        other corner, the tip's other corner; -1: none): an arc is kept only
+        where the partner's arc agrees with it, or, where the partner has
+        none, when it is ``lone_sigma`` standard errors from zero.
+    """
+    X, cov = X.copy(), cov.copy()
+    fits = {}
+    for k in range(K):
+        for face_e, limb_e in ((k, K + k), (K + k, k)):
+            if curved[face_e] and not curved[limb_e] and okc[k]:
+                f = _corner_arc(pts[grp == face_e] - c[limb_e], dd[limb_e], radius_px, s2_floor=s2_floor,
+                                min_points=min_points, significance=significance, max_sin=max_sin,
+                                max_u0=start_px + max_start * radius_px)
+                if f is not None:
+                    fits[k] = (f, limb_e)
+    for k, ((v0, var_v0, b, sd_b), limb_e) in fits.items():
+        q = -1 if partner is None else int(partner[k])
+        if q >= 0:
+            # the partner (the slot's other face, the tip face's other end) is seen from about the same
+            # side: its arc must agree (a JPEG block or a streak makes a spurious one on one face); an arc
+            # without a partner's must be clear by itself
+            if q not in fits and abs(b) < lone_sigma * sd_b:
+                continue
+            if q in fits and abs(abs(b) - abs(fits[q][0][2])) > 3 * math.hypot(sd_b, fits[q][0][3]) + 0.25 * abs(b):
+                continue
+        d = dd[limb_e]
+        nrm = np.array([-d[1], d[0]])
+        X[k] = c[limb_e] + v0 * d
+        var_n = float(np.dot(nrm, cov[k] @ nrm))        # across the limb: the limb's own uncertainty
+        cov[k] = var_v0 * np.outer(d, d) + var_n * np.outer(nrm, nrm)
+    return X, cov
+
+
+def _corner_arc(rel, d, radius_px, *, s2_floor, min_points, significance, max_sin, max_u0):
+    """The arc model of one face in its limb's frame (``rel``: crossings minus the limb's centroid, ``d``:
+    the limb's direction): (v0, var v0, b, sd b) when the arc is significant, else None."""
+    if len(rel) < min_points + 3:
+        return None
+    nrm = np.array([-d[1], d[0]])
+    u, v = rel @ nrm, rel @ d
+    u = u * (1.0 if np.median(u) >= 0 else -1.0)
+    near = u <= radius_px                # the half of a face next to this corner (the tip face is 2R long)
+    u, v = u[near], v[near]
+    if not len(u) or u.min() > max_u0:
+        return None                      # a face seen only far from the corner (a nearly closed mouth)
+    line, ell = _face_fit(u, v, radius_px, curved=False), _face_fit(u, v, radius_px, curved=True)
+    if line is None or ell is None:
+        return None
+    gain = line[2] * (line[3] - 2) - ell[2] * (ell[3] - 3)
+    if not gain > significance * max(ell[2], s2_floor) or abs(ell[0][2]) > max_sin:
+        return None
+    return ell[0][0], max(ell[1][0, 0], s2_floor / ell[3]), ell[0][2], math.sqrt(ell[1][2, 2])
+
+
 def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
     """Raw-image edge directions for the next pass; a corner with one good line is put on it."""
     K = len(sp.C)
@@ -250,7 +375,7 @@ def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
 
 
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, lim, min_points, contrast,
-                h_face=None, blur_prior=math.nan):
+                h_face=None, blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12):
     """One pass of edge-profile line fits for all corners at once.
 
     Parameters
@@ -267,6 +392,11 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         Edge blur from a previous pass [px]; when given, the noise floor of
         the crossings follows from it and the object level is carried to the
         edge along its slope (shading).
+    radius_px : float
+        The tube's radius [ideal px]: with it, corners on the curved edges
+        of ``sp.curved`` come from :func:`curved_face_corners`, whose
+        profiles reach at least ``curved_reach`` R each way (an arc seen 7°
+        from the side leaves its chord by 0.12 R).
 
     Returns
     -------
@@ -275,11 +405,12 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     """
     K = len(sp.C)
     h_face = h if h_face is None else h_face
-    pr = sample_profiles(img, off, sp, sgn, s0=s0, s_end=s_end, h=h, h_face=h_face, step=step)
+    h_curved = curved_reach * radius_px if np.isfinite(radius_px) else 0.0
+    pr = sample_profiles(img, off, sp, sgn, s0=s0, s_end=s_end, h=h, h_face=h_face, step=step, h_curved=h_curved)
     nan = np.full((K, 2), np.nan)
     if pr is None:
         return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout
-    tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step,
+    tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
                                          extrapolate=bool(np.isfinite(blur_prior)))
     fp = sp.face[pr.edge]
     blur = edge_blur(qa, valid & ~fp, pr.t, step)
@@ -293,6 +424,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         sq = 1.4826 * float(np.median(np.abs(q_lo[plateau])))
         s2_floor = (sq * math.sqrt(2 * math.pi) * blur_prior) ** 2
     X, cov, okc, c, dd, good_e = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor)
+    if sp.curved is not None and np.isfinite(radius_px) and sp.curved.any():
+        X, cov = curved_face_corners(und, pr.edge[valid], K, c, dd, sp.curved, X, cov, okc, radius_px=radius_px,
+                                     s2_floor=s2_floor, min_points=min_points, start_px=s0, partner=sp.partner)
     Cn = np.full((K, 2), np.nan)
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])

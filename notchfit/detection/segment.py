@@ -88,25 +88,13 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
     hs, ws = small.shape
     step = max(1, int(np.ceil(np.sqrt(hs * ws / max_fit_points))))
     sub = small[::step, ::step]
-    above = sub > otsu(sub.ravel())
-    border = np.concatenate([above[0], above[-1], above[:, 0], above[:, -1]])
-    obj0 = ~above if border.mean() > 0.5 else above
-    bgm = cv2.erode((~obj0).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    objm = cv2.erode(obj0.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    if bgm.sum() < 50:
+    A = poly2(*np.meshgrid(np.arange(0, ws, step) / ws - 0.5, np.arange(0, hs, step) / hs - 0.5)).reshape(-1, 6)
+    vals = sub.ravel().astype(float)
+    starts = [s for s in (_otsu_background(sub), _trimmed_background(A, vals)) if s is not None]
+    if not starts:
         return Segmentation(None, 0.0, 0.0, "no manipulator found: no background visible")
-    if objm.sum() < 10:
-        return Segmentation(None, 0.0, 0.0, "no manipulator found: no object region")
-    A = poly2(*np.meshgrid(np.arange(0, ws, step) / ws - 0.5, np.arange(0, hs, step) / hs - 0.5))
-    A, vals = A.reshape(-1, 6), sub.ravel().astype(float)
-    inl = bgm.ravel()
-    for it in range(rounds + 1):
-        coef = np.linalg.solve(A[inl].T @ A[inl] + 1e-9 * np.eye(6), A[inl].T @ vals[inl])
-        res = vals - A @ coef
-        contrast = float(np.median(res[objm.ravel()]))
-        if it < rounds:
-            inl = np.abs(res) <= 0.25 * abs(contrast)
-    noise = _noise(small, step, inl.reshape(sub.shape))
+    fits = [_refit(A, vals, inl, small, step, sub.shape, rounds) for inl in starts]
+    coef, contrast, noise = max(fits, key=lambda f: abs(f[1]) / f[2])   # the clearer object
     if not abs(contrast) >= min_snr * noise * noise_scale:
         return Segmentation(None, contrast, noise,
                             f"no manipulator found: contrast {abs(contrast):.1f} is below {min_snr:g} x the "
@@ -117,6 +105,43 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
     thr = (c_[0] + level * contrast + c_[1] * X + c_[3] * X * X) + (c_[2] * Y + c_[5] * Y * Y) + c_[4] * (Y * X)
     mask = ((small > thr) if contrast > 0 else (small < thr)).astype(np.uint8)
     return Segmentation(mask, contrast, noise, image=small)
+
+
+def _otsu_background(sub):
+    """Background samples from an Otsu split, the background being the class on most of the border."""
+    above = sub > otsu(sub.ravel())
+    border = np.concatenate([above[0], above[-1], above[:, 0], above[:, -1]])
+    obj0 = ~above if border.mean() > 0.5 else above
+    bgm = cv2.erode((~obj0).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    return bgm.ravel() if bgm.sum() >= 50 else None
+
+
+def _trimmed_background(A, vals, keep: float = 0.5, rounds: int = 4):
+    """Background samples from a trimmed fit: the half of the samples nearest a quadratic surface, refitted
+    ``rounds`` times (an object covering a small part of an unevenly lit image)."""
+    use = np.ones(len(vals), bool)
+    for _ in range(rounds):
+        coef = np.linalg.solve(A[use].T @ A[use] + 1e-9 * np.eye(6), A[use].T @ vals[use])
+        r = np.abs(vals - A @ coef)
+        use = r <= np.quantile(r, keep)
+    return use if use.sum() >= 50 else None
+
+
+def _refit(A, vals, inl, small, step, shape, rounds):
+    """The background surface refitted to the samples within a quarter of the contrast; the object is the
+    far side, dark or bright by the sign of most far samples. Returns (coefficients, contrast, noise)."""
+    for it in range(rounds + 1):
+        coef = np.linalg.solve(A[inl].T @ A[inl] + 1e-9 * np.eye(6), A[inl].T @ vals[inl])
+        res = vals - A @ coef
+        noise = _noise(small, step, inl.reshape(shape))
+        far = np.abs(res) > max(5 * noise, 0.3 * float(np.percentile(np.abs(res), 99.5)))
+        if far.sum() < 10:
+            return coef, 0.0, noise
+        dark = np.sum(res[far] < 0) >= np.sum(res[far] > 0)
+        contrast = float(np.median(res[far & ((res < 0) if dark else (res > 0))]))
+        if it < rounds:
+            inl = np.abs(res) <= 0.25 * abs(contrast)
+    return coef, contrast, noise
 
 
 def _noise(small, step: int, bg) -> float:
