@@ -18,7 +18,7 @@ from .plane import finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
 
-__all__ = ["link_tolerance", "locate", "refine_corners", "run_at_scale"]
+__all__ = ["link_tolerance", "locate", "refine_and_finish", "refine_corners", "run_at_scale"]
 
 
 def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
@@ -208,7 +208,7 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
         Cn, Xi, Ci, ok, bl_new, Din, Dout = refine_pass(
             img, off, camera, sp, sgn, s0=s0, s_end=s_end, h=h, step=opts.profile_step_px, lim=lim,
             min_points=opts.min_edge_points, contrast=contrast, h_face=h_face,
-            blur_prior=bl if it > 0 else math.nan, radius_px=radius_px)
+            blur_prior=bl if it > 0 else math.nan, radius_px=radius_px if it == opts.iterations else math.nan)
         if np.isfinite(bl_new):
             bl = bl_new
         sp.C = np.where(np.isfinite(Cn).all(1)[:, None], Cn, sp.C)
@@ -251,12 +251,17 @@ def link_tolerance(geom, opts):
 def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base,
                  extra=None, stations=None):
     """Stages 2-6 at a given scale. Returns (Detection, refinement dict or None)."""
-    lay = notch_layout(geom)
-    m = lay.n_points
     specs, ctx = locate(region, box, small_shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base,
                         small=seg.image, dark=seg.contrast < 0)
     if specs is None:
         return ctx, None
+    return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
+                             extra=extra, stations=stations)
+
+
+def refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, *, f, px_per_m, sgn, extra=None, stations=None):
+    """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, refinement dict or None)."""
+    m = geom.n_points
     extra = extra or {}
     status, msg = list(ctx["status"]), list(ctx["messages"])
     ref = None

@@ -133,7 +133,8 @@ def _refit(A, vals, inl, small, step, shape, rounds):
     for it in range(rounds + 1):
         coef = np.linalg.solve(A[inl].T @ A[inl] + 1e-9 * np.eye(6), A[inl].T @ vals[inl])
         res = vals - A @ coef
-        noise = _noise(small, step, inl.reshape(shape))
+        if it in (0, rounds):
+            noise = _noise(small, step, inl.reshape(shape))
         far = np.abs(res) > max(5 * noise, 0.3 * float(np.percentile(np.abs(res), 99.5)))
         if far.sum() < 10:
             return coef, 0.0, noise
@@ -204,10 +205,16 @@ def band_directions(mask, bridge_px: float, radius_px: float, min_coherence: flo
     pad = r + 2
     big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
     band = fill_holes(cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)[pad:-pad, pad:-pad]).astype(np.float32)
-    s1, s2 = max(0.5 * radius_px, 0.7), max(float(radius_px), 1.0)
-    b = cv2.GaussianBlur(band, (0, 0), s1)
+    # the tensor varies on the scale of the radius: computed on a copy reduced to about 4 px per radius
+    k = max(1, int(radius_px // 4))
+    h, w = band.shape
+    small = cv2.resize(band, (max(w // k, 1), max(h // k, 1)), interpolation=cv2.INTER_AREA) if k > 1 else band
+    s1, s2 = max(0.5 * radius_px / k, 0.7), max(float(radius_px) / k, 1.0)
+    b = cv2.GaussianBlur(small, (0, 0), s1)
     gx, gy = cv2.Sobel(b, cv2.CV_32F, 1, 0), cv2.Sobel(b, cv2.CV_32F, 0, 1)
     jxx, jxy, jyy = (cv2.GaussianBlur(v, (0, 0), s2) for v in (gx * gx, gx * gy, gy * gy))
+    if k > 1:
+        jxx, jxy, jyy = (cv2.resize(v, (w, h), interpolation=cv2.INTER_LINEAR) for v in (jxx, jxy, jyy))
     ang = (0.5 * np.arctan2(2 * jxy, jxx - jyy)) % np.float32(np.pi)
     # where the gradients do not agree on one direction (the tube's ends, the holder), the direction of
     # the nearest pixel where they do
