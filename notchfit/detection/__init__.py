@@ -209,8 +209,8 @@ def _stations(ref, n_per_edge):
 
 def _rough_scale(gray, geom, opts, cache):
     """The tube's radius on a coarse copy: (radius [coarse px], factor, the region it was found in,
-    segmentation), or (None, message). Again with thin background lines filled across the tube when a
-    streak may have split the silhouette."""
+    segmentation), or (None, message). Again with thin background lines filled across the tube (a streak
+    may have split the silhouette)."""
     H, W = gray.shape
     R = geom.outer_radius
     fc = max(1, int(round(max(H, W) / (opts.lowres_long_side_px / 2.5))))
@@ -222,14 +222,16 @@ def _rough_scale(gray, geom, opts, cache):
     def radius(mask):
         reg = largest_region(mask)[0]
         return (*tube_radius(reg, geom, max_close_px=max_close, close_factor=opts.close_slot_factor,
-                             area_range=opts.slot_area_range, filled=fill_holes(reg)), reg)
+                             area_range=opts.rough_slot_area_range, filled=fill_holes(reg)), reg)
 
     R_lo, n_slots, reg = radius(seg_c.mask)
-    if np.isfinite(R_lo) and n_slots < geom.n_joints:
+    if np.isfinite(R_lo):
+        # a streak splits the tube into two bands of half its width, each with the slots beside it: the
+        # filled silhouette's band is the tube when it holds as many slots and is wider
         across = band_directions(seg_c.mask, opts.close_slot_factor * float(slot_widths(geom).max()) / R * R_lo + 1,
                                  R_lo)
         R2, n2, reg2 = radius(fill_thin_lines(seg_c.mask, _streak_length(geom, opts) / R * R_lo, across=across))
-        if np.isfinite(R2) and n2 >= n_slots:
+        if np.isfinite(R2) and (n2 > n_slots or (n2 == n_slots and R2 > R_lo)):
             R_lo, reg = R2, reg2
     if not np.isfinite(R_lo):
         return None, "no tube found: no band of constant width in the silhouette"
@@ -242,7 +244,7 @@ def _band_widths(gray, geom, opts, rough):
     R_lo, fc, reg, seg_c = rough
     w_, d_ = float(np.median(slot_widths(geom))), float(np.median(slot_depths(geom)))
     pts = band_centreline(reg, R_lo, slot_width=w_, slot_depth=d_, radius=geom.outer_radius,
-                          close_factor=opts.close_slot_factor, area_range=opts.slot_area_range)
+                          close_factor=opts.close_slot_factor, area_range=opts.rough_slot_area_range)
     if len(pts) < 3:
         return np.zeros(0)
     pts = pts[np.linspace(0, len(pts) - 1, min(len(pts), 4 * opts.width_stations)).astype(int)]

@@ -88,6 +88,11 @@ class DetectorOptions:
         Without a calibration: when the measured scale is within this
         relative distance of the rough one, the corners found at the rough
         scale are mapped again instead of being searched for again.
+    rough_slot_area_range : (float, float)
+        Without a calibration: accepted slot area relative to ``w d`` at the
+        scale a candidate band implies (narrower than ``slot_area_range``:
+        a streak that splits the tube makes half-width bands whose slots
+        look four times too big).
     uncal_close_frac : float
         Without a calibration: the largest closing tried to bridge the
         slots for the first scale estimate, as a fraction of the downsampled
@@ -123,6 +128,7 @@ class DetectorOptions:
     sigma_inflation: float = 1.45
     width_stations: int = 5
     rescale_tol: float = 0.05
+    rough_slot_area_range: tuple = (0.3, 2.5)
     uncal_close_frac: float = 0.1
     streak_fill_R: float = 0.6
 

@@ -163,6 +163,17 @@ def _curved_edges(pidx, geom, specs) -> np.ndarray:
     return out
 
 
+def _holder_faces(pidx, geom) -> np.ndarray:
+    """(2K,) bool: the edges along the holder's face (base-right: incoming, base-left: outgoing)."""
+    lay = notch_layout(geom)
+    K = len(pidx)
+    out = np.zeros(2 * K, bool)
+    for k, i in enumerate(pidx):
+        if lay.kind[i] == "base":
+            out[k if lay.side[i] > 0 else K + k] = True
+    return out
+
+
 def _partners(pidx, geom) -> np.ndarray:
     """(K,) index of the corner on the same slot (or the other tip corner), -1 where it is not refined."""
     lay = notch_layout(geom)
@@ -191,7 +202,8 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
                      np.array([s[5] for s in specs]) * px_per_m,
                      np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool),
                      None if geom is None else _curved_edges(pidx, geom, specs),
-                     None if geom is None else _partners(pidx, geom))
+                     None if geom is None else _partners(pidx, geom),
+                     None if geom is None else _holder_faces(pidx, geom))
     radius_px = math.nan if geom is None else geom.outer_radius * px_per_m
     C0 = sp.C.copy()
     margin = 2 * max(opts.stage1_half_px, opts.stage1_face_px) * kf + 10

@@ -47,6 +47,9 @@ class CornerSpecs:
         the outer edge tangentially (:func:`curved_face_corners`).
     partner : ndarray (K,) int, optional
         The slot's or the tip's other corner (-1: none).
+    holder_face : ndarray (2K,) bool, optional
+        Edges along a holder's face (the base corners'): their object side
+        is the holder, whose shading and highlights are its own.
     """
 
     C: np.ndarray
@@ -57,6 +60,7 @@ class CornerSpecs:
     face: np.ndarray
     curved: np.ndarray | None = None
     partner: np.ndarray | None = None
+    holder_face: np.ndarray | None = None
 
 
 @dataclass
@@ -104,7 +108,8 @@ def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, ste
     return Profiles(np.where(win, prof, np.nan), base, nrm, e_idx, t, kp, n_t)
 
 
-def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True, own_level=None):
+def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True, own_level=None,
+                   band_tol: float = 0.15, holder_face=None):
     """50 % crossings of the profiles between per-edge object and background levels.
 
     Returns
@@ -123,6 +128,19 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     rows = np.arange(len(e_idx))
     lo_v = 0.5 * (prof[rows, n_t - kp] + prof[rows, n_t - kp + 1])
     hi_v = 0.5 * (prof[rows, n_t + kp] + prof[rows, n_t + kp - 1])
+    # a specular streak along the tube near its edge, brighter than the background (darker for a light
+    # object), at the far end of the object side: the object's level is the most object-like part of that
+    # side (3-sample mean) there
+    cs = 1.0 if contrast > 0 else -1.0
+    idx = np.arange(prof.shape[1])[None, :]
+    obj_side = (idx >= (n_t - kp)[:, None]) & (idx < n_t)
+    smooth = cv2.blur(np.nan_to_num(prof).astype(np.float32), (3, 1), borderType=cv2.BORDER_REPLICATE)
+    ext = np.max(np.where(obj_side, cs * smooth, -np.inf), axis=1)
+    least = np.min(np.where(obj_side, cs * smooth, np.inf), axis=1)
+    banded = least < cs * hi_v - band_tol * abs(contrast)
+    if holder_face is not None:
+        banded &= ~holder_face[e_idx]                    # a holder's shading and highlights are its own
+    lo_v = np.where(banded, cs * ext, lo_v)
     # levels from the profiles that span the edge; slot faces take their partner's (open background)
     span_ok = (lo_v - hi_v) * (1.0 / contrast) > 0.5
     lo = group_median(np.where(span_ok, lo_v, np.nan), e_idx, K2)
@@ -135,7 +153,7 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
         lo_w = 0.5 * (prof[rows, i2] + prof[rows, i2 + 1])
         with np.errstate(invalid="ignore", divide="ignore"):
             slope = (lo_w - lo_v) / ((i2 - (n_t - kp)) * step)
-        use = span_ok & np.isfinite(slope)
+        use = span_ok & np.isfinite(slope) & ~banded
         med = group_median(np.where(use, slope, np.nan), e_idx, K2)
         # only a slope the profiles agree on (3 standard errors of the median): flat levels stay exact
         mad = 1.4826 * group_median(np.where(use, np.abs(slope - med[e_idx]), np.nan), e_idx, K2)
@@ -162,6 +180,9 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     sq = 1.4826 * float(np.median(np.abs(q_lo[sel_]))) if sel_.sum() >= 10 else 0.0
     lim = max(lim, 4.0 * sq)
     valid = (np.isfinite(qa).sum(axis=1) == 2 * kp + 1) & (np.abs(span) > 1e-6) & (np.abs(q_lo) < lim)
+    # a brighter band inside the object (a specular streak along the tube, near its edge) makes the far end
+    # of the object side more background-like than its part next to the edge: that profile's level is not
+    # the object's
     win = np.abs(np.arange(-n_t, n_t + 1))[None, :] <= kp[:, None]
     with np.errstate(invalid="ignore"):
         q_peak = np.max(np.where((t[None, :] > 0) & win, np.nan_to_num(qa, nan=-np.inf), -np.inf), axis=1)
@@ -411,6 +432,7 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if pr is None:
         return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout
     tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
+                                         holder_face=sp.holder_face,
                                          extrapolate=bool(np.isfinite(blur_prior)))
     fp = sp.face[pr.edge]
     blur = edge_blur(qa, valid & ~fp, pr.t, step)

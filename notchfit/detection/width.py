@@ -17,6 +17,7 @@ import math
 
 import cv2
 import numpy as np
+from scipy.ndimage import maximum
 
 __all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along",
            "tube_radius"]
@@ -111,6 +112,30 @@ def radius_candidates(region, *, max_close_px: int, min_ratio: float = 0.5, merg
     return [float(np.median(g)) for g in out]
 
 
+def _slot_gaps(region, radius_px, *, slot_width, slot_depth, radius, close_factor, area_range,
+               width_range=(0.5, 1.6), streak=0.2):
+    """The slot-bridged band and its slot-sized gaps at the scale ``radius_px / radius``: (closed, labels,
+    slot labels). A gap is a slot where its area is ``area_range`` times ``w d`` and its widest inscribed
+    disk ``width_range`` times ``w`` (a band half the tube's width, made by a streak, shows slots twice
+    too wide); thin parts (``streak`` w, a streak joining the slots) are opened away first."""
+    s = radius_px / radius
+    r = int(math.ceil(close_factor * slot_width * s)) + 1
+    closed, pad = _close_disk(region, r, border=cv2.BORDER_CONSTANT)
+    closed = closed[pad:-pad, pad:-pad]
+    gaps = (closed & (1 - region)).astype(np.uint8)
+    k = int(round(streak * slot_width * s))
+    if k >= 1:
+        gaps = cv2.morphologyEx(gaps, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
+    n, lab, st, _ = cv2.connectedComponentsWithStats(gaps, connectivity=8)
+    if n <= 1:
+        return closed, lab, []
+    area = slot_width * slot_depth * s * s
+    widest = 2 * maximum(cv2.distanceTransform(gaps, cv2.DIST_L2, 5), lab, np.arange(1, n)) + 1
+    ids = [k for k in range(1, n) if area_range[0] * area <= st[k, cv2.CC_STAT_AREA] <= area_range[1] * area
+           and width_range[0] * slot_width * s <= widest[k - 1] <= width_range[1] * slot_width * s]
+    return closed, lab, ids
+
+
 def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: float, radius: float,
                 close_factor: float, area_range) -> int:
     """How many slot-sized gaps lie along the band of half width ``radius_px`` if that band is the tube.
@@ -122,14 +147,8 @@ def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: floa
     ``radius_px``) are counted: a clamp's bar or a holder as wide as a
     tube holds no slot.
     """
-    s = radius_px / radius
-    r = int(math.ceil(close_factor * slot_width * s)) + 1
-    closed, pad = _close_disk(region, r, border=cv2.BORDER_CONSTANT)
-    closed = closed[pad:-pad, pad:-pad]
-    gaps = (closed & (1 - region)).astype(np.uint8)
-    n, lab, st, _ = cv2.connectedComponentsWithStats(gaps, connectivity=8)
-    area = slot_width * slot_depth * s * s
-    ids = [k for k in range(1, n) if area_range[0] * area <= st[k, cv2.CC_STAT_AREA] <= area_range[1] * area]
+    closed, lab, ids = _slot_gaps(region, radius_px, slot_width=slot_width, slot_depth=slot_depth, radius=radius,
+                                  close_factor=close_factor, area_range=area_range)
     if not ids:
         return 0
     dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)
@@ -144,7 +163,7 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
                 min_slot_px: float = 2.0):
     """Tube radius of a silhouette [px] without knowing the scale: of the bands it shows
     (:func:`radius_candidates`), the one that holds the geometry's slots (:func:`slots_along`: most slots,
-    up to the number of joints; the nearer count, then the thinner band, on a tie); the thinnest band
+    up to the number of joints; the nearer count, then the wider band, on a tie); the thinnest band
     (:func:`rough_tube_radius`) where no band holds a slot. ``filled``: the silhouette with its holes
     filled (a streak's), for the bands' widths; the slots are counted on ``region``. Bands whose slots
     would be narrower than ``min_slot_px`` or that are wider than a quarter of the image are not tried.
@@ -163,7 +182,7 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
             continue                     # slots too narrow to be seen at this scale, or a band too wide
         n = slots_along(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
                         area_range=area_range)
-        key = (min(n, geom.n_joints), -abs(n - geom.n_joints), -rc)
+        key = (min(n, geom.n_joints), -abs(n - geom.n_joints), rc)
         if n > 0 and (best is None or key > best[0]):
             best = (key, rc)
     if best is None:
@@ -272,15 +291,9 @@ def band_centreline(region, radius_px: float, *, slot_width: float, slot_depth: 
     where its distance transform is within ``tol`` of its median there
     (the full width: away from the slots, the tip and the holder).
     """
-    s = radius_px / radius
-    r = int(math.ceil(close_factor * slot_width * s)) + 1
-    closed, pad = _close_disk(region, r, border=cv2.BORDER_CONSTANT)
-    closed = closed[pad:-pad, pad:-pad]
-    gaps = (closed & (1 - region)).astype(np.uint8)
-    n, lab, st, _ = cv2.connectedComponentsWithStats(gaps, connectivity=8)
-    area = slot_width * slot_depth * s * s
-    slots = np.isin(lab, [k for k in range(1, n) if area_range[0] * area <= st[k, cv2.CC_STAT_AREA]
-                          <= area_range[1] * area])
+    closed, lab, ids = _slot_gaps(region, radius_px, slot_width=slot_width, slot_depth=slot_depth, radius=radius,
+                                  close_factor=close_factor, area_range=area_range)
+    slots = np.isin(lab, ids)
     if not slots.any():
         return np.zeros((0, 2))
     dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)
@@ -350,7 +363,7 @@ def band_width_along(img, centres, normals, width0_px: float, contrast: float, *
     P = cv2.remap(roi, (pts[..., 0] - lo[0]).astype(np.float32), (pts[..., 1] - lo[1]).astype(np.float32),
                   cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan")).astype(float)
     sg = 1.0 if contrast > 0 else -1.0
-    Q = np.where(np.isfinite(P), sg * P, -np.inf)                   # outside the image: not object
+    Q = np.where(np.isfinite(P), sg * P, -1e9)                      # outside the image: not object
     obj = np.percentile(Q[:, np.abs(t) <= 0.45 * width0_px], 80, axis=1)
     edges = []
     for side in (-1.0, 1.0):
