@@ -170,7 +170,8 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *
     right_pairs = _assign(right, right_j, +1, i_br, tip[0] if tip else None, **kw)
     left_pairs = _assign(left[::-1], left_j, -1, i_bl, tip[1] if tip else None, **kw)
     lost = base_at_border and (len(right) < len(right_j) or len(left) < len(left_j))
+    by_position = cut is False or tip is not None        # a side cut off at the tip is numbered in order
     guessed = [index[(kind, j, side)] for pairs, found, joints, side in ((right_pairs, right, right_j, +1),
                                                                           (left_pairs, left, left_j, -1))
-               if len(found) != len(joints) for _, j in pairs for kind in ("proximal", "distal")]
+               if len(found) != len(joints) and by_position for _, j in pairs for kind in ("proximal", "distal")]
     return Numbering(right_pairs, left_pairs, tip, status, msg, unnumbered=lost, guessed=guessed)

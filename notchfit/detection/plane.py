@@ -58,7 +58,8 @@ def rigid_link_check(plane, ok, geom, *, rel_tol: float, abs_tol: float, need_pa
     pairs is an outlier (a slot numbered one off, a holder corner taken for a
     base point); two points that disagree are both outliers. A point of
     ``need_partner`` (numbered by position, or a base point) is unconfirmed
-    unless another point of its link, not a base point, agrees with it.
+    unless another point of its link agrees with it (for a base point, a
+    slot corner: the other base point is no confirmation).
     """
     lay = notch_layout(geom)
     m = len(ok)
@@ -85,8 +86,9 @@ def rigid_link_check(plane, ok, geom, *, rel_tol: float, abs_tol: float, need_pa
             live -= set(drop)
             bad[drop] = True
         for i in need_partner:
+            base_i = lay.kind[i] == "base"                # a base point needs a slot corner, not its pair
             if i in live and not any((min(i, j), max(i, j)) in mis and mis[(min(i, j), max(i, j))] <= 1
-                                     for j in live if j != i and lay.kind[j] != "base"):
+                                     for j in live if j != i and not (base_i and lay.kind[j] == "base")):
                 unconfirmed[i] = True
     return bad, unconfirmed
 
@@ -113,7 +115,17 @@ def _drop_link_outliers(plane, sigma, status, msg, geom, link_tol, need_partner)
                 msg = [*msg, f"the {'right' if side > 0 else 'left'} side's slot numbering is doubtful: its slot "
                              "corners are not used"]
                 bad |= side_pts
-    for i in np.nonzero(bad | unconf)[0]:
+    drop = bad | unconf
+    # slots numbered from the base are only as good as the count: a link at either end (its base or tip
+    # corners and a slot corner, agreeing) must confirm where the numbering starts or ends
+    keep = ok & ~drop
+    ends = [link for link in (0, lay.link.max()) if np.any(keep & slot & (lay.link == link)) and
+            np.any(keep & ~slot & (lay.link == link))]
+    if np.any(keep & slot) and not ends:
+        msg = [*msg, "the slots' numbering is not confirmed at the base or the tip (neither end link was "
+                     "found whole): the slot corners are not used"]
+        drop |= keep & slot
+    for i in np.nonzero(drop)[0]:
         status[i] = "ambiguous"
         plane[i] = np.nan
         sigma[i] = np.nan
