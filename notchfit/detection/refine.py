@@ -280,7 +280,8 @@ def _face_fit(u, v, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 
 
 def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: float, s2_floor: float = 0.0,
                         min_points: int = 5, significance: float = 16.0, start_px: float = 0.0,
-                        max_start: float = 0.1, max_sin: float = 0.2, partner=None, lone_sigma: float = 6.0):
+                        max_start: float = 0.1, max_sin: float = 0.2, partner=None, lone_sigma: float = 6.0,
+                        max_bulge_px: float = 1.0):
     """Corners where a circular face meets the outer edge, the face seen a little from the side.
 
     A slot or tip face is a circle of radius ``R`` about the tube's axis. Seen
@@ -307,7 +308,9 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
     c, dd : ndarray (2K, 2)
         Robust line fits of every edge (centroid, direction).
     curved : ndarray (2K,) bool
-    X, cov, okc : the straight-line corners (K, 2), covariances, ok flags; updated copies are returned.
+    X, cov, okc : the straight-line corners (K, 2), covariances, ok flags; updated copies are returned
+        (a corner whose face is seen only far from it, in a view where the faces' arcs bulge by more than
+        ``max_bulge_px``, is not ok: neither a line nor an arc extrapolates to it).
     radius_px : float
         Tube radius in ideal pixels.
     partner : ndarray (K,) int, optional
@@ -316,16 +319,19 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
         where the partner's arc agrees with it, or, where the partner has
         none, when it is ``lone_sigma`` standard errors from zero.
     """
-    X, cov = X.copy(), cov.copy()
-    fits = {}
+    X, cov, okc = X.copy(), cov.copy(), okc.copy()
+    fits, far = {}, []
     for k in range(K):
         for face_e, limb_e in ((k, K + k), (K + k, k)):
             if curved[face_e] and not curved[limb_e] and okc[k]:
                 f = _corner_arc(pts[grp == face_e] - c[limb_e], dd[limb_e], radius_px, s2_floor=s2_floor,
                                 min_points=min_points, significance=significance, max_sin=max_sin,
                                 max_u0=start_px + max_start * radius_px)
-                if f is not None:
+                if isinstance(f, str):
+                    far.append(k)
+                elif f is not None:
                     fits[k] = (f, limb_e)
+    used = []
     for k, ((v0, var_v0, b, sd_b), limb_e) in fits.items():
         q = -1 if partner is None else int(partner[k])
         if q >= 0:
@@ -341,12 +347,18 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
         X[k] = c[limb_e] + v0 * d
         var_n = float(np.dot(nrm, cov[k] @ nrm))        # across the limb: the limb's own uncertainty
         cov[k] = var_v0 * np.outer(d, d) + var_n * np.outer(nrm, nrm)
-    return X, cov
+        used.append(abs(b))
+    # where the view is oblique (the faces' arcs bulge by more than ``max_bulge_px``), a face seen only far
+    # from its corner cannot be extrapolated to it, by a line or an arc: that corner is not found
+    if far and used and float(np.median(used)) * radius_px > max_bulge_px:
+        okc[far] = False
+    return X, cov, okc
 
 
 def _corner_arc(rel, d, radius_px, *, s2_floor, min_points, significance, max_sin, max_u0):
     """The arc model of one face in its limb's frame (``rel``: crossings minus the limb's centroid, ``d``:
-    the limb's direction): (v0, var v0, b, sd b) when the arc is significant, else None."""
+    the limb's direction): (v0, var v0, b, sd b) when the arc is significant, "far" when the face's
+    crossings start beyond ``max_u0`` from the limb, else None."""
     if len(rel) < min_points + 3:
         return None
     nrm = np.array([-d[1], d[0]])
@@ -355,7 +367,7 @@ def _corner_arc(rel, d, radius_px, *, s2_floor, min_points, significance, max_si
     near = u <= radius_px                # the half of a face next to this corner (the tip face is 2R long)
     u, v = u[near], v[near]
     if not len(u) or u.min() > max_u0:
-        return None                      # a face seen only far from the corner (a nearly closed mouth)
+        return "far"                     # a face seen only far from the corner (a nearly closed mouth)
     line, ell = _face_fit(u, v, radius_px, curved=False), _face_fit(u, v, radius_px, curved=True)
     if line is None or ell is None:
         return None
@@ -447,8 +459,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         s2_floor = (sq * math.sqrt(2 * math.pi) * blur_prior) ** 2
     X, cov, okc, c, dd, good_e = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor)
     if sp.curved is not None and np.isfinite(radius_px) and sp.curved.any():
-        X, cov = curved_face_corners(und, pr.edge[valid], K, c, dd, sp.curved, X, cov, okc, radius_px=radius_px,
-                                     s2_floor=s2_floor, min_points=min_points, start_px=s0, partner=sp.partner)
+        X, cov, okc = curved_face_corners(und, pr.edge[valid], K, c, dd, sp.curved, X, cov, okc,
+                                          radius_px=radius_px, s2_floor=s2_floor, min_points=min_points,
+                                          start_px=s0, partner=sp.partner)
     Cn = np.full((K, 2), np.nan)
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])
