@@ -151,14 +151,15 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *
         right = [s for p_, s in slots if p_ < pos(tip[0])]
         left = [s for p_, s in slots if p_ > pos(tip[1])]
         cut = False
-    else:
-        lim0 = min(tube_border) if tube_border else L_tube
-        lim1 = max(tube_border) if tube_border else 0
-        right = [s for p_, s in slots if p_ < lim0]
-        left = [s for p_, s in slots if p_ > lim1]
+    elif tube_border:
+        right = [s for p_, s in slots if p_ < min(tube_border)]
+        left = [s for p_, s in slots if p_ > max(tube_border)]
         cut = True
-        if tube_border:
-            msg.append("the tube is cut off by the image border")
+        msg.append("the tube is cut off by the image border")
+    else:
+        # no tip and no border between the sides: which side a slot is on cannot be told
+        msg.append("the slots' sides cannot be told apart without the tip")
+        right, left, cut = [], [], True
     right_j = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == +1]
     left_j = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == -1]
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}

@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 from ..polygon import polygon_area
 from .segment import fill_holes
 
-__all__ = ["Outline", "bridge_slots", "crop_region", "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
+__all__ = ["Outline", "bridge_slots", "hole_ends", "crop_region", "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
 
 
 @dataclass(frozen=True)
@@ -169,10 +169,10 @@ def turn_peaks(turn, k: int, thr: float, sign: float, exclude=None) -> list:
     return out
 
 
-def _hole_mouth(ol: Outline, s: int, gray, dark: bool, max_wall: float):
-    """The outline index of a hole's mouth, or None: of the two ends of its long axis, the one whose
-    path to the outline passes the most background-like level (a closed mouth still lets a sliver of
-    light through; the backbone on the other side is solid), the nearer one when neither does."""
+def hole_ends(ol: Outline, s: int, gray=None, dark: bool = True, max_wall: float = np.inf) -> list:
+    """The two ends of a hole's long axis (across the tube) on the outline: [(level, -wall, index)], where
+    ``wall`` is the distance from the hole to that outline point and ``level`` the most background-like
+    value of ``gray`` on the way (-inf without ``gray``); ends beyond ``max_wall`` are left out."""
     cnt = ol.contour
     bx, by, bw_, bh_ = ol.gap_stats[s, :4]
     py_, px_ = np.nonzero(ol.gap_labels[by:by + bh_, bx:bx + bw_] == s)
@@ -181,7 +181,7 @@ def _hole_mouth(ol: Outline, s: int, gray, dark: bool, max_wall: float):
     rel = cnt - c
     along, perp = rel @ axis, np.abs(rel[:, 0] * axis[1] - rel[:, 1] * axis[0])
     tree = cKDTree(pts)
-    best = []
+    out = []
     for sign in (1.0, -1.0):
         cand = np.nonzero((perp < 2.0) & (sign * along > 0))[0]
         if not len(cand):
@@ -197,7 +197,15 @@ def _hole_mouth(ol: Outline, s: int, gray, dark: bool, max_wall: float):
             vals = gray[np.clip(np.rint(q[:, 1]).astype(int), 0, gray.shape[0] - 1),
                         np.clip(np.rint(q[:, 0]).astype(int), 0, gray.shape[1] - 1)]
             level = float(np.max(-vals if not dark else vals))
-        best.append((level, -wall, i))
+        out.append((level, -float(wall), i))
+    return out
+
+
+def _hole_mouth(ol: Outline, s: int, gray, dark: bool, max_wall: float):
+    """The outline index of a hole's mouth, or None: of the two ends of its long axis, the one whose
+    path to the outline passes the most background-like level (a closed mouth still lets a sliver of
+    light through; the backbone on the other side is solid), the nearer one when neither does."""
+    best = hole_ends(ol, s, gray, dark, max_wall)
     if not best:
         return None
     if gray is not None and len(best) == 2 and abs(best[0][0] - best[1][0]) < 1e-9:

@@ -13,12 +13,30 @@ from .corners import base_specs, slot_specs, tip_specs
 from .dims import slot_depths, slot_widths
 from .lines import unit
 from .numbering import number_slots, orient_corner_pair
-from .outline import bridge_slots, corner_window, crop_region, raw_mouth_corners, slot_mouths, turn_angles, turn_peaks
+from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_mouth_corners, slot_mouths, turn_angles,
+                      turn_peaks)
 from .plane import finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
 
 __all__ = ["link_tolerance", "locate", "refine_and_finish", "refine_corners", "run_at_scale"]
+
+
+def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
+    """A one-sided tube's slots all open on one side: a hole (a slot closed at its mouth) takes the end of
+    its axis on that side of the tube (the right side comes first after the base, anticlockwise), whatever
+    the light says (a thin backbone next to a wide wedge can look more open than a closed mouth)."""
+    N = len(ol.contour)
+    pos = lambda i: (i - be.i_right) % N
+    out = dict(mouths)
+    for s, (i0, _, bridged) in mouths.items():
+        if bridged:
+            continue
+        ends = [e[2] for e in hole_ends(ol, s, max_wall=max_wall)]
+        if len(ends) == 2:
+            i = min(ends, key=pos) if side > 0 else max(ends, key=pos)
+            out[s] = (i, i, False)
+    return out
 
 
 def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
@@ -47,6 +65,8 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
         return None, empty_detection(m, "partial", why, contour_px)
     if be.kind == "corners":
         be = orient_corner_pair(be, mouths, cnt)
+    if len(set(geom.slot_sides)) == 1:
+        mouths = _one_sided_holes(ol, mouths, be, geom.slot_sides[0], max_wall=0.5 * R_lo)
     raw = None
     if be.kind != "border":
         pdist = lambda a, b: float(np.linalg.norm(np.diff(camera.pixel_to_plane(full(np.array([a, b]))),

@@ -57,9 +57,9 @@ def rigid_link_check(plane, ok, geom, *, rel_tol: float, abs_tol: float, need_pa
     disagreeing pair with the largest sum of normalised misfits over its
     pairs is an outlier (a slot numbered one off, a holder corner taken for a
     base point); two points that disagree are both outliers. A point of
-    ``need_partner`` (numbered by position, or a base point) is unconfirmed
-    unless another point of its link agrees with it (for a base point, a
-    slot corner: the other base point is no confirmation).
+    ``need_partner`` (numbered by position, a base or a tip point) is
+    unconfirmed unless another point of its link agrees with it (for a base
+    or tip point, a slot corner: the pair's other point is no confirmation).
     """
     lay = notch_layout(geom)
     m = len(ok)
@@ -86,9 +86,9 @@ def rigid_link_check(plane, ok, geom, *, rel_tol: float, abs_tol: float, need_pa
             live -= set(drop)
             bad[drop] = True
         for i in need_partner:
-            base_i = lay.kind[i] == "base"                # a base point needs a slot corner, not its pair
+            end_i = lay.kind[i] in ("base", "tip")      # a base or tip point needs a slot corner, not its pair
             if i in live and not any((min(i, j), max(i, j)) in mis and mis[(min(i, j), max(i, j))] <= 1
-                                     for j in live if j != i and not (base_i and lay.kind[j] == "base")):
+                                     for j in live if j != i and not (end_i and lay.kind[j] == lay.kind[i])):
                 unconfirmed[i] = True
     return bad, unconfirmed
 
@@ -137,7 +137,7 @@ def finish(camera, geom, pts_px, ideal, cov, status, msg, blur, contour_px, *, s
     """Plane points, scale, base-edge and rigid-link checks, statuses and the message.
 
     ``need_partner``: points whose identity must be confirmed by a rigid-link
-    partner (:func:`rigid_link_check`); base points always need one.
+    partner (:func:`rigid_link_check`); base and tip points always need one.
     """
     m = len(status)
     lay = notch_layout(geom)
@@ -181,8 +181,8 @@ def finish(camera, geom, pts_px, ideal, cov, status, msg, blur, contour_px, *, s
         plane[:] = np.nan
         sigma[:] = np.nan
     if link_tol is not None and not (bad and len(bad) == len(widths)):
-        base_pts = [i for i in range(m) if lay.kind[i] == "base"]
-        msg = _drop_link_outliers(plane, sigma, status, msg, geom, link_tol, sorted(set(need_partner) | set(base_pts)))
+        ends = [i for i in range(m) if lay.kind[i] in ("base", "tip")]
+        msg = _drop_link_outliers(plane, sigma, status, msg, geom, link_tol, sorted(set(need_partner) | set(ends)))
     n_ok = sum(s == "ok" for s in status)
     if n_ok == m:
         ist, text = "ok", ""

@@ -137,26 +137,39 @@ def _slot_gaps(region, radius_px, *, slot_width, slot_depth, radius, close_facto
 
 
 def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: float, radius: float,
-                close_factor: float, area_range) -> int:
+                close_factor: float, area_range, pitch=(0.0, np.inf), length: float = 0.0) -> int:
     """How many slot-sized gaps lie along the band of half width ``radius_px`` if that band is the tube.
 
     At the scale ``radius_px / radius``, the slots (``slot_width`` x
     ``slot_depth`` [m]) are bridged by a closing of ``close_factor``
-    slot widths; gaps of slot area (``area_range`` times it) that reach
-    within ``radius_px`` of the band's ridge (ridge values within 25 % of
-    ``radius_px``) are counted: a clamp's bar or a holder as wide as a
-    tube holds no slot.
+    slot widths; gaps of slot size (:func:`_slot_gaps`) that reach within
+    ``radius_px`` of the band's ridge (ridge values within 25 % of
+    ``radius_px``) and lie a slot pitch (``pitch`` = (smallest, largest)
+    distance to the nearest slot [m]) from another one are counted: a
+    clamp's bar or a holder as wide as a tube holds no slot, a band of
+    noise or texture no slot pattern. A band whose ridge is shorter than
+    ``length`` [m] (30 % of the tube) holds none.
     """
     closed, lab, ids = _slot_gaps(region, radius_px, slot_width=slot_width, slot_depth=slot_depth, radius=radius,
                                   close_factor=close_factor, area_range=area_range)
     if not ids:
         return 0
+    s = radius_px / radius
     dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)
     ridge = (dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6) & (np.abs(dt - radius_px) <= 0.25 * radius_px)
-    if not ridge.any():
+    if ridge.sum() < 0.3 * length * s:
         return 0
     near = cv2.distanceTransform((~ridge).astype(np.uint8), cv2.DIST_L2, 5) <= 1.05 * radius_px + 1
-    return len(set(np.unique(lab[near & (lab > 0)]).tolist()) & set(ids))
+    along = sorted(set(np.unique(lab[near & (lab > 0)]).tolist()) & set(ids))
+    if len(along) < 2:
+        return len(along)
+    yy, xx = np.nonzero(np.isin(lab, along))
+    labs = lab[yy, xx]
+    cen = np.stack([np.bincount(labs, xx, lab.max() + 1)[along], np.bincount(labs, yy, lab.max() + 1)[along]], 1) \
+        / np.bincount(labs, minlength=lab.max() + 1)[along][:, None]
+    dd = np.linalg.norm(cen[:, None] - cen[None], axis=2) + np.diag(np.full(len(along), np.inf))
+    nn = dd.min(1)
+    return int(np.sum((nn >= 0.5 * pitch[0] * s) & (nn <= 2.2 * pitch[1] * s)))
 
 
 def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_range, filled=None,
@@ -181,7 +194,8 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
         if w_min * rc / R < min_slot_px or rc > 0.25 * min(region.shape):
             continue                     # slots too narrow to be seen at this scale, or a band too wide
         n = slots_along(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
-                        area_range=area_range)
+                        area_range=area_range, pitch=(float(np.min(geom.pitches)), float(np.max(geom.pitches))),
+                        length=geom.tip_z - geom.base_edge_z)
         key = (min(n, geom.n_joints), -abs(n - geom.n_joints), rc)
         if n > 0 and (best is None or key > best[0]):
             best = (key, rc)
