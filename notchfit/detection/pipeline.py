@@ -68,17 +68,21 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     if len(set(geom.slot_sides)) == 1:
         mouths = _one_sided_holes(ol, mouths, be, geom.slot_sides[0], max_wall=0.5 * R_lo)
     raw = None
+    hs, ws = small_shape
+    at_border = lambda xy: min(xy[0] + X0, xy[1] + Y0, ws - 1 - xy[0] - X0, hs - 1 - xy[1] - Y0) <= 2 * R_lo + 2
     if be.kind != "border":
         pdist = lambda a, b: float(np.linalg.norm(np.diff(camera.pixel_to_plane(full(np.array([a, b]))),
                                                           axis=0))) / low_m
         grow = (math.sqrt(2) - 1) * opts.holder_width_factor * R_lo + 2       # the holder mask's regrowth
         for ends, search in (((be.i_right, be.i_left), 1.5 * r_close + 3),
                              ((be.i_right_wide, be.i_left_wide), 1.5 * r_close + 3 + grow)):
-            raw = raw_base_corners(ol.raw_contour, cnt[ends[0]], cnt[ends[1]], search=search,
-                                   k=max(4, int(0.25 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol,
-                                   R_lo=R_lo)
-            if raw is not None:
+            found = raw_base_corners(ol.raw_contour, cnt[ends[0]], cnt[ends[1]], search=search,
+                                     k=max(4, int(0.25 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol,
+                                     R_lo=R_lo, at_border=at_border)
+            if found is not None and None not in found:
+                raw = found
                 break
+            raw = raw or found                   # one corner, the other outside the image: if no pair is found
     k = corner_window(r_close, R_lo)
     near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
     convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)

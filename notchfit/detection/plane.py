@@ -56,7 +56,8 @@ def rigid_link_check(plane, ok, geom, *, rel_tol: float, abs_tol: float, need_pa
     ``max(rel_tol d, abs_tol)`` [m]. While a pair disagrees, the point of a
     disagreeing pair with the largest sum of normalised misfits over its
     pairs is an outlier (a slot numbered one off, a holder corner taken for a
-    base point); two points that disagree are both outliers. A point of
+    base point); of two points that disagree a base or tip point is the
+    outlier, else both are. A point of
     ``need_partner`` (numbered by position, a base or a tip point) is
     unconfirmed unless another point of its link agrees with it (for a base
     or tip point, a slot corner: the pair's other point is no confirmation).
@@ -83,6 +84,8 @@ def rigid_link_check(plane, ok, geom, *, rel_tol: float, abs_tol: float, need_pa
             cands = {i for p in worst for i in p}
             top = max(score[i] for i in cands)
             drop = [i for i in cands if score[i] >= top - 1e-9]
+            ends = [i for i in drop if lay.kind[i] in ("base", "tip")]
+            drop = ends or drop                  # a holder's face off the base edge: its corner goes first
             live -= set(drop)
             bad[drop] = True
         for i in need_partner:
