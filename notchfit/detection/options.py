@@ -103,7 +103,7 @@ class DetectorOptions:
     """
 
     lowres_mm: float = 0.06
-    lowres_long_side_px: int = 1000
+    lowres_long_side_px: int = 750
     min_snr: float = 4.0
     segment_level: float = 0.35
     area_range: tuple = (0.2, 3.0)

@@ -17,7 +17,6 @@ import math
 
 import cv2
 import numpy as np
-from scipy.ndimage import maximum
 
 __all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along",
            "tube_radius"]
@@ -130,7 +129,11 @@ def _slot_gaps(region, radius_px, *, slot_width, slot_depth, radius, close_facto
     if n <= 1:
         return closed, lab, []
     area = slot_width * slot_depth * s * s
-    widest = 2 * maximum(cv2.distanceTransform(gaps, cv2.DIST_L2, 5), lab, np.arange(1, n)) + 1
+    dtg = cv2.distanceTransform(gaps, cv2.DIST_L2, 5)
+    sel = lab > 0
+    widest = np.zeros(n)
+    np.maximum.at(widest, lab[sel], dtg[sel])
+    widest = 2 * widest[1:] + 1
     ids = [k for k in range(1, n) if area_range[0] * area <= st[k, cv2.CC_STAT_AREA] <= area_range[1] * area
            and width_range[0] * slot_width * s <= widest[k - 1] <= width_range[1] * slot_width * s]
     return closed, lab, ids
