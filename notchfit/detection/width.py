@@ -324,9 +324,10 @@ def band_centreline(region, radius_px: float, *, slot_width: float, slot_depth: 
 
 
 def band_width(img, centres, normals, width0_px: float, contrast: float, *, step: float = 0.5,
-               reach: float = 0.8, blur_px: float = math.nan, skew_offset: float = 0.25):
+               reach: float = 0.8, blur_px: float = math.nan, skew_offset: float = 0.08, max_skew_deg: float = 10.0):
     """The tube's width [px] along profiles across it (S,), NaN where not measured; the direction error
-    of each profile (its edges' shift along two neighbours ``skew_offset`` widths away) corrected.
+    of each profile (its edges' shift along two neighbours ``skew_offset`` widths away, alike for both
+    edges and at most ``max_skew_deg``; else left uncorrected) corrected.
 
     See :func:`band_width_along` for the parameters.
     """
@@ -338,8 +339,11 @@ def band_width(img, centres, normals, width0_px: float, contrast: float, *, step
     # the (parallel) edges run at an angle e to the profile's perpendicular: both shift by 2 d tan(e)
     # between the neighbours; the width is w cos(e)
     tan_e = 0.5 * ((tf_b - tf_a) + (tn_b - tn_a)) / (2 * d)
-    cos_e = 1.0 / np.sqrt(1.0 + np.where(np.isfinite(tan_e), tan_e, 0.0) ** 2)
-    return w * cos_e
+    # the two edges must shift alike (a neighbour that meets a slot or the tube's end does not); a skew
+    # beyond ``max_skew_deg`` is not the profile's
+    agree = np.abs((tf_b - tf_a) - (tn_b - tn_a)) <= 0.1 * (2 * d) + 1.0
+    ok = np.isfinite(tan_e) & agree & (np.abs(tan_e) <= math.tan(math.radians(max_skew_deg)))
+    return w / np.sqrt(1.0 + np.where(ok, tan_e, 0.0) ** 2)
 
 
 def band_width_along(img, centres, normals, width0_px: float, contrast: float, *, step: float = 0.5,
