@@ -58,6 +58,21 @@ __all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detect
            "overlay_with_crop"]
 
 
+def _linearised(image, gamma: float):
+    """The image in linear light: ``full (v / full) ** gamma`` (``full`` = 255 for 8-bit images, 65535 for
+    16-bit, else the largest value); a table look-up for 8-bit images."""
+    img = np.asarray(image)
+    if gamma == 1.0:
+        return img
+    if img.dtype == np.uint8:
+        table = (255.0 * (np.arange(256, dtype=np.float32) / 255.0) ** gamma).astype(np.float32)
+        if img.ndim == 2:
+            return table[img]
+        return cv2.LUT(img, table)          # a float table: 8 bits would make the dark end too coarse
+    full = 65535.0 if img.dtype == np.uint16 else max(float(np.max(img)), 1e-12)
+    return (full * np.power(np.clip(img.astype(np.float32) / full, 0, None), gamma)).astype(np.float32)
+
+
 def _options(options, overrides) -> DetectorOptions:
     opts = options if options is not None else DetectorOptions()
     return opts.replace(**overrides) if overrides else opts
@@ -97,7 +112,7 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
         plane pose, the image is too small, or ``base`` is not a side.
     """
     opts = _options(options, overrides)
-    gray = to_gray(image)
+    gray = to_gray(_linearised(image, opts.tone_gamma))
     H, W = gray.shape
     if base is not None and base not in ("top", "bottom", "left", "right"):
         raise ValueError(f"base must be top, bottom, left or right, got {base!r}")

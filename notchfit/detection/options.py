@@ -14,6 +14,12 @@ class DetectorOptions:
 
     Attributes
     ----------
+    tone_gamma : float
+        The images' tone curve: values are taken to linear light as
+        ``(v / full) ** tone_gamma`` before anything else (camera JPEGs: about
+        2.2, the sRGB curve; 1: linear images, as the renders). A 50 %
+        crossing in tone-mapped values is not the edge: with 2 px of blur and
+        gamma 2.2 the corners are 0.008 mm rms off at 100 px/mm.
     lowres_mm : float
         Pixel size of the downsampled copy used to segment and parse [mm]
         (calibrated images).
@@ -102,6 +108,7 @@ class DetectorOptions:
         filled when a bright streak splits the silhouette (a retry).
     """
 
+    tone_gamma: float = 1.0
     lowres_mm: float = 0.06
     lowres_long_side_px: int = 750
     min_snr: float = 4.0
