@@ -314,10 +314,13 @@ def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float
     for P in (P_right, P_left):
         d2 = np.sum((mcnt[peaks] - P) ** 2, axis=1) if len(peaks) else np.zeros(0)
         out.append(int(peaks[np.argmin(d2)]) if len(d2) and d2.min() <= search ** 2 else None)
-    if out[0] is not None and out[1] is not None:
-        return None if abs(dist(mcnt[out[0]], mcnt[out[1]]) / (2 * R_lo) - 1) > pair_tol else (out[0], out[1])
-    if at_border is not None and (out[0] is None) != (out[1] is None):
-        missing = P_right if out[0] is None else P_left
-        if at_border(missing):
-            return out[0], out[1]
+    if out[0] is not None and out[1] is not None and abs(dist(mcnt[out[0]], mcnt[out[1]]) / (2 * R_lo) - 1) <= pair_tol:
+        return out[0], out[1]
+    if at_border is not None:
+        # one end at the image border (its corner outside): the other end's corner stands alone
+        edge = [at_border(P_right), at_border(P_left)]
+        if edge[0] != edge[1]:
+            kept = (None, out[1]) if edge[0] else (out[0], None)
+            if kept != (None, None):
+                return kept
     return None

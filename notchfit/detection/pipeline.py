@@ -69,7 +69,7 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
         mouths = _one_sided_holes(ol, mouths, be, geom.slot_sides[0], max_wall=0.5 * R_lo)
     raw = None
     hs, ws = small_shape
-    at_border = lambda xy: min(xy[0] + X0, xy[1] + Y0, ws - 1 - xy[0] - X0, hs - 1 - xy[1] - Y0) <= 2 * R_lo + 2
+    at_border = lambda xy: min(xy[0] + X0, xy[1] + Y0, ws - 1 - xy[0] - X0, hs - 1 - xy[1] - Y0) <= 0.25 * R_lo + 2
     if be.kind != "border":
         pdist = lambda a, b: float(np.linalg.norm(np.diff(camera.pixel_to_plane(full(np.array([a, b]))),
                                                           axis=0))) / low_m
