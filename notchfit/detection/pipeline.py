@@ -201,13 +201,16 @@ def _holder_faces(pidx, geom) -> np.ndarray:
 def _partners(pidx, geom) -> np.ndarray:
     """(K,) index of the corner on the same slot (or the other tip corner), -1 where it is not refined."""
     lay = notch_layout(geom)
-    key = {i: (lay.kind[i] == "tip", int(lay.joint[i]), int(lay.side[i]) if lay.kind[i] != "tip" else 0)
-           for i in pidx}
     out = np.full(len(pidx), -1)
+    seen = {}
     for a, i in enumerate(pidx):
-        for b, j in enumerate(pidx):
-            if a != b and lay.kind[i] != "base" and key[i] == key[j]:
-                out[a] = b
+        if lay.kind[i] == "base":
+            continue
+        key = ("tip", 0, 0) if lay.kind[i] == "tip" else ("slot", int(lay.joint[i]), int(lay.side[i]))
+        if key in seen:
+            out[a], out[seen[key]] = seen[key], a
+        else:
+            seen[key] = a
     return out
 
 

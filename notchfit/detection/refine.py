@@ -255,26 +255,37 @@ def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0):
     return X, cov, okc, c, dd, good_e
 
 
-def _face_fit(u, v, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 0.15, n_iter: int = 3):
-    """Robust least squares ``v = v0 + c u (+ b g(u))`` with ``g(u) = sqrt(u (2 radius - u))``.
+def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 0.15, n_iter: int = 3):
+    """Robust least squares ``v = v0 + c u (+ b g(u))``, ``g(u) = sqrt(u (2 radius - u))``, for G groups at once.
 
-    Returns (coefficients, their covariance, residual variance, kept count); None when too few points.
+    Returns coefficients (G, p), their covariance (G, p, p), residual variance (G,), kept count (G,);
+    NaN coefficients for groups with too few points.
     """
-    A = np.stack([np.ones_like(u), u] + ([np.sqrt(np.clip(u * (2 * radius - u), 0, None))] if curved else []), 1)
+    cols = [np.ones_like(u), u] + ([np.sqrt(np.clip(u * (2 * radius - u), 0, None))] if curved else [])
+    A = np.stack(cols, 1)
+    p = A.shape[1]
     keep = np.ones(len(u), bool)
-    for _ in range(n_iter + 1):
-        if keep.sum() <= A.shape[1] + 2:
-            return None
-        coef, *_ = np.linalg.lstsq(A[keep], v[keep], rcond=None)
-        r = v - A @ coef
-        lim = max(k_mad * 1.4826 * float(np.median(np.abs(r[keep]))), floor)
-        new = np.abs(r) <= lim
+    for it in range(n_iter + 1):
+        w = keep.astype(float)
+        M = np.stack([np.stack([np.bincount(gid, w * A[:, i] * A[:, j], G) for j in range(p)], -1)
+                      for i in range(p)], -2)
+        rhs = np.stack([np.bincount(gid, w * A[:, i] * v, G) for i in range(p)], -1)
+        n = np.bincount(gid, w, G)
+        good = n > p + 2
+        Mg = np.where(good[:, None, None], M, np.eye(p)) + 1e-12 * np.eye(p)
+        coef = np.linalg.solve(Mg, np.where(good[:, None], rhs, 0.0)[..., None])[..., 0]
+        r = v - np.sum(A * coef[gid], axis=1)
+        if it == n_iter:
+            break
+        mad = 1.4826 * group_median(np.where(keep, np.abs(r), np.nan), gid, G)
+        new = np.abs(r) <= np.maximum(k_mad * np.nan_to_num(mad, nan=np.inf), floor)[gid]
         if np.array_equal(new, keep):
             break
         keep = new
-    n = int(keep.sum())
-    s2 = float(np.sum(r[keep] ** 2)) / max(n - A.shape[1], 1)
-    cov = s2 * np.linalg.inv(A[keep].T @ A[keep])
+    w = keep.astype(float)
+    s2 = np.bincount(gid, w * r * r, G) / np.maximum(n - p, 1)
+    cov = s2[:, None, None] * np.linalg.inv(Mg)
+    coef[~good] = np.nan
     return coef, cov, s2, n
 
 
@@ -320,17 +331,9 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
         none, when it is ``lone_sigma`` standard errors from zero.
     """
     X, cov, okc = X.copy(), cov.copy(), okc.copy()
-    fits, far = {}, []
-    for k in range(K):
-        for face_e, limb_e in ((k, K + k), (K + k, k)):
-            if curved[face_e] and not curved[limb_e] and okc[k]:
-                f = _corner_arc(pts[grp == face_e] - c[limb_e], dd[limb_e], radius_px, s2_floor=s2_floor,
-                                min_points=min_points, significance=significance, max_sin=max_sin,
-                                max_u0=start_px + max_start * radius_px)
-                if isinstance(f, str):
-                    far.append(k)
-                elif f is not None:
-                    fits[k] = (f, limb_e)
+    fits, far = _corner_arcs(pts, grp, K, c, dd, curved, okc, radius_px=radius_px, s2_floor=s2_floor,
+                             min_points=min_points, significance=significance, max_sin=max_sin,
+                             max_u0=start_px + max_start * radius_px)
     used = []
     for k, ((v0, var_v0, b, sd_b), limb_e) in fits.items():
         q = -1 if partner is None else int(partner[k])
@@ -355,26 +358,43 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
     return X, cov, okc
 
 
-def _corner_arc(rel, d, radius_px, *, s2_floor, min_points, significance, max_sin, max_u0):
-    """The arc model of one face in its limb's frame (``rel``: crossings minus the limb's centroid, ``d``:
-    the limb's direction): (v0, var v0, b, sd b) when the arc is significant, "far" when the face's
-    crossings start beyond ``max_u0`` from the limb, else None."""
-    if len(rel) < min_points + 3:
-        return None
-    nrm = np.array([-d[1], d[0]])
-    u, v = rel @ nrm, rel @ d
-    u = u * (1.0 if np.median(u) >= 0 else -1.0)
-    near = u <= radius_px                # the half of a face next to this corner (the tip face is 2R long)
-    u, v = u[near], v[near]
-    if not len(u) or u.min() > max_u0:
-        return "far"                     # a face seen only far from the corner (a nearly closed mouth)
-    line, ell = _face_fit(u, v, radius_px, curved=False), _face_fit(u, v, radius_px, curved=True)
-    if line is None or ell is None:
-        return None
+def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_points, significance, max_sin,
+                 max_u0):
+    """The arc model of every curved face in its limb's frame (``u`` across from the limb, ``v`` along it),
+    all faces in one batched fit: {corner: ((v0, var v0, b, sd b), limb edge)} where the arc is significant,
+    and the corners whose face's crossings start beyond ``max_u0`` from the limb."""
+    cand = [(k, fe, le) for k in range(K) for fe, le in ((k, K + k), (K + k, k))
+            if curved[fe] and not curved[le] and okc[k]]
+    us, vs, gs, far = [], [], [], []
+    for g, (k, fe, le) in enumerate(cand):
+        rel = pts[grp == fe] - c[le]
+        if len(rel) < min_points + 3:
+            continue
+        d = dd[le]
+        u, v = rel @ np.array([-d[1], d[0]]), rel @ d
+        u = u * (1.0 if np.median(u) >= 0 else -1.0)
+        near = u <= radius_px            # the half of a face next to this corner (the tip face is 2R long)
+        if not near.any() or u[near].min() > max_u0:
+            far.append(k)                # a face seen only far from the corner (a nearly closed mouth)
+            continue
+        us.append(u[near])
+        vs.append(v[near])
+        gs.append(np.full(int(near.sum()), g))
+    if not us:
+        return {}, far
+    u, v, gid = np.concatenate(us), np.concatenate(vs), np.concatenate(gs)
+    G = len(cand)
+    line = _face_fits(u, v, gid, G, radius_px, curved=False)
+    ell = _face_fits(u, v, gid, G, radius_px, curved=True)
     gain = line[2] * (line[3] - 2) - ell[2] * (ell[3] - 3)
-    if not gain > significance * max(ell[2], s2_floor) or abs(ell[0][2]) > max_sin:
-        return None
-    return ell[0][0], max(ell[1][0, 0], s2_floor / ell[3]), ell[0][2], math.sqrt(ell[1][2, 2])
+    ok = (np.isfinite(ell[0][:, 0]) & np.isfinite(line[0][:, 0]) & (gain > significance * np.maximum(ell[2], s2_floor))
+          & (np.abs(ell[0][:, 2]) <= max_sin))
+    fits = {}
+    for g in np.nonzero(ok)[0]:
+        k, _, le = cand[g]
+        fits[k] = ((ell[0][g, 0], max(ell[1][g, 0, 0], s2_floor / ell[3][g]), ell[0][g, 2],
+                    math.sqrt(max(ell[1][g, 2, 2], 0.0))), le)
+    return fits, far
 
 
 def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):

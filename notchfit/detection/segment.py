@@ -57,8 +57,8 @@ def downsample(gray, factor: int) -> np.ndarray:
     return cv2.resize(np.asarray(g, np.float32), (ws, hs), interpolation=cv2.INTER_AREA)
 
 
-def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_points: int = 20000,
-            level: float = 0.5, rounds: int = 3) -> Segmentation:
+def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_points: int = 6000,
+            level: float = 0.5, rounds: int = 3, clear_snr: float = 5.0) -> Segmentation:
     """Object mask of a downsampled image.
 
     Parameters
@@ -80,6 +80,10 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
         Refits of the background surface, each to the samples within a
         quarter of the contrast of the last one (vignetting darkens the image
         corners below an Otsu split; the refits take them back).
+    clear_snr : float
+        The surface starts from an Otsu split; when that gives an object less
+        than ``clear_snr * min_snr`` times the noise, from a trimmed fit too
+        (a small object in an unevenly lit image), whichever is clearer.
 
     Returns
     -------
@@ -90,10 +94,15 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
     sub = small[::step, ::step]
     A = poly2(*np.meshgrid(np.arange(0, ws, step) / ws - 0.5, np.arange(0, hs, step) / hs - 0.5)).reshape(-1, 6)
     vals = sub.ravel().astype(float)
-    starts = [s for s in (_otsu_background(sub), _trimmed_background(A, vals)) if s is not None]
-    if not starts:
+    fits = []
+    for start in (_otsu_background, lambda _: _trimmed_background(A, vals)):
+        inl = start(sub)
+        if inl is not None:
+            fits.append(_refit(A, vals, inl, small, step, sub.shape, rounds))
+            if abs(fits[-1][1]) >= clear_snr * min_snr * fits[-1][2] * noise_scale:
+                break                                        # a clear object from the Otsu split
+    if not fits:
         return Segmentation(None, 0.0, 0.0, "no manipulator found: no background visible")
-    fits = [_refit(A, vals, inl, small, step, sub.shape, rounds) for inl in starts]
     coef, contrast, noise = max(fits, key=lambda f: abs(f[1]) / f[2])   # the clearer object
     if not abs(contrast) >= min_snr * noise * noise_scale:
         return Segmentation(None, contrast, noise,
