@@ -366,8 +366,10 @@ def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_po
     cand = [(k, fe, le) for k in range(K) for fe, le in ((k, K + k), (K + k, k))
             if curved[fe] and not curved[le] and okc[k]]
     us, vs, gs, far = [], [], [], []
+    order = np.argsort(grp, kind="stable")
+    first = np.searchsorted(grp[order], np.arange(2 * K + 1))
     for g, (k, fe, le) in enumerate(cand):
-        rel = pts[grp == fe] - c[le]
+        rel = pts[order[first[fe]:first[fe + 1]]] - c[le]
         if len(rel) < min_points + 3:
             continue
         d = dd[le]
