@@ -221,10 +221,11 @@ def edge_blur(qa, valid, t, step) -> float:
 def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0):
     """Robust edge lines per group and their pairwise intersections with covariance.
 
-    Returns X (K,2), cov (K,2,2), ok (K,), line centroids (2K,2), directions (2K,2), good edges (2K,).
+    Returns X (K,2), cov (K,2,2), ok (K,), line centroids (2K,2), directions (2K,2), good edges (2K,),
+    residual variance of each line before the floor (2K,).
     """
-    c, dd, n, s2, stt, _ = robust_group_lines(pts, grp, 2 * K)
-    s2 = np.maximum(s2, s2_floor)
+    c, dd, n, s2_fit, stt, _ = robust_group_lines(pts, grp, 2 * K)
+    s2 = np.maximum(s2_fit, s2_floor)
     good_e = (n >= min_points) & (stt > 0)
     k1, k2 = np.arange(K), np.arange(K) + K
     d1, d2 = dd[k1], dd[k2]
@@ -252,7 +253,7 @@ def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0):
     cov = Ainv @ D @ np.swapaxes(Ainv, 1, 2)
     X[~okc] = np.nan
     cov[~okc] = np.nan
-    return X, cov, okc, c, dd, good_e
+    return X, cov, okc, c, dd, good_e, s2_fit
 
 
 def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 0.15, n_iter: int = 3):
@@ -292,7 +293,7 @@ def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor:
 def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: float, s2_floor: float = 0.0,
                         min_points: int = 5, significance: float = 16.0, start_px: float = 0.0,
                         max_start: float = 0.1, max_sin: float = 0.2, partner=None, lone_sigma: float = 6.0,
-                        max_bulge_px: float = 1.0):
+                        max_bulge_px: float = 1.0, fit=None):
     """Corners where a circular face meets the outer edge, the face seen a little from the side.
 
     A slot or tip face is a circle of radius ``R`` about the tube's axis. Seen
@@ -329,11 +330,14 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
         other corner, the tip's other corner; -1: none): an arc is kept only
         where the partner's arc agrees with it, or, where the partner has
         none, when it is ``lone_sigma`` standard errors from zero.
+    fit : ndarray (2K,) bool, optional
+        The curved edges worth an arc fit (default all); every curved edge is
+        checked for being seen only far from its corner.
     """
     X, cov, okc = X.copy(), cov.copy(), okc.copy()
     fits, far = _corner_arcs(pts, grp, K, c, dd, curved, okc, radius_px=radius_px, s2_floor=s2_floor,
                              min_points=min_points, significance=significance, max_sin=max_sin,
-                             max_u0=start_px + max_start * radius_px)
+                             max_u0=start_px + max_start * radius_px, fit=curved if fit is None else fit)
     used = []
     for k, ((v0, var_v0, b, sd_b), limb_e) in fits.items():
         q = -1 if partner is None else int(partner[k])
@@ -359,7 +363,7 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
 
 
 def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_points, significance, max_sin,
-                 max_u0):
+                 max_u0, fit):
     """The arc model of every curved face in its limb's frame (``u`` across from the limb, ``v`` along it),
     all faces in one batched fit: {corner: ((v0, var v0, b, sd b), limb edge)} where the arc is significant,
     and the corners whose face's crossings start beyond ``max_u0`` from the limb."""
@@ -378,6 +382,8 @@ def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_po
         near = u <= radius_px            # the half of a face next to this corner (the tip face is 2R long)
         if not near.any() or u[near].min() > max_u0:
             far.append(k)                # a face seen only far from the corner (a nearly closed mouth)
+            continue
+        if not fit[fe]:
             continue
         us.append(u[near])
         vs.append(v[near])
@@ -430,7 +436,8 @@ def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
 
 
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, lim, min_points, contrast,
-                h_face=None, blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12):
+                h_face=None, blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12,
+                arc_gate: float = 2.0):
     """One pass of edge-profile line fits for all corners at once.
 
     Parameters
@@ -451,7 +458,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         The tube's radius [ideal px]: with it, corners on the curved edges
         of ``sp.curved`` come from :func:`curved_face_corners`, whose
         profiles reach at least ``curved_reach`` R each way (an arc seen 7°
-        from the side leaves its chord by 0.12 R).
+        from the side leaves its chord by 0.12 R). Only faces whose line fit
+        leaves ``arc_gate`` times the straight edges' residual variance are
+        fitted again as arcs.
 
     Returns
     -------
@@ -479,9 +488,15 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if plateau.sum() >= 10 and np.isfinite(blur_prior):
         sq = 1.4826 * float(np.median(np.abs(q_lo[plateau])))
         s2_floor = (sq * math.sqrt(2 * math.pi) * blur_prior) ** 2
-    X, cov, okc, c, dd, good_e = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor)
-    if sp.curved is not None and np.isfinite(radius_px) and sp.curved.any():
-        X, cov, okc = curved_face_corners(und, pr.edge[valid], K, c, dd, sp.curved, X, cov, okc,
+    X, cov, okc, c, dd, good_e, s2_line = corner_lines(und, pr.edge[valid], K, min_points=min_points,
+                                                        s2_floor=s2_floor)
+    # an arc shows as a face line's residuals well above the straight edges' (the noise): faces that are
+    # straight lines within the noise are not fitted again
+    straight = good_e & ~sp.curved if sp.curved is not None else good_e
+    noise2 = float(np.median(s2_line[straight])) if straight.any() else 0.0
+    curved = None if sp.curved is None else sp.curved & (s2_line > arc_gate * max(noise2, s2_floor))
+    if curved is not None and np.isfinite(radius_px) and sp.curved.any():
+        X, cov, okc = curved_face_corners(und, pr.edge[valid], K, c, dd, sp.curved, X, cov, okc, fit=curved,
                                           radius_px=radius_px, s2_floor=s2_floor, min_points=min_points,
                                           start_px=s0, partner=sp.partner)
     Cn = np.full((K, 2), np.nan)
