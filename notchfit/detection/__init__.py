@@ -18,12 +18,19 @@ sides, where along a side the joints are). Stages, one module each:
 4. :mod:`.numbering`, :mod:`.corners` — number the slots from the base,
    find the tip, first corner estimates.
 5. :mod:`.refine` — sub-pixel corners from edge profiles and line fits at
-   full resolution, only near the corners.
-6. :mod:`.plane` — map to the plane; check rigid-link widths and the base edge.
+   full resolution, only near the corners; a face seen a little from the
+   side (tilt, perspective) as an ellipse arc tangent to the outer edge.
+6. :mod:`.plane` — map to the plane; check rigid-link widths, the base edge
+   and every link's corners against its drawn shape (a slot numbered one
+   off, a holder corner taken for a base point: not reported).
 
-Without a calibration (``camera=None``) the scale comes from the tube's
-outer diameter (:mod:`.width`, a fronto-parallel view is assumed) and is
-reported with its uncertainty in the :class:`Detection`.
+A specular streak that splits the silhouette is filled across the tube
+(:func:`~.segment.band_directions`) and the corners located again. Without a
+calibration (``camera=None``) the scale comes from the tube's outer diameter
+(:mod:`.width`, a fronto-parallel view is assumed: the band holding the
+slots on a coarse copy, profiles across its centreline at full resolution)
+and is reported with its uncertainty in the :class:`Detection`. A camera
+JPEG's tone curve is undone first with ``tone_gamma``.
 
 Statuses: ``ok``; ``occluded`` (not visible, hidden by the holder, cut off,
 not found: NaN); ``ambiguous`` (found, but its fit or its identity is
