@@ -15,14 +15,22 @@ side) in 4928x3264 renders at 130 px/mm (notchfit.render.scenes: a chuck, collet
 plain tube, cylinder shading, specular streak, either polarity, defocus, JPEG, any orientation), with
 the calibrated camera and without one (scale from the tube's diameter).
 
+Seeded random lab scenes (--variety N): everything a lab photograph varies in (notchfit.render.variety:
+holders incl. a chuck's jaws as dark as the tube or brighter, polarity, shading, streak, uneven backdrop
+and vignetting, the lens's perspective and a tilt out of the plane up to 4 deg, blur, defocus, motion,
+ISO noise, sharpening, JPEG 75-95, any angle, bends to 0.98 of each slot's closure, per-notch depths),
+tables per holder kind and per factor, with the camera and without it.
+
 Run:  python benchmarks/bench_detection.py [--images 12] [--repeat 3]
       python benchmarks/bench_detection.py --robustness [--per-row 4]   (the table of docs/robustness.md)
       python benchmarks/bench_detection.py --scenes [--per-scene 2]     (the real-scene table)
+      python benchmarks/bench_detection.py --variety 40 [--seed 1] [--size 4928x3264] [--px-per-mm 130]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
 
 import cv2
@@ -175,6 +183,71 @@ def scene_rows(per_scene, seed, size=(4928, 3264), px_per_mm=130.0, repeat=2):
                   f"{e.max() if len(e) else float('nan'):.4f} | {1e3 * np.median(ts):.0f} | {sc} |", flush=True)
 
 
+def _variety_geometries():
+    """The lab's wrist with joints on each slot's section, and the shipped wrists (per-notch dimensions)."""
+    from pathlib import Path
+
+    from notchfit.geometry import Geometry
+    from notchfit.io import load_geometry
+
+    here = Path(__file__).resolve().parent.parent / "datasets" / "geometry"
+    return [Geometry(**{**WRIST, "backbone": "section", "name": "lab_wrist"})] + \
+        [load_geometry(here / f"{n}.toml") for n in ("wrist_asymmetric", "wrist_tip_first")]
+
+
+def _table(title, rows, key):
+    """Print found / real corners, invented, rms and max error [mm], ms and scale error per group."""
+    print(f"| {title} | camera | images | corners found | invented | rms [mm] | max [mm] | ms / image | scale error |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    groups = sorted({key(r) for r in rows}, key=str)
+    for g in groups + ["all"]:
+        for cal in (True, False):
+            sel = [r for r in rows if (g == "all" or key(r) == g) and r["cal"] == cal]
+            if not sel:
+                continue
+            e = np.concatenate([r["err"] for r in sel])
+            sc = [abs(r["scale"]) for r in sel if np.isfinite(r["scale"])]
+            print(f"| {g} | {'yes' if cal else 'no'} | {len(sel)} | {sum(r['found'] for r in sel)}/"
+                  f"{sum(r['corners'] for r in sel)} | {sum(r['invented'] for r in sel)} | "
+                  f"{np.sqrt(np.mean(e ** 2)) if len(e) else float('nan'):.4f} | {e.max() if len(e) else float('nan'):.4f}"
+                  f" | {1e3 * np.median([r['t'] for r in sel]):.0f} | "
+                  f"{'' if cal else (f'{100 * max(sc):.2f} % max' if sc else '-')} |", flush=True)
+
+
+def variety(n, seed, size=(4928, 3264), px_per_mm=130.0):
+    """n seeded random lab scenes (notchfit.render.variety), detected with and without the camera; tables
+    per holder kind and per factor."""
+    from notchfit.render.variety import draw_scene, render_draw, score
+
+    rng = np.random.default_rng(seed)
+    geoms = _variety_geometries()
+    rows = []
+    for k in range(n):
+        d = draw_scene(rng, geoms, size=size, px_per_mm=px_per_mm)
+        r = render_draw(d, rng)
+        for cal in (True, False):
+            t0 = time.perf_counter()
+            det = detect_notches(r.image, d.camera if cal else None, d.geom)
+            t = time.perf_counter() - t0
+            s = score(det, r, px_per_mm)
+            scale = det.scale_mm_per_px * px_per_mm - 1 if not cal and det.n_ok else math.nan
+            rows.append({**s, "err": s["errors_mm"], "cal": cal, "t": t, "scale": scale, "kind": d.kind, **d.labels})
+    print(f"{n} random lab scenes, {size[0]}x{size[1]}, {px_per_mm:g} px/mm, seed {seed} "
+          "(notchfit.render.variety; the tube tilted out of the plane up to 4 deg, lens 150-500 mm away)")
+    _table("holder", rows, lambda r: r["kind"])
+    print()
+    _table("tilt out of the plane", rows, lambda r: "0-2 deg" if r["tilt_deg"] < 2 else "2-4 deg")
+    print()
+    _table("bend (largest joint / its closure)", rows,
+           lambda r: "< 0.5" if r["closure"] < 0.5 else ("0.5-0.9" if r["closure"] < 0.9 else ">= 0.9"))
+    print()
+    _table("specular streak", rows, lambda r: "yes" if r["streak"] > 0 else "no")
+    print()
+    _table("polarity", rows, lambda r: r["polarity"])
+    print()
+    _table("geometry", rows, lambda r: r["geometry"])
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--images", type=int, default=12)
@@ -184,7 +257,13 @@ def main(argv=None):
     ap.add_argument("--per-row", type=int, default=4, help="images per robustness row")
     ap.add_argument("--scenes", action="store_true", help="print the real-scene table instead")
     ap.add_argument("--per-scene", type=int, default=2, help="images per scene kind")
+    ap.add_argument("--variety", type=int, default=0, help="detect this many seeded random lab scenes instead")
+    ap.add_argument("--size", default="4928x3264", help="image size of --variety (WxH)")
+    ap.add_argument("--px-per-mm", type=float, default=130.0, help="scale of --variety")
     a = ap.parse_args(argv)
+    if a.variety:
+        variety(a.variety, a.seed, tuple(int(v) for v in a.size.split("x")), a.px_per_mm)
+        return
     if a.robustness:
         robustness(a.per_row, a.seed)
         return

@@ -50,12 +50,6 @@ SCENES = {
 def test_scene_kind(kind):
     cam, r = _scene(list(SCENES).index(kind) + 1, **SCENES[kind])
     det = detect_notches(r.image, cam, WRIST)
-    if kind == "specular_streak":          # the streak meets slot 4's face: that corner may be given up
-        ok = np.array(det.status) == "ok"
-        assert ok.sum() >= r.visible.sum() - 1 and not np.any(ok & ~r.visible)
-        err = np.linalg.norm(det.points_px[ok] - r.points_px[ok], axis=1) * MM_PER_PX
-        assert err.max() <= 0.01
-        return
     _check(det, r)
     if SCENES[kind].get("holder") in ("collet", "none"):
         assert det.status[0] == det.status[1] == "occluded"       # no corner at the base edge
@@ -88,7 +82,8 @@ def test_holder_face_off_the_base_edge_hides_the_base_corners():
     _check(det, r)
 
 
-@pytest.mark.parametrize("kind", ["chuck_touching_the_tube", "tube_from_the_border", "light_on_dark", "jpeg_q80"])
+@pytest.mark.parametrize("kind", ["chuck_touching_the_tube", "tube_from_the_border", "light_on_dark", "jpeg_q80",
+                                  "clamp", "specular_streak"])
 def test_uncalibrated_scale_from_the_diameter(kind):
     """No camera file: the scale from the tube's outer diameter within 1 % (issue target), stated with
     its uncertainty and assumption; the corners as with the camera."""
@@ -145,3 +140,76 @@ def test_shipped_wrists_per_notch_dimensions_and_section_backbone(name):
     cam, r = _scene(11, theta=th, geom=g, holder="chuck")
     det = detect_notches(r.image, cam, g)
     _check(det, r)
+
+
+# ----------------------------------------------------------------------------- seeded random lab scenes
+def _lab_geometries():
+    """The lab's wrist (joints on each slot's section), and the shipped wrists with per-notch dimensions."""
+    from pathlib import Path
+
+    from notchfit.io import load_geometry
+
+    here = Path(__file__).resolve().parent.parent / "datasets" / "geometry"
+    return [WRIST.replace(backbone="section", name="lab_wrist")] + [load_geometry(here / f"{n}.toml")
+                                                                    for n in ("wrist_asymmetric", "wrist_tip_first")]
+
+
+def _variety(n, seed, size, px_per_mm, calibrated):
+    """Detect n seeded random lab scenes (notchfit.render.variety); totals of the scores."""
+    from notchfit.render.variety import draw_scene, render_draw, score
+
+    rng = np.random.default_rng(seed)
+    geoms = _lab_geometries()
+    found = corners = invented = 0
+    errs, scale = [], []
+    for _ in range(n):
+        d = draw_scene(rng, geoms, size=size, px_per_mm=px_per_mm)
+        r = render_draw(d, rng)
+        det = detect_notches(r.image, d.camera if calibrated else None, d.geom)
+        s = score(det, r, px_per_mm)
+        found, corners, invented = found + s["found"], corners + s["corners"], invented + s["invented"]
+        errs.append(s["errors_mm"])
+        if not calibrated and det.n_ok:
+            scale.append(det.scale_mm_per_px * px_per_mm - 1)
+    return found, corners, invented, np.concatenate(errs), np.array(scale)
+
+
+@pytest.mark.parametrize("calibrated", [True, False])
+def test_random_lab_scenes(calibrated):
+    """24 seeded draws of everything a lab photograph varies in (holders incl. jaws as dark as the tube or
+    brighter, polarity, shading, streak, uneven backdrop and vignetting, perspective and a tilt out of the
+    plane up to 4°, blur, defocus, motion, ISO noise, sharpening, JPEG 75-95, any angle, bends up to 0.98
+    of each slot's closure, per-notch depths) at 50 px/mm: no point is invented and none is grossly off,
+    most corners are found, and the found ones are accurate (docs/robustness.md has the per-kind table
+    at 130 px/mm). Without a calibration fewer are found (the tube must be told from the holder and a
+    streak's half-bands by its slots on a coarse copy), but the scale is within 1 % wherever points are
+    reported."""
+    found, corners, invented, err, scale = _variety(24, 15, (960, 640), 50.0, calibrated)
+    assert invented == 0
+    assert err.max() <= 0.04
+    assert found >= (0.85 if calibrated else 0.5) * corners
+    assert np.sqrt(np.mean(err ** 2)) <= 0.008
+    assert np.all(np.abs(scale) <= 0.01)            # the scale from the diameter, where one was reported
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("calibrated", [True, False])
+def test_random_lab_scenes_full_size(calibrated):
+    """The same at the lab's 130 px/mm in 4928 x 3264 images (16 draws)."""
+    found, corners, invented, err, scale = _variety(16, 16, (4928, 3264), 130.0, calibrated)
+    assert invented == 0
+    assert err.max() <= 0.06
+    assert found >= (0.7 if calibrated else 0.4) * corners
+    assert np.sqrt(np.mean(err ** 2)) <= 0.01
+    assert np.all(np.abs(scale) <= 0.01)
+
+
+def test_a_camera_tone_curve_is_undone_before_the_edges():
+    """A JPEG's tone curve (gamma 2.2) moves a blurred edge's 50 % crossing toward the dark side: the
+    corners are off by about 0.3 sigma of blur. tone_gamma=2.2 takes the values back to linear light."""
+    errs = {}
+    for tg in (1.0, 2.2):
+        cam, r = _scene(44, holder="chuck", gamma=2.2, blur_sigma=2.0, size=(900, 760), mm_per_px=1 / 60)
+        det = detect_notches(r.image, cam, WRIST, tone_gamma=tg)
+        errs[tg] = _check(det, r, rms_mm=0.02, max_mm=0.03, mm_per_px=1 / 60)
+    assert np.sqrt(np.mean(errs[2.2] ** 2)) <= 0.003 < np.sqrt(np.mean(errs[1.0] ** 2))

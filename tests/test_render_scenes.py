@@ -66,3 +66,102 @@ def test_seeded_and_jpeg():
         Scene(holder="vice")
     with pytest.raises(ValueError, match="seeded"):
         render_scene(TH, WRIST, cam, plane=plane, rng=None)
+
+
+# ----------------------------------------------------------------------------- solid tube, variety
+def test_union_coverage_is_exact_for_overlapping_and_oversized_polygons():
+    """Two overlapping rectangles: the union's coverage is A + B - (A and B), pixel by pixel; a polygon
+    reaching far beyond the output (a holder drawn to beyond the image) merges with the others row by row."""
+    from notchfit.render import union_coverage
+
+    a = np.array([[10.3, 10.7], [40.2, 10.7], [40.2, 40.9], [10.3, 40.9]])
+    b = a + [15.1, 9.3]
+    cov = lambda *p: polygon_coverage(list(p), (70, 80), supersample=16)
+    both = np.array([[25.4, 20.0], [40.2, 20.0], [40.2, 40.9], [25.4, 40.9]])          # a and b overlap here
+    np.testing.assert_allclose(union_coverage([a, b], (70, 80), supersample=16), cov(a) + cov(b) - cov(both),
+                               atol=1e-9)
+    huge = np.array([[-5000.0, 30.2], [9000.0, 30.2], [9000.0, 9000.0], [-5000.0, 9000.0]])
+    cut = np.array([[10.3, 30.2], [40.2, 30.2], [40.2, 40.9], [10.3, 40.9]])
+    np.testing.assert_allclose(union_coverage([a, huge], (70, 80), supersample=16),
+                               cov(a) + cov(huge) - cov(cut), atol=1e-9)
+
+
+def test_solid_tube_seen_square_on_is_the_planar_silhouette():
+    """Orthographic view, no tilt: the union of the solid's convex pieces covers exactly the planar
+    outline of geometry.md (mitred flexures included), and each face corner is the notch point."""
+    from notchfit.render.solid import SolidPose, limb_corners, piece_outlines
+
+    cam, plane = scene_camera(TH, WRIST, image_size=(600, 500), mm_per_px=1 / 40, angle_deg=70, focal_px=1e8)
+    pose = SolidPose(plane)
+    polys = piece_outlines(TH, WRIST, cam, pose, WRIST.base_edge_z)
+    from notchfit.render import union_coverage
+    solid = union_coverage(polys, (500, 600), supersample=16)
+    planar = polygon_coverage([cam.plane_to_pixel(to_plane(tube_outline(TH, WRIST, WRIST.base_edge_z), *plane))],
+                              (500, 600), supersample=16)
+    assert np.abs(solid - planar).max() < 1e-3
+    np.testing.assert_allclose(limb_corners(TH, WRIST, cam, pose), cam.plane_to_pixel(to_plane(notch_points(TH, WRIST),
+                                                                                               *plane)), atol=1e-6)
+
+
+def test_tilted_solid_face_bulges_by_r_sin_tilt_and_its_corner_is_on_the_outline():
+    """A straight tube tilted 5° about x, seen orthographically: each slot face's edge is an ellipse arc of
+    semi-axis R sin 5° (the lower face's middle is R sin 5° above its corners), and the ground-truth
+    corner (limb meets circle) is a vertex of the rendered outline."""
+    from notchfit.render.solid import SolidPose, limb_corners, piece_outlines
+
+    th = np.zeros(WRIST.n_joints)
+    mm = 1 / 40
+    cam, plane = scene_camera(th, WRIST, image_size=(600, 500), mm_per_px=mm, angle_deg=90, focal_px=1e8)
+    pose = SolidPose(plane, np.radians(5.0), 0.0)
+    polys = piece_outlines(th, WRIST, cam, pose, WRIST.base_edge_z)
+    truth = limb_corners(th, WRIST, cam, pose)
+    verts = np.concatenate(polys)
+    assert np.min(np.linalg.norm(verts[None] - truth[:, None], axis=2), axis=1).max() < 0.01
+    # slot 1's lower face (point 3, the corner at x = R): on the tube's axis the outline of link 0 reaches
+    # R sin 5 deg further into the slot than at the corner
+    u_axis = 0.5 * (truth[0, 0] + truth[1, 0])
+    link0 = polys[0]
+    R_px = WRIST.outer_radius * 1e3 / mm
+    top = link0[np.abs(link0[:, 0] - u_axis) < 0.5, 1].max()
+    assert abs((top - truth[2, 1]) - R_px * np.sin(np.radians(5.0))) < 1e-3
+
+
+def test_variety_draws_are_seeded_and_their_truth_exact():
+    from notchfit.render.variety import draw_scene, render_draw, score
+
+    a = draw_scene(np.random.default_rng(3), [WRIST], size=(500, 400), px_per_mm=40)
+    b = draw_scene(np.random.default_rng(3), [WRIST], size=(500, 400), px_per_mm=40)
+    assert a.scene == b.scene and np.array_equal(a.theta, b.theta) and a.kind == b.kind
+    ra, rb = render_draw(a, np.random.default_rng(4)), render_draw(b, np.random.default_rng(4))
+    assert np.array_equal(ra.image, rb.image) and ra.visible[2:].all()
+    assert a.labels["closure"] <= 0.98 + 1e-9 and a.scene.solid
+    # a detection that reports exactly the truth scores perfectly
+    from notchfit.detection.result import Detection
+
+    ok = ra.visible
+    det = Detection(ra.points_plane, np.where(ok[:, None], ra.points_px, np.nan), np.zeros(len(ok)),
+                    tuple("ok" if v else "occluded" for v in ok), "ok", "", np.zeros((0, 2)))
+    s = score(det, ra, 40.0)
+    assert s["found"] == s["corners"] == ok.sum() and s["invented"] == 0 and np.allclose(s["errors_mm"], 0)
+
+
+def test_image_formation_noise_vignetting_and_kernels():
+    """ISO noise: sigma^2 = level / (200 * 100 / ISO) + read^2 on a flat field; vignetting darkens the
+    corners by the stated fraction; the defocus and motion kernels are normalised and as wide as stated."""
+    from notchfit.render.scenes import _disk_kernel, _form_scene, _line_kernel
+
+    flat = np.zeros((400, 400), np.float32)
+    sc = Scene(background=150.0, tube_level=50.0, texture=0.0, illumination=0.0, blur_sigma=0.0, iso=1600.0)
+    img = _form_scene(flat, rng=np.random.default_rng(0), scene=sc).astype(float)
+    expect = np.sqrt(150.0 / (200 * 100 / 1600.0) + (0.015 * 16) ** 2 + 1 / 12)      # + the rounding
+    assert abs(img.std() / expect - 1) < 0.05
+    sc = Scene(background=150.0, tube_level=50.0, texture=0.0, illumination=0.0, blur_sigma=0.0, noise=0.0,
+               vignetting=0.3)
+    img = _form_scene(flat, rng=np.random.default_rng(0), scene=sc).astype(float)
+    assert abs(img[0, 0] / 150.0 - 0.7) < 0.01 and abs(img[199, 199] / 150.0 - 1.0) < 0.01
+    k = _disk_kernel(3.0)
+    assert abs(k.sum() - 1) < 1e-6 and abs((k > 0).sum() - np.pi * 9) < 12
+    m = _line_kernel(6.0, 30.0)
+    yy, xx = np.mgrid[0:m.shape[0], 0:m.shape[1]] - (m.shape[0] - 1) / 2
+    along = xx * np.cos(np.radians(30)) + yy * np.sin(np.radians(30))
+    assert abs(m.sum() - 1) < 1e-6 and abs(np.sqrt((m * along ** 2).sum()) - 6.0 / np.sqrt(12)) < 0.1

@@ -283,7 +283,8 @@ def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, min_tube_ru
     return BaseEnd(int(i_r), int(i_l), kind, pair is not None, side, int(wide[0]), int(wide[1])), ""
 
 
-def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float, dist, pair_tol: float, R_lo: float):
+def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float, dist, pair_tol: float, R_lo: float,
+                     at_border=None):
     """The concave ~90° corners of the unbridged outline nearest two points, if they are 2R apart.
 
     Parameters
@@ -298,20 +299,28 @@ def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float
         Turn window [outline points].
     dist : callable (xy_a, xy_b) -> plane distance [low-res px]
 
+    at_border : callable (xy) -> bool, optional
+        Whether a point is next to the image border: a corner missing there
+        is outside the image, and the other one stands alone (it is
+        confirmed later by a slot corner of link 0).
+
     Returns
     -------
-    (int, int) or None : indices into ``mcnt`` (right, left).
+    (int, int) or None : indices into ``mcnt`` (right, left); one may be None (outside the image).
     """
     turn = turn_angles(mcnt, k, sgn)
     peaks = np.array(turn_peaks(turn, k, math.radians(60), -1.0), dtype=np.intp)
     out = []
     for P in (P_right, P_left):
-        if not len(peaks):
-            return None
-        d2 = np.sum((mcnt[peaks] - P) ** 2, axis=1)
-        if d2.min() > search ** 2:
-            return None
-        out.append(int(peaks[np.argmin(d2)]))
-    if abs(dist(mcnt[out[0]], mcnt[out[1]]) / (2 * R_lo) - 1) > pair_tol:
-        return None
-    return out[0], out[1]
+        d2 = np.sum((mcnt[peaks] - P) ** 2, axis=1) if len(peaks) else np.zeros(0)
+        out.append(int(peaks[np.argmin(d2)]) if len(d2) and d2.min() <= search ** 2 else None)
+    if out[0] is not None and out[1] is not None and abs(dist(mcnt[out[0]], mcnt[out[1]]) / (2 * R_lo) - 1) <= pair_tol:
+        return out[0], out[1]
+    if at_border is not None:
+        # one end at the image border (its corner outside): the other end's corner stands alone
+        edge = [at_border(P_right), at_border(P_left)]
+        if edge[0] != edge[1]:
+            kept = (None, out[1]) if edge[0] else (out[0], None)
+            if kept != (None, None):
+                return kept
+    return None

@@ -59,12 +59,15 @@ def outline_directions(mcnt, P, rough, a2, a1=2.0, cone_deg=35.0):
 
 
 def base_specs(mcnt, mi_right, mi_left, *, sgn, index, geom, low_m, face_len):
-    """Base corners (points 2 and 1) at corners of the unbridged outline (the closing rounds concave corners)."""
+    """Base corners (points 2 and 1) at corners of the unbridged outline (the closing rounds concave corners);
+    an index None (a corner outside the image) gives no spec."""
     M_ = len(mcnt)
     lp = lambda length_m: max(2, int(round(length_m / low_m)))
     up_len = edge_room(geom, geom.base_edge_z, True)
     out = []
     for mi, side in ((mi_right, +1), (mi_left, -1)):
+        if mi is None:                   # outside the image
+            continue
         a2_side = max(3, min(lp(0.8 * up_len), 10))
         a2_face = max(3, min(lp(0.8 * face_len), 10))
         sel_in = [(mi - t_) % M_ for t_ in range(1, (a2_face if side > 0 else a2_side) + 1)]

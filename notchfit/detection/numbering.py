@@ -40,6 +40,9 @@ class Numbering:
     unnumbered : bool
         The base is outside the image and slots are missing: nothing can be
         numbered from the base (no point is reported).
+    guessed : list of int
+        Points of slots numbered by their position along a side (a slot
+        missing): each must be confirmed by a rigid-link partner.
     """
 
     right: list
@@ -49,6 +52,7 @@ class Numbering:
     messages: list = field(default_factory=list)
     mirror_conflict: bool = False
     unnumbered: bool = False
+    guessed: list = field(default_factory=list)
 
 
 def orient_corner_pair(be: BaseEnd, mouths: dict, cnt) -> BaseEnd:
@@ -97,6 +101,7 @@ def _assign(found, joints, side, base_i, tip_i, *, cut_tip, cut_base, geom, mout
     spacing = float(np.min(np.diff(zf))) if len(zf) > 1 else 1.0
     span = max(apos(tip_i, base_i) if side > 0 else apos(base_i, tip_i), 1)
     out, taken = [], {}
+    msg.append(f"the {name} side's slots numbered by their position")
     for s in found:
         ps = apos(mouths[s][0], base_i) if side > 0 else apos(base_i, mouths[s][0])
         kk = int(np.argmin(np.abs(zf - ps / span)))
@@ -146,14 +151,15 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *
         right = [s for p_, s in slots if p_ < pos(tip[0])]
         left = [s for p_, s in slots if p_ > pos(tip[1])]
         cut = False
-    else:
-        lim0 = min(tube_border) if tube_border else L_tube
-        lim1 = max(tube_border) if tube_border else 0
-        right = [s for p_, s in slots if p_ < lim0]
-        left = [s for p_, s in slots if p_ > lim1]
+    elif tube_border:
+        right = [s for p_, s in slots if p_ < min(tube_border)]
+        left = [s for p_, s in slots if p_ > max(tube_border)]
         cut = True
-        if tube_border:
-            msg.append("the tube is cut off by the image border")
+        msg.append("the tube is cut off by the image border")
+    else:
+        # no tip and no border between the sides: which side a slot is on cannot be told
+        msg.append("the slots' sides cannot be told apart without the tip")
+        right, left, cut = [], [], True
     right_j = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == +1]
     left_j = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == -1]
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
@@ -165,4 +171,8 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *
     right_pairs = _assign(right, right_j, +1, i_br, tip[0] if tip else None, **kw)
     left_pairs = _assign(left[::-1], left_j, -1, i_bl, tip[1] if tip else None, **kw)
     lost = base_at_border and (len(right) < len(right_j) or len(left) < len(left_j))
-    return Numbering(right_pairs, left_pairs, tip, status, msg, unnumbered=lost)
+    by_position = cut is False or tip is not None        # a side cut off at the tip is numbered in order
+    guessed = [index[(kind, j, side)] for pairs, found, joints, side in ((right_pairs, right, right_j, +1),
+                                                                          (left_pairs, left, left_j, -1))
+               if len(found) != len(joints) and by_position for _, j in pairs for kind in ("proximal", "distal")]
+    return Numbering(right_pairs, left_pairs, tip, status, msg, unnumbered=lost, guessed=guessed)

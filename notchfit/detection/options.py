@@ -14,6 +14,12 @@ class DetectorOptions:
 
     Attributes
     ----------
+    tone_gamma : float
+        The images' tone curve: values are taken to linear light as
+        ``(v / full) ** tone_gamma`` before anything else (camera JPEGs: about
+        2.2, the sRGB curve; 1: linear images, as the renders). A 50 %
+        crossing in tone-mapped values is not the edge: with 2 px of blur and
+        gamma 2.2 the corners are 0.008 mm rms off at 100 px/mm.
     lowres_mm : float
         Pixel size of the downsampled copy used to segment and parse [mm]
         (calibrated images).
@@ -22,6 +28,9 @@ class DetectorOptions:
         scale is not known before the tube is found) [px].
     min_snr : float
         Smallest object contrast, in units of the background noise.
+    segment_level : float
+        Threshold of the downsampled copy between the background (0) and the
+        object level (1).
     area_range : (float, float)
         Accepted silhouette area relative to the geometry's tube + mount
         (calibrated images with the default mount only; a holder of another
@@ -48,6 +57,12 @@ class DetectorOptions:
         The tube-holder corners are the base points (1, 2) only where the
         base edge is: their distance to the first slot on link 0 must match
         the geometry within this many slot widths.
+    link_rel_tol, link_abs_w : float
+        Rigid-link check: the distance between two ok corners of one link
+        must match the geometry within ``link_rel_tol`` of it or
+        ``link_abs_w`` slot widths, whichever is larger (a tube as built
+        differs from its drawing by a few %; a slot numbered one off or a
+        holder corner taken for a base point is off by a link).
     scale_tol : float
         Relative tolerance of the measured base and tip widths (``2R``) in mm;
         beyond it the camera file is taken to be wrong.
@@ -79,15 +94,25 @@ class DetectorOptions:
         Without a calibration: when the measured scale is within this
         relative distance of the rough one, the corners found at the rough
         scale are mapped again instead of being searched for again.
+    rough_slot_area_range : (float, float)
+        Without a calibration: accepted slot area relative to ``w d`` at the
+        scale a candidate band implies (narrower than ``slot_area_range``:
+        a streak that splits the tube makes half-width bands whose slots
+        look four times too big).
     uncal_close_frac : float
         Without a calibration: the largest closing tried to bridge the
         slots for the first scale estimate, as a fraction of the downsampled
         image's long side.
+    streak_fill_R : float
+        Background lines across the tube thinner than this many ``R`` are
+        filled when a bright streak splits the silhouette (a retry).
     """
 
+    tone_gamma: float = 1.0
     lowres_mm: float = 0.06
-    lowres_long_side_px: int = 1000
+    lowres_long_side_px: int = 750
     min_snr: float = 4.0
+    segment_level: float = 0.35
     area_range: tuple = (0.2, 3.0)
     close_slot_factor: float = 1.25
     slot_area_range: tuple = (0.15, 4.0)
@@ -97,6 +122,8 @@ class DetectorOptions:
     corner_turn_deg: float = 50.0
     pair_tol: float = 0.3
     base_edge_tol: float = 0.25
+    link_rel_tol: float = 0.15
+    link_abs_w: float = 0.5
     scale_tol: float = 0.05
     max_shift_px: float = 10.0
     max_sigma_px: float = 0.3
@@ -108,7 +135,9 @@ class DetectorOptions:
     sigma_inflation: float = 1.45
     width_stations: int = 5
     rescale_tol: float = 0.05
+    rough_slot_area_range: tuple = (0.3, 2.5)
     uncal_close_frac: float = 0.1
+    streak_fill_R: float = 0.6
 
     def replace(self, **changes) -> "DetectorOptions":
         """A copy with some options changed."""

@@ -14,12 +14,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy.ndimage import maximum_filter1d
+from scipy.spatial import cKDTree
 
 from ..polygon import polygon_area
-from .lines import pca_line
 from .segment import fill_holes
 
-__all__ = ["Outline", "bridge_slots", "crop_region", "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
+__all__ = ["Outline", "bridge_slots", "hole_ends", "crop_region", "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ def crop_region(region, box, image_shape, pad: int, keep_holes=(0.0, 0.0)):
 
 
 def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, slot_area_range, sgn: float,
-                 holder=None):
+                 holder=None, holder_strict=None):
     """Bridge the slot mouths of a region and find the slot-sized gaps.
 
     Parameters
@@ -108,6 +108,8 @@ def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, sl
     holder : ndarray (h, w) uint8, optional
         The holder: left out of the closing, so that the corners where the
         tube meets it are not filled (their fillets would reach the first slot).
+    holder_strict : ndarray (h, w) uint8, optional
+        The holder's strict opening: gaps touching it are not slots.
 
     Returns
     -------
@@ -124,6 +126,17 @@ def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, sl
     ng, glab, gst, gcen = cv2.connectedComponentsWithStats(gaps, connectivity=8)
     lo, hi = slot_area_range
     slot_ids = [k for k in range(1, ng) if lo * slot_area <= gst[k, cv2.CC_STAT_AREA] <= hi * slot_area]
+    if holder_strict is not None and holder_strict.any() and slot_ids:
+        # a concavity of the holder's outline (a chuck's stepped jaws) is no slot: most of the object
+        # around it is holder, where a slot has the tube's faces
+        ids = np.array(slot_ids)
+        grown = cv2.dilate(np.isin(glab, ids).astype(np.uint8) * 255, np.ones((3, 3), np.uint8))
+        lab_g = cv2.dilate(glab.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int64)
+        ring = (grown > 0) & (roi > 0)
+        held = cv2.dilate(holder_strict, np.ones((5, 5), np.uint8)) > 0
+        n_ring = np.bincount(lab_g[ring], minlength=ng)[ids]
+        n_held = np.bincount(lab_g[ring & held], minlength=ng)[ids]
+        slot_ids = [int(k) for k, a, b in zip(ids, n_held, n_ring) if not a > 0.5 * b]
     cnt = oriented_contour(closed, sgn)
     if not len(cnt):
         return None
@@ -156,11 +169,58 @@ def turn_peaks(turn, k: int, thr: float, sign: float, exclude=None) -> list:
     return out
 
 
-def slot_mouths(ol: Outline) -> dict:
+def hole_ends(ol: Outline, s: int, gray=None, dark: bool = True, max_wall: float = np.inf) -> list:
+    """The two ends of a hole's long axis (across the tube) on the outline: [(level, -wall, index)], where
+    ``wall`` is the distance from the hole to that outline point and ``level`` the most background-like
+    value of ``gray`` on the way (-inf without ``gray``); ends beyond ``max_wall`` are left out."""
+    cnt = ol.contour
+    bx, by, bw_, bh_ = ol.gap_stats[s, :4]
+    py_, px_ = np.nonzero(ol.gap_labels[by:by + bh_, bx:bx + bw_] == s)
+    pts = np.stack([px_ + bx, py_ + by], 1).astype(float)
+    c, axis = pts.mean(0), np.linalg.svd(pts - pts.mean(0), full_matrices=False)[2][0]
+    rel = cnt - c
+    along, perp = rel @ axis, np.abs(rel[:, 0] * axis[1] - rel[:, 1] * axis[0])
+    tree = cKDTree(pts)
+    out = []
+    for sign in (1.0, -1.0):
+        cand = np.nonzero((perp < 2.0) & (sign * along > 0))[0]
+        if not len(cand):
+            continue
+        i = int(cand[np.argmin(sign * along[cand])])
+        wall, j = tree.query(cnt[i])
+        if wall > max_wall:
+            continue
+        level = -np.inf
+        if gray is not None:
+            t = np.linspace(0.0, 1.0, max(int(wall * 2), 2))
+            q = pts[j] + t[:, None] * (cnt[i] - pts[j])
+            vals = gray[np.clip(np.rint(q[:, 1]).astype(int), 0, gray.shape[0] - 1),
+                        np.clip(np.rint(q[:, 0]).astype(int), 0, gray.shape[1] - 1)]
+            level = float(np.max(-vals if not dark else vals))
+        out.append((level, -float(wall), i))
+    return out
+
+
+def _hole_mouth(ol: Outline, s: int, gray, dark: bool, max_wall: float):
+    """The outline index of a hole's mouth, or None: of the two ends of its long axis, the one whose
+    path to the outline passes the most background-like level (a closed mouth still lets a sliver of
+    light through; the backbone on the other side is solid), the nearer one when neither does."""
+    best = hole_ends(ol, s, gray, dark, max_wall)
+    if not best:
+        return None
+    if gray is not None and len(best) == 2 and abs(best[0][0] - best[1][0]) < 1e-9:
+        best.sort(key=lambda b: b[1])
+    return max(best)[2]
+
+
+def slot_mouths(ol: Outline, *, max_wall: float = np.inf, gray=None, dark: bool = True) -> dict:
     """Where each slot meets the bridged outline: label -> (first index, last index, bridged?).
 
-    A slot whose mouth is (almost) closed is a hole: its mouth is where its
-    long axis meets the outline.
+    A slot whose mouth is (almost) closed is a hole; its mouth is one end of
+    its long axis (across the tube): the end whose path to the outline is
+    brightest in ``gray`` (the downsampled image in the outline's box; a
+    dark object when ``dark``), else the nearer one. Holes further than
+    ``max_wall`` [low-res px] from the outline are not slots.
     """
     cnt = ol.contour
     N = len(cnt)
@@ -175,15 +235,9 @@ def slot_mouths(ol: Outline) -> dict:
                 idx = np.concatenate([idx[g + 1:], idx[:g + 1] + N])
             mouths[s] = (int(idx[0]) % N, int(idx[-1]) % N, True)
         else:
-            bx, by, bw_, bh_ = ol.gap_stats[s, :4]
-            py_, px_ = np.nonzero(ol.gap_labels[by:by + bh_, bx:bx + bw_] == s)
-            _, axis = pca_line(np.stack([px_ + bx, py_ + by], 1))
-            rel = cnt - ol.gap_centroids[s]
-            along = rel @ axis
-            perp = np.abs(rel[:, 0] * axis[1] - rel[:, 1] * axis[0])
-            near = np.nonzero(perp < 2.0)[0]
-            i0 = int(near[np.argmin(np.abs(along[near]))]) if len(near) else int(np.argmin(np.sum(rel ** 2, axis=1)))
-            mouths[s] = (i0, i0, False)
+            i0 = _hole_mouth(ol, s, gray, dark, max_wall)
+            if i0 is not None:
+                mouths[s] = (i0, i0, False)
     return mouths
 
 

@@ -13,23 +13,42 @@ from .corners import base_specs, slot_specs, tip_specs
 from .dims import slot_depths, slot_widths
 from .lines import unit
 from .numbering import number_slots, orient_corner_pair
-from .outline import bridge_slots, corner_window, crop_region, raw_mouth_corners, slot_mouths, turn_angles, turn_peaks
+from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_mouth_corners, slot_mouths, turn_angles,
+                      turn_peaks)
 from .plane import finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
 
-__all__ = ["locate", "refine_corners", "run_at_scale"]
+__all__ = ["link_tolerance", "locate", "refine_and_finish", "refine_corners", "run_at_scale"]
+
+
+def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
+    """A one-sided tube's slots all open on one side: a hole (a slot closed at its mouth) takes the end of
+    its axis on that side of the tube (the right side comes first after the base, anticlockwise), whatever
+    the light says (a thin backbone next to a wide wedge can look more open than a closed mouth)."""
+    N = len(ol.contour)
+    pos = lambda i: (i - be.i_right) % N
+    out = dict(mouths)
+    for s, (i0, _, bridged) in mouths.items():
+        if bridged:
+            continue
+        ends = [e[2] for e in hole_ends(ol, s, max_wall=max_wall)]
+        if len(ends) == 2:
+            i = min(ends, key=pos) if side > 0 else max(ends, key=pos)
+            out[s] = (i, i, False)
+    return out
 
 
 def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
-           exclude_holder):
+           exclude_holder, gray=None, dark=True):
     """Bridge, base end, slot numbering on one cropped silhouette. Returns a dict, or (None, Detection)."""
     lay = notch_layout(geom)
     m = lay.n_points
     R_lo = geom.outer_radius / low_m
     holder, strict = holders
     ol = bridge_slots(roi, offset, small_shape, r_close=r_close, slot_area=slot_area,
-                      slot_area_range=opts.slot_area_range, sgn=sgn, holder=strict if exclude_holder else None)
+                      slot_area_range=opts.slot_area_range, sgn=sgn, holder=strict if exclude_holder else None,
+                      holder_strict=strict)
     if ol is None:
         return None, empty_detection(m, "no_manipulator", "no manipulator outline")
     X0, Y0 = ol.offset
@@ -38,7 +57,7 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     contour_px = full(cnt)
     plane_px = camera.pixel_to_plane(contour_px) / low_m
     dist = lambda i, j: float(np.linalg.norm(plane_px[i] - plane_px[j]))
-    mouths = slot_mouths(ol)
+    mouths = slot_mouths(ol, max_wall=0.5 * R_lo, gray=gray, dark=dark)
     be, why = find_base(ol, (holder, strict), R_lo=R_lo, dist=dist, sgn=sgn, min_tube_run_R=opts.min_tube_run_R,
                         min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
                         pair_tol=opts.pair_tol, base=base, mouth_idx=[v[0] for v in mouths.values()])
@@ -46,18 +65,24 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
         return None, empty_detection(m, "partial", why, contour_px)
     if be.kind == "corners":
         be = orient_corner_pair(be, mouths, cnt)
+    if len(set(geom.slot_sides)) == 1:
+        mouths = _one_sided_holes(ol, mouths, be, geom.slot_sides[0], max_wall=0.5 * R_lo)
     raw = None
+    hs, ws = small_shape
+    at_border = lambda xy: min(xy[0] + X0, xy[1] + Y0, ws - 1 - xy[0] - X0, hs - 1 - xy[1] - Y0) <= 0.25 * R_lo + 2
     if be.kind != "border":
         pdist = lambda a, b: float(np.linalg.norm(np.diff(camera.pixel_to_plane(full(np.array([a, b]))),
                                                           axis=0))) / low_m
         grow = (math.sqrt(2) - 1) * opts.holder_width_factor * R_lo + 2       # the holder mask's regrowth
         for ends, search in (((be.i_right, be.i_left), 1.5 * r_close + 3),
                              ((be.i_right_wide, be.i_left_wide), 1.5 * r_close + 3 + grow)):
-            raw = raw_base_corners(ol.raw_contour, cnt[ends[0]], cnt[ends[1]], search=search,
-                                   k=max(4, int(0.25 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol,
-                                   R_lo=R_lo)
-            if raw is not None:
+            found = raw_base_corners(ol.raw_contour, cnt[ends[0]], cnt[ends[1]], search=search,
+                                     k=max(4, int(0.25 * R_lo)), sgn=sgn, dist=pdist, pair_tol=opts.pair_tol,
+                                     R_lo=R_lo, at_border=at_border)
+            if found is not None and None not in found:
+                raw = found
                 break
+            raw = raw or found                   # one corner, the other outside the image: if no pair is found
     k = corner_window(r_close, R_lo)
     near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
     convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
@@ -74,7 +99,7 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
             "contour_px": contour_px}, None
 
 
-def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base):
+def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base, small=None, dark=True):
     """Stages 2-4 on the downsampled copy: outline, base end, numbering, first corner estimates.
 
     The slots are bridged with the holder left out of the closing (its
@@ -99,7 +124,9 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     roi, offset = crop_region(region, box, small_shape, r_close + 2, keep_holes=keep)
     strict, grown = holder_masks(roi, opts.holder_width_factor * R_lo)
     holders = (grown, strict)
-    kw = dict(f=f, low_m=low_m, sgn=sgn, base=base, r_close=r_close, slot_area=slot_area, holders=holders)
+    gray = None if small is None else small[offset[1]:offset[1] + roi.shape[0], offset[0]:offset[0] + roi.shape[1]]
+    kw = dict(f=f, low_m=low_m, sgn=sgn, base=base, r_close=r_close, slot_area=slot_area, holders=holders,
+              gray=gray, dark=dark)
     best = None
     for exclude in ((True, False) if holders[1].any() else (False,)):
         res, fail = _parse(roi, offset, small_shape, camera, geom, opts, exclude_holder=exclude, **kw)
@@ -134,7 +161,7 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
                         geom=geom, low_m=low_m, raw_corners=rawc)
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
     return specs, {"contour_px": res["contour_px"], "status": num.status, "messages": num.messages,
-                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube]}
+                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube], "guessed": num.guessed}
 
 
 def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
@@ -149,7 +176,45 @@ def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
     return np.ascontiguousarray(gray[v0:v1, u0:u1], dtype=np.float32), np.array([u0, v0], float)
 
 
-def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opts, extra_px=None):
+def _curved_edges(pidx, geom, specs) -> np.ndarray:
+    """(2K,) bool: the edges that are circular faces of the tube (slot faces, the tip face)."""
+    lay = notch_layout(geom)
+    K = len(specs)
+    out = np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool)
+    for k, i in enumerate(pidx):
+        if lay.kind[i] == "tip":              # tip-right: the outgoing edge is the tip face; tip-left: incoming
+            out[K + k if lay.side[i] > 0 else k] = True
+    return out
+
+
+def _holder_faces(pidx, geom) -> np.ndarray:
+    """(2K,) bool: the edges along the holder's face (base-right: incoming, base-left: outgoing)."""
+    lay = notch_layout(geom)
+    K = len(pidx)
+    out = np.zeros(2 * K, bool)
+    for k, i in enumerate(pidx):
+        if lay.kind[i] == "base":
+            out[k if lay.side[i] > 0 else K + k] = True
+    return out
+
+
+def _partners(pidx, geom) -> np.ndarray:
+    """(K,) index of the corner on the same slot (or the other tip corner), -1 where it is not refined."""
+    lay = notch_layout(geom)
+    out = np.full(len(pidx), -1)
+    seen = {}
+    for a, i in enumerate(pidx):
+        if lay.kind[i] == "base":
+            continue
+        key = ("tip", 0, 0) if lay.kind[i] == "tip" else ("slot", int(lay.joint[i]), int(lay.side[i]))
+        if key in seen:
+            out[a], out[seen[key]] = seen[key], a
+        else:
+            seen[key] = a
+    return out
+
+
+def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opts, extra_px=None, geom=None):
     """Stage 5 for all corners: first pass with long profiles, then passes sized by the measured blur.
 
     Returns
@@ -162,7 +227,11 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
     sp = CornerSpecs(full(np.array([s[1] for s in specs])), unit(np.array([s[2] for s in specs])),
                      unit(np.array([s[3] for s in specs])), np.array([s[4] for s in specs]) * px_per_m,
                      np.array([s[5] for s in specs]) * px_per_m,
-                     np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool))
+                     np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool),
+                     None if geom is None else _curved_edges(pidx, geom, specs),
+                     None if geom is None else _partners(pidx, geom),
+                     None if geom is None else _holder_faces(pidx, geom))
+    radius_px = math.nan if geom is None else geom.outer_radius * px_per_m
     C0 = sp.C.copy()
     margin = 2 * max(opts.stage1_half_px, opts.stage1_face_px) * kf + 10
     extra = np.zeros((0, 2)) if extra_px is None else extra_px
@@ -178,7 +247,7 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
         Cn, Xi, Ci, ok, bl_new, Din, Dout = refine_pass(
             img, off, camera, sp, sgn, s0=s0, s_end=s_end, h=h, step=opts.profile_step_px, lim=lim,
             min_points=opts.min_edge_points, contrast=contrast, h_face=h_face,
-            blur_prior=bl if it > 0 else math.nan)
+            blur_prior=bl if it > 0 else math.nan, radius_px=radius_px if it == opts.iterations else math.nan)
         if np.isfinite(bl_new):
             bl = bl_new
         sp.C = np.where(np.isfinite(Cn).all(1)[:, None], Cn, sp.C)
@@ -211,14 +280,27 @@ def statuses(ref, m, status, shape, opts):
     return status, pts_px, ideal, cov
 
 
+def link_tolerance(geom, opts):
+    """(relative, absolute [m]) tolerance of the rigid-link check, or None at a rough scale (no checks)."""
+    if not math.isfinite(opts.scale_tol):
+        return None
+    return opts.link_rel_tol, opts.link_abs_w * float(slot_widths(geom).min())
+
+
 def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base,
                  extra=None, stations=None):
     """Stages 2-6 at a given scale. Returns (Detection, refinement dict or None)."""
-    lay = notch_layout(geom)
-    m = lay.n_points
-    specs, ctx = locate(region, box, small_shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base)
+    specs, ctx = locate(region, box, small_shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base,
+                        small=seg.image, dark=seg.contrast < 0)
     if specs is None:
         return ctx, None
+    return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
+                             extra=extra, stations=stations)
+
+
+def refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, *, f, px_per_m, sgn, extra=None, stations=None):
+    """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, refinement dict or None)."""
+    m = geom.n_points
     extra = extra or {}
     status, msg = list(ctx["status"]), list(ctx["messages"])
     ref = None
@@ -227,12 +309,13 @@ def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, 
     if specs:
         far = ctx["tube_px"] if stations else None
         ref = refine_corners(gray, specs, camera, full=ctx["full"], px_per_m=px_per_m, sgn=sgn,
-                             contrast=seg.contrast, f=f, opts=opts, extra_px=far)
+                             contrast=seg.contrast, f=f, opts=opts, extra_px=far, geom=geom)
         status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
         blur = ref["blur"]
         ref["finish_args"] = (pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
-                              ctx["contour_px"], ctx["side"])
+                              ctx["contour_px"], ctx["side"], ctx["guessed"])
     det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx["contour_px"],
-                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"], **extra)
+                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"],
+                 link_tol=link_tolerance(geom, opts), need_partner=ctx["guessed"], **extra)
     return det, ref
 

@@ -15,7 +15,7 @@ from ..geometry import notch_layout
 from .dims import slot_widths
 from .result import Detection
 
-__all__ = ["base_edge_offset", "to_plane_points", "finish"]
+__all__ = ["base_edge_offset", "finish", "rigid_link_check", "to_plane_points"]
 
 
 def to_plane_points(camera, ideal, cov, ok):
@@ -47,9 +47,101 @@ def base_edge_offset(plane, ok, geom) -> float:
     return float(np.linalg.norm(plane[ib] - plane[ip]) - expect)
 
 
+def rigid_link_check(plane, ok, geom, *, rel_tol: float, abs_tol: float, need_partner=()):
+    """Ok points that disagree with their own link's rigid shape, and points left unconfirmed (m,) bool x 2.
+
+    The corners on one link keep their straight-configuration distances
+    whatever the joint angles (the links are rigid; geometry.md). For every
+    pair of ok points on a link the measured distance must match within
+    ``max(rel_tol d, abs_tol)`` [m]. While a pair disagrees, the point of a
+    disagreeing pair with the largest sum of normalised misfits over its
+    pairs is an outlier (a slot numbered one off, a holder corner taken for a
+    base point); of two points that disagree a base or tip point is the
+    outlier, else both are. A point of
+    ``need_partner`` (numbered by position, a base or a tip point) is
+    unconfirmed unless another point of its link agrees with it (for a base
+    or tip point, a slot corner: the pair's other point is no confirmation).
+    """
+    lay = notch_layout(geom)
+    m = len(ok)
+    bad, unconfirmed = np.zeros(m, bool), np.zeros(m, bool)
+    for link in np.unique(lay.link):
+        idx = [int(i) for i in np.nonzero(lay.link == link)[0] if ok[i]]
+        mis = {}
+        for a in range(len(idx)):
+            for b in range(a + 1, len(idx)):
+                i, j = idx[a], idx[b]
+                d_exp = float(np.linalg.norm(lay.straight[i] - lay.straight[j]))
+                d_meas = float(np.linalg.norm(plane[i] - plane[j]))
+                mis[(i, j)] = abs(d_meas - d_exp) / max(rel_tol * d_exp, abs_tol)
+        live = set(idx)
+        while True:
+            pairs = [p for p, e in mis.items() if p[0] in live and p[1] in live]
+            worst = [p for p in pairs if mis[p] > 1]
+            if not worst:
+                break
+            score = {i: sum(mis[p] for p in pairs if i in p) for i in live}
+            cands = {i for p in worst for i in p}
+            top = max(score[i] for i in cands)
+            drop = [i for i in cands if score[i] >= top - 1e-9]
+            ends = [i for i in drop if lay.kind[i] in ("base", "tip")]
+            drop = ends or drop                  # a holder's face off the base edge: its corner goes first
+            live -= set(drop)
+            bad[drop] = True
+        for i in need_partner:
+            end_i = lay.kind[i] in ("base", "tip")      # a base or tip point needs a slot corner, not its pair
+            if i in live and not any((min(i, j), max(i, j)) in mis and mis[(min(i, j), max(i, j))] <= 1
+                                     for j in live if j != i and not (end_i and lay.kind[j] == lay.kind[i])):
+                unconfirmed[i] = True
+    return bad, unconfirmed
+
+
+def _drop_link_outliers(plane, sigma, status, msg, geom, link_tol, need_partner):
+    """Mark the rigid-link outliers and unconfirmed points ambiguous (see :func:`rigid_link_check`)."""
+    ok = np.array([s == "ok" for s in status])
+    bad, unconf = rigid_link_check(plane, ok, geom, rel_tol=link_tol[0], abs_tol=link_tol[1],
+                                   need_partner=need_partner)
+    if bad.any():
+        msg = [*msg, "points " + ", ".join(str(i + 1) for i in np.nonzero(bad)[0]) + " do not fit their rigid "
+               "links (numbered wrongly or not a notch corner): not used"]
+    if unconf.any():
+        msg = [*msg, "points " + ", ".join(str(i + 1) for i in np.nonzero(unconf)[0]) + " could not be "
+               "confirmed by another corner of their link: not used"]
+    # a slot corner off its link by a link's length means the side's slots are numbered one off: every
+    # slot corner of that side is doubtful (the links between slots all have one length)
+    lay = notch_layout(geom)
+    slot = np.array([k in ("proximal", "distal") for k in lay.kind])
+    for side in (-1, 1):
+        if np.any(bad & slot & (lay.side == side)):
+            side_pts = slot & (lay.side == side) & ok & ~bad
+            if side_pts.any():
+                msg = [*msg, f"the {'right' if side > 0 else 'left'} side's slot numbering is doubtful: its slot "
+                             "corners are not used"]
+                bad |= side_pts
+    drop = bad | unconf
+    # slots numbered from the base are only as good as the count: a link at either end (its base or tip
+    # corners and a slot corner, agreeing) must confirm where the numbering starts or ends
+    keep = ok & ~drop
+    ends = [link for link in (0, lay.link.max()) if np.any(keep & slot & (lay.link == link)) and
+            np.any(keep & ~slot & (lay.link == link))]
+    if np.any(keep & slot) and not ends:
+        msg = [*msg, "the slots' numbering is not confirmed at the base or the tip (neither end link was "
+                     "found whole): the slot corners are not used"]
+        drop |= keep & slot
+    for i in np.nonzero(drop)[0]:
+        status[i] = "ambiguous"
+        plane[i] = np.nan
+        sigma[i] = np.nan
+    return msg
+
+
 def finish(camera, geom, pts_px, ideal, cov, status, msg, blur, contour_px, *, scale_tol, base_edge_tol,
-           check_base=True, **extra) -> Detection:
-    """Plane points, scale and base-edge checks, statuses and the message."""
+           check_base=True, link_tol=None, need_partner=(), **extra) -> Detection:
+    """Plane points, scale, base-edge and rigid-link checks, statuses and the message.
+
+    ``need_partner``: points whose identity must be confirmed by a rigid-link
+    partner (:func:`rigid_link_check`); base and tip points always need one.
+    """
     m = len(status)
     lay = notch_layout(geom)
     status = list(status)
@@ -91,6 +183,9 @@ def finish(camera, geom, pts_px, ideal, cov, status, msg, blur, contour_px, *, s
         status = ["ambiguous" if s == "ok" else s for s in status]
         plane[:] = np.nan
         sigma[:] = np.nan
+    if link_tol is not None and not (bad and len(bad) == len(widths)):
+        ends = [i for i in range(m) if lay.kind[i] in ("base", "tip")]
+        msg = _drop_link_outliers(plane, sigma, status, msg, geom, link_tol, sorted(set(need_partner) | set(ends)))
     n_ok = sum(s == "ok" for s in status)
     if n_ok == m:
         ist, text = "ok", ""

@@ -21,7 +21,8 @@ import numpy as np
 
 from .lines import group_median, robust_group_lines, unit
 
-__all__ = ["CornerSpecs", "Profiles", "corner_lines", "edge_crossings", "refine_pass", "sample_profiles"]
+__all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "refine_pass",
+           "sample_profiles"]
 
 
 @dataclass
@@ -40,6 +41,15 @@ class CornerSpecs:
     face : ndarray (2K,) bool
         Edge e < K is corner e's incoming edge, e >= K its outgoing edge;
         True for slot faces (whose background is the slot).
+    curved : ndarray (2K,) bool, optional
+        Edges that are the tube's circular faces (slot faces, the tip face):
+        seen a little from the side they are arcs of an ellipse that meets
+        the outer edge tangentially (:func:`curved_face_corners`).
+    partner : ndarray (K,) int, optional
+        The slot's or the tip's other corner (-1: none).
+    holder_face : ndarray (2K,) bool, optional
+        Edges along a holder's face (the base corners'): their object side
+        is the holder, whose shading and highlights are its own.
     """
 
     C: np.ndarray
@@ -48,6 +58,9 @@ class CornerSpecs:
     Lin: np.ndarray
     Lout: np.ndarray
     face: np.ndarray
+    curved: np.ndarray | None = None
+    partner: np.ndarray | None = None
+    holder_face: np.ndarray | None = None
 
 
 @dataclass
@@ -63,17 +76,21 @@ class Profiles:
     n_t: int
 
 
-def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, step) -> Profiles | None:
-    """Profiles every 1 px along each edge, from ``s0`` px after the corner to ``s_end`` px before its end."""
+def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, step, h_curved=0.0) -> Profiles | None:
+    """Profiles every 1 px along each edge, from ``s0`` px after the corner to ``s_end`` px before its end;
+    half length ``h``, ``h_face`` on slot faces, at least ``h_curved`` on curved edges (the arc of a face
+    seen from the side leaves its chord)."""
     K = len(sp.C)
     E_dir = np.concatenate([-sp.Din, sp.Dout])
     E_trav = np.concatenate([sp.Din, sp.Dout])
     E_nrm = sgn * np.stack([E_trav[:, 1], -E_trav[:, 0]], axis=1)
     E_len = np.concatenate([sp.Lin, sp.Lout])
     E_C = np.concatenate([sp.C, sp.C])
-    n_t = int(math.ceil(max(h, h_face) / step))
-    t = np.arange(-n_t, n_t + 1) * step
     kt = np.where(sp.face, int(math.ceil(h_face / step)), int(math.ceil(h / step)))
+    if sp.curved is not None and h_curved > 0:
+        kt = np.where(sp.curved, np.maximum(kt, int(math.ceil(h_curved / step))), kt)
+    n_t = int(kt.max())
+    t = np.arange(-n_t, n_t + 1) * step
     n_s = np.maximum(np.floor(E_len - s_end - s0).astype(int) + 1, 0)
     e_idx = np.repeat(np.arange(2 * K), n_s)
     Np = len(e_idx)
@@ -91,7 +108,8 @@ def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, ste
     return Profiles(np.where(win, prof, np.nan), base, nrm, e_idx, t, kp, n_t)
 
 
-def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True):
+def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True, own_level=None,
+                   band_tol: float = 0.15, holder_face=None):
     """50 % crossings of the profiles between per-edge object and background levels.
 
     Returns
@@ -110,6 +128,19 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True)
     rows = np.arange(len(e_idx))
     lo_v = 0.5 * (prof[rows, n_t - kp] + prof[rows, n_t - kp + 1])
     hi_v = 0.5 * (prof[rows, n_t + kp] + prof[rows, n_t + kp - 1])
+    # a specular streak along the tube near its edge, brighter than the background (darker for a light
+    # object), at the far end of the object side: the object's level is the most object-like part of that
+    # side (3-sample mean) there
+    cs = 1.0 if contrast > 0 else -1.0
+    idx = np.arange(prof.shape[1])[None, :]
+    obj_side = (idx >= (n_t - kp)[:, None]) & (idx < n_t)
+    smooth = cv2.blur(np.nan_to_num(prof).astype(np.float32), (3, 1), borderType=cv2.BORDER_REPLICATE)
+    ext = np.max(np.where(obj_side, cs * smooth, -np.inf), axis=1)
+    least = np.min(np.where(obj_side, cs * smooth, np.inf), axis=1)
+    banded = least < cs * hi_v - band_tol * abs(contrast)
+    if holder_face is not None:
+        banded &= ~holder_face[e_idx]                    # a holder's shading and highlights are its own
+    lo_v = np.where(banded, cs * ext, lo_v)
     # levels from the profiles that span the edge; slot faces take their partner's (open background)
     span_ok = (lo_v - hi_v) * (1.0 / contrast) > 0.5
     lo = group_median(np.where(span_ok, lo_v, np.nan), e_idx, K2)
@@ -122,7 +153,7 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True)
         lo_w = 0.5 * (prof[rows, i2] + prof[rows, i2 + 1])
         with np.errstate(invalid="ignore", divide="ignore"):
             slope = (lo_w - lo_v) / ((i2 - (n_t - kp)) * step)
-        use = span_ok & np.isfinite(slope)
+        use = span_ok & np.isfinite(slope) & ~banded
         med = group_median(np.where(use, slope, np.nan), e_idx, K2)
         # only a slope the profiles agree on (3 standard errors of the median): flat levels stay exact
         mad = 1.4826 * group_median(np.where(use, np.abs(slope - med[e_idx]), np.nan), e_idx, K2)
@@ -136,8 +167,10 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True)
     fp = face[e_idx]
     # a slot face's object level is its own (shading across the tube changes it along the face);
     # its background level is its partner's, whose background is open
-    lo_p = np.where(fp, lo_v, np.where(face, lo[partner], lo)[e_idx])          # plateau: validity
-    lo_c = np.where(fp, lo_v, np.where(face, lo_edge[partner], lo_edge)[e_idx])  # at the edge: crossing
+    # a curved face (the tip face, across the tube's shading) also takes its own level, profile by profile
+    fo = fp if own_level is None else (fp | own_level[e_idx])
+    lo_p = np.where(fo, lo_v, np.where(face, lo[partner], lo)[e_idx])          # plateau: validity
+    lo_c = np.where(fo, lo_v, np.where(face, lo_edge[partner], lo_edge)[e_idx])  # at the edge: crossing
     span = hi[e_idx] - lo_p
     with np.errstate(invalid="ignore", divide="ignore"):
         qa = (prof - lo_c[:, None]) / (hi[e_idx] - lo_c)[:, None]
@@ -147,6 +180,9 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True)
     sq = 1.4826 * float(np.median(np.abs(q_lo[sel_]))) if sel_.sum() >= 10 else 0.0
     lim = max(lim, 4.0 * sq)
     valid = (np.isfinite(qa).sum(axis=1) == 2 * kp + 1) & (np.abs(span) > 1e-6) & (np.abs(q_lo) < lim)
+    # a brighter band inside the object (a specular streak along the tube, near its edge) makes the far end
+    # of the object side more background-like than its part next to the edge: that profile's level is not
+    # the object's
     win = np.abs(np.arange(-n_t, n_t + 1))[None, :] <= kp[:, None]
     with np.errstate(invalid="ignore"):
         q_peak = np.max(np.where((t[None, :] > 0) & win, np.nan_to_num(qa, nan=-np.inf), -np.inf), axis=1)
@@ -185,10 +221,11 @@ def edge_blur(qa, valid, t, step) -> float:
 def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0):
     """Robust edge lines per group and their pairwise intersections with covariance.
 
-    Returns X (K,2), cov (K,2,2), ok (K,), line centroids (2K,2), directions (2K,2), good edges (2K,).
+    Returns X (K,2), cov (K,2,2), ok (K,), line centroids (2K,2), directions (2K,2), good edges (2K,),
+    residual variance of each line before the floor (2K,).
     """
-    c, dd, n, s2, stt, _ = robust_group_lines(pts, grp, 2 * K)
-    s2 = np.maximum(s2, s2_floor)
+    c, dd, n, s2_fit, stt, _ = robust_group_lines(pts, grp, 2 * K)
+    s2 = np.maximum(s2_fit, s2_floor)
     good_e = (n >= min_points) & (stt > 0)
     k1, k2 = np.arange(K), np.arange(K) + K
     d1, d2 = dd[k1], dd[k2]
@@ -216,7 +253,156 @@ def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0):
     cov = Ainv @ D @ np.swapaxes(Ainv, 1, 2)
     X[~okc] = np.nan
     cov[~okc] = np.nan
-    return X, cov, okc, c, dd, good_e
+    return X, cov, okc, c, dd, good_e, s2_fit
+
+
+def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 0.15, n_iter: int = 3):
+    """Robust least squares ``v = v0 + c u (+ b g(u))``, ``g(u) = sqrt(u (2 radius - u))``, for G groups at once.
+
+    Returns coefficients (G, p), their covariance (G, p, p), residual variance (G,), kept count (G,);
+    NaN coefficients for groups with too few points.
+    """
+    cols = [np.ones_like(u), u] + ([np.sqrt(np.clip(u * (2 * radius - u), 0, None))] if curved else [])
+    A = np.stack(cols, 1)
+    p = A.shape[1]
+    keep = np.ones(len(u), bool)
+    for it in range(n_iter + 1):
+        w = keep.astype(float)
+        M = np.stack([np.stack([np.bincount(gid, w * A[:, i] * A[:, j], G) for j in range(p)], -1)
+                      for i in range(p)], -2)
+        rhs = np.stack([np.bincount(gid, w * A[:, i] * v, G) for i in range(p)], -1)
+        n = np.bincount(gid, w, G)
+        good = n > p + 2
+        Mg = np.where(good[:, None, None], M, np.eye(p)) + 1e-12 * np.eye(p)
+        coef = np.linalg.solve(Mg, np.where(good[:, None], rhs, 0.0)[..., None])[..., 0]
+        r = v - np.sum(A * coef[gid], axis=1)
+        if it == n_iter:
+            break
+        mad = 1.4826 * group_median(np.where(keep, np.abs(r), np.nan), gid, G)
+        new = np.abs(r) <= np.maximum(k_mad * np.nan_to_num(mad, nan=np.inf), floor)[gid]
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    w = keep.astype(float)
+    s2 = np.bincount(gid, w * r * r, G) / np.maximum(n - p, 1)
+    cov = s2[:, None, None] * np.linalg.inv(Mg)
+    coef[~good] = np.nan
+    return coef, cov, s2, n
+
+
+def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: float, s2_floor: float = 0.0,
+                        min_points: int = 5, significance: float = 16.0, start_px: float = 0.0,
+                        max_start: float = 0.1, max_sin: float = 0.2, partner=None, lone_sigma: float = 6.0,
+                        max_bulge_px: float = 1.0, fit=None):
+    """Corners where a circular face meets the outer edge, the face seen a little from the side.
+
+    A slot or tip face is a circle of radius ``R`` about the tube's axis. Seen
+    exactly from the side it is a straight edge; when the view looks a little
+    along the tube (the tube tilted out of the image plane, or off the lens's
+    axis) it is an arc of an ellipse: ``R`` across the tube, ``R sin β``
+    along it, tangent to the outer edge (the limb) at the corner. A straight
+    line fitted to such an arc meets the limb up to ``0.3 R sin β`` off (0.01
+    mm at 3° on a 1.62 mm tube). In the limb's frame (``u`` across the tube
+    from the limb, ``v`` along it) the face is ``v = v0 + c u + b sqrt(u (2R -
+    u))``; the corner is the limb's point at ``v0``. The arc term is kept only
+    where it reduces the residual sum of squares by more than
+    ``significance`` times the residual variance (else the straight line's
+    intersection stands), where the face's crossings start within
+    ``max_start`` R of where the profiles start (``start_px`` from the
+    corner; the arc cannot be extrapolated from a face seen only far from
+    its corner, as next to a nearly closed mouth) and
+    ``|b| ≤ max_sin`` (a view within about 11° of the side).
+
+    Parameters
+    ----------
+    pts : ndarray (P, 2)
+        Undistorted 50 % crossings; ``grp`` (P,) their edge 0..2K-1.
+    c, dd : ndarray (2K, 2)
+        Robust line fits of every edge (centroid, direction).
+    curved : ndarray (2K,) bool
+    X, cov, okc : the straight-line corners (K, 2), covariances, ok flags; updated copies are returned
+        (a corner whose face is seen only far from it, in a view where the faces' arcs bulge by more than
+        ``max_bulge_px``, is not ok: neither a line nor an arc extrapolates to it).
+    radius_px : float
+        Tube radius in ideal pixels.
+    partner : ndarray (K,) int, optional
+        The corner whose face is seen from about the same side (the slot's
+        other corner, the tip's other corner; -1: none): an arc is kept only
+        where the partner's arc agrees with it, or, where the partner has
+        none, when it is ``lone_sigma`` standard errors from zero.
+    fit : ndarray (2K,) bool, optional
+        The curved edges worth an arc fit (default all); every curved edge is
+        checked for being seen only far from its corner.
+    """
+    X, cov, okc = X.copy(), cov.copy(), okc.copy()
+    fits, far = _corner_arcs(pts, grp, K, c, dd, curved, okc, radius_px=radius_px, s2_floor=s2_floor,
+                             min_points=min_points, significance=significance, max_sin=max_sin,
+                             max_u0=start_px + max_start * radius_px, fit=curved if fit is None else fit)
+    used = []
+    for k, ((v0, var_v0, b, sd_b), limb_e) in fits.items():
+        q = -1 if partner is None else int(partner[k])
+        if q >= 0:
+            # the partner (the slot's other face, the tip face's other end) is seen from about the same
+            # side: its arc must agree (a JPEG block or a streak makes a spurious one on one face); an arc
+            # without a partner's must be clear by itself
+            if q not in fits and abs(b) < lone_sigma * sd_b:
+                continue
+            if q in fits and abs(abs(b) - abs(fits[q][0][2])) > 3 * math.hypot(sd_b, fits[q][0][3]) + 0.25 * abs(b):
+                continue
+        d = dd[limb_e]
+        nrm = np.array([-d[1], d[0]])
+        X[k] = c[limb_e] + v0 * d
+        var_n = float(np.dot(nrm, cov[k] @ nrm))        # across the limb: the limb's own uncertainty
+        cov[k] = var_v0 * np.outer(d, d) + var_n * np.outer(nrm, nrm)
+        used.append(abs(b))
+    # where the view is oblique (the faces' arcs bulge by more than ``max_bulge_px``), a face seen only far
+    # from its corner cannot be extrapolated to it, by a line or an arc: that corner is not found
+    if far and used and float(np.median(used)) * radius_px > max_bulge_px:
+        okc[far] = False
+    return X, cov, okc
+
+
+def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_points, significance, max_sin,
+                 max_u0, fit):
+    """The arc model of every curved face in its limb's frame (``u`` across from the limb, ``v`` along it),
+    all faces in one batched fit: {corner: ((v0, var v0, b, sd b), limb edge)} where the arc is significant,
+    and the corners whose face's crossings start beyond ``max_u0`` from the limb."""
+    cand = [(k, fe, le) for k in range(K) for fe, le in ((k, K + k), (K + k, k))
+            if curved[fe] and not curved[le] and okc[k]]
+    us, vs, gs, far = [], [], [], []
+    order = np.argsort(grp, kind="stable")
+    first = np.searchsorted(grp[order], np.arange(2 * K + 1))
+    for g, (k, fe, le) in enumerate(cand):
+        rel = pts[order[first[fe]:first[fe + 1]]] - c[le]
+        if len(rel) < min_points + 3:
+            continue
+        d = dd[le]
+        u, v = rel @ np.array([-d[1], d[0]]), rel @ d
+        u = u * (1.0 if np.median(u) >= 0 else -1.0)
+        near = u <= radius_px            # the half of a face next to this corner (the tip face is 2R long)
+        if not near.any() or u[near].min() > max_u0:
+            far.append(k)                # a face seen only far from the corner (a nearly closed mouth)
+            continue
+        if not fit[fe]:
+            continue
+        us.append(u[near])
+        vs.append(v[near])
+        gs.append(np.full(int(near.sum()), g))
+    if not us:
+        return {}, far
+    u, v, gid = np.concatenate(us), np.concatenate(vs), np.concatenate(gs)
+    G = len(cand)
+    line = _face_fits(u, v, gid, G, radius_px, curved=False)
+    ell = _face_fits(u, v, gid, G, radius_px, curved=True)
+    gain = line[2] * (line[3] - 2) - ell[2] * (ell[3] - 3)
+    ok = (np.isfinite(ell[0][:, 0]) & np.isfinite(line[0][:, 0]) & (gain > significance * np.maximum(ell[2], s2_floor))
+          & (np.abs(ell[0][:, 2]) <= max_sin))
+    fits = {}
+    for g in np.nonzero(ok)[0]:
+        k, _, le = cand[g]
+        fits[k] = ((ell[0][g, 0], max(ell[1][g, 0, 0], s2_floor / ell[3][g]), ell[0][g, 2],
+                    math.sqrt(max(ell[1][g, 2, 2], 0.0))), le)
+    return fits, far
 
 
 def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
@@ -250,7 +436,8 @@ def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
 
 
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, lim, min_points, contrast,
-                h_face=None, blur_prior=math.nan):
+                h_face=None, blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12,
+                arc_gate: float = 2.0):
     """One pass of edge-profile line fits for all corners at once.
 
     Parameters
@@ -267,6 +454,13 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         Edge blur from a previous pass [px]; when given, the noise floor of
         the crossings follows from it and the object level is carried to the
         edge along its slope (shading).
+    radius_px : float
+        The tube's radius [ideal px]: with it, corners on the curved edges
+        of ``sp.curved`` come from :func:`curved_face_corners`, whose
+        profiles reach at least ``curved_reach`` R each way (an arc seen 7°
+        from the side leaves its chord by 0.12 R). Only faces whose line fit
+        leaves ``arc_gate`` times the straight edges' residual variance are
+        fitted again as arcs.
 
     Returns
     -------
@@ -275,11 +469,13 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     """
     K = len(sp.C)
     h_face = h if h_face is None else h_face
-    pr = sample_profiles(img, off, sp, sgn, s0=s0, s_end=s_end, h=h, h_face=h_face, step=step)
+    h_curved = curved_reach * radius_px if np.isfinite(radius_px) else 0.0
+    pr = sample_profiles(img, off, sp, sgn, s0=s0, s_end=s_end, h=h, h_face=h_face, step=step, h_curved=h_curved)
     nan = np.full((K, 2), np.nan)
     if pr is None:
         return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout
-    tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step,
+    tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
+                                         holder_face=sp.holder_face,
                                          extrapolate=bool(np.isfinite(blur_prior)))
     fp = sp.face[pr.edge]
     blur = edge_blur(qa, valid & ~fp, pr.t, step)
@@ -292,7 +488,17 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if plateau.sum() >= 10 and np.isfinite(blur_prior):
         sq = 1.4826 * float(np.median(np.abs(q_lo[plateau])))
         s2_floor = (sq * math.sqrt(2 * math.pi) * blur_prior) ** 2
-    X, cov, okc, c, dd, good_e = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor)
+    X, cov, okc, c, dd, good_e, s2_line = corner_lines(und, pr.edge[valid], K, min_points=min_points,
+                                                        s2_floor=s2_floor)
+    # an arc shows as a face line's residuals well above the straight edges' (the noise): faces that are
+    # straight lines within the noise are not fitted again
+    straight = good_e & ~sp.curved if sp.curved is not None else good_e
+    noise2 = float(np.median(s2_line[straight])) if straight.any() else 0.0
+    curved = None if sp.curved is None else sp.curved & (s2_line > arc_gate * max(noise2, s2_floor))
+    if curved is not None and np.isfinite(radius_px) and sp.curved.any():
+        X, cov, okc = curved_face_corners(und, pr.edge[valid], K, c, dd, sp.curved, X, cov, okc, fit=curved,
+                                          radius_px=radius_px, s2_floor=s2_floor, min_points=min_points,
+                                          start_px=s0, partner=sp.partner)
     Cn = np.full((K, 2), np.nan)
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])

@@ -1,9 +1,9 @@
 """Stage 1: segment the object (tube + holder) on a downsampled copy.
 
 Otsu split, polarity from the image border (dark on light or light on dark),
-a quadratic background surface fitted to the background class (uneven
-light, non-flat background), a 50 % threshold between the background
-surface and the object level, the largest region with its holes filled
+a quadratic background surface fitted to the background class and refitted
+to the samples near it (uneven light, vignetting, a non-flat backdrop), a
+threshold between the background surface and the object level, the largest region with its holes filled
 except slot-sized ones (a nearly closed slot mouth segments as a hole;
 shading and a specular streak inside the tube or the holder make larger
 holes).
@@ -18,7 +18,7 @@ import numpy as np
 
 from .lines import otsu, poly2
 
-__all__ = ["Segmentation", "downsample", "fill_holes", "fill_thin_lines", "largest_region", "segment"]
+__all__ = ["Segmentation", "band_directions", "downsample", "fill_holes", "fill_thin_lines", "largest_region", "segment"]
 
 
 @dataclass(frozen=True)
@@ -35,12 +35,15 @@ class Segmentation:
         Background noise of the downsampled copy [DN].
     message : str
         Why no object was found (empty otherwise).
+    image : ndarray (h, w) float32 or None
+        The downsampled copy that was segmented.
     """
 
     mask: np.ndarray | None
     contrast: float
     noise: float
     message: str = ""
+    image: np.ndarray | None = None
 
 
 def downsample(gray, factor: int) -> np.ndarray:
@@ -54,7 +57,8 @@ def downsample(gray, factor: int) -> np.ndarray:
     return cv2.resize(np.asarray(g, np.float32), (ws, hs), interpolation=cv2.INTER_AREA)
 
 
-def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_points: int = 20000) -> Segmentation:
+def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_points: int = 6000,
+            level: float = 0.5, rounds: int = 3, clear_snr: float = 5.0) -> Segmentation:
     """Object mask of a downsampled image.
 
     Parameters
@@ -67,48 +71,99 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
         downsampling factor: noise averages down about as 1/factor).
     max_fit_points : int
         Background samples used for the surface fit.
+    level : float
+        Threshold between the background surface (0) and the object level
+        (1): below 0.5, thin dark parts whose blurred or shaded level does not
+        reach halfway (a backbone left by deep slots, limbs shaded toward the
+        background) stay in the object.
+    rounds : int
+        Refits of the background surface, each to the samples within a
+        quarter of the contrast of the last one (vignetting darkens the image
+        corners below an Otsu split; the refits take them back).
+    clear_snr : float
+        The surface starts from an Otsu split; when that gives an object less
+        than ``clear_snr * min_snr`` times the noise, from a trimmed fit too
+        (a small object in an unevenly lit image), whichever is clearer.
 
     Returns
     -------
     Segmentation
     """
     hs, ws = small.shape
-    sub = small[::3, ::3]
-    above = small > otsu(sub.ravel())
-    border = np.concatenate([above[0], above[-1], above[:, 0], above[:, -1]])
-    obj0 = ~above if border.mean() > 0.5 else above
-    bgm = cv2.erode((~obj0).astype(np.uint8), np.ones((5, 5), np.uint8))[::3, ::3].astype(bool)
-    yy, xx = np.nonzero(bgm)
-    if len(yy) > max_fit_points:
-        sel = np.linspace(0, len(yy) - 1, max_fit_points).astype(int)
-        yy, xx = yy[sel], xx[sel]
-    if len(yy) < 50:
+    step = max(1, int(np.ceil(np.sqrt(hs * ws / max_fit_points))))
+    sub = small[::step, ::step]
+    A = poly2(*np.meshgrid(np.arange(0, ws, step) / ws - 0.5, np.arange(0, hs, step) / hs - 0.5)).reshape(-1, 6)
+    vals = sub.ravel().astype(float)
+    fits = []
+    for start in (_otsu_background, lambda _: _trimmed_background(A, vals)):
+        inl = start(sub)
+        if inl is not None:
+            fits.append(_refit(A, vals, inl, small, step, sub.shape, rounds))
+            if abs(fits[-1][1]) >= clear_snr * min_snr * fits[-1][2] * noise_scale:
+                break                                        # a clear object from the Otsu split
+    if not fits:
         return Segmentation(None, 0.0, 0.0, "no manipulator found: no background visible")
-    A = poly2(xx * 3.0 / ws - 0.5, yy * 3.0 / hs - 0.5)
-    vals = sub[yy, xx].astype(float)
-    coef = np.linalg.solve(A.T @ A + 1e-9 * np.eye(6), A.T @ vals)
-    res = vals - A @ coef
-    keep = np.abs(res) <= 3 * 1.4826 * np.median(np.abs(res)) + 1e-9
-    Ak = A[keep]
-    coef = np.linalg.solve(Ak.T @ Ak + 1e-9 * np.eye(6), Ak.T @ vals[keep])
-    res = vals - A @ coef
-    noise = 1.4826 * float(np.median(np.abs(res - np.median(res)))) + 1e-6
-    X = (np.arange(ws, dtype=np.float32) / ws - 0.5)[None, :]
-    Y = (np.arange(hs, dtype=np.float32) / hs - 0.5)[:, None]
-    c_ = coef.astype(np.float32)
-    objm = cv2.erode(obj0.astype(np.uint8), np.ones((3, 3), np.uint8))[::3, ::3].astype(bool)
-    if objm.sum() < 10:
-        return Segmentation(None, 0.0, noise, "no manipulator found: no object region")
-    bg_sub = (c_[0] + c_[1] * X + c_[3] * X * X)[:, ::3] + (c_[2] * Y + c_[5] * Y * Y)[::3] + \
-        c_[4] * (Y[::3] * X[:, ::3])
-    contrast = float(np.median((sub - bg_sub)[objm]))
+    coef, contrast, noise = max(fits, key=lambda f: abs(f[1]) / f[2])   # the clearer object
     if not abs(contrast) >= min_snr * noise * noise_scale:
         return Segmentation(None, contrast, noise,
                             f"no manipulator found: contrast {abs(contrast):.1f} is below {min_snr:g} x the "
                             f"background noise {noise * noise_scale:.1f}")
-    thr = (c_[0] + 0.5 * contrast + c_[1] * X + c_[3] * X * X) + (c_[2] * Y + c_[5] * Y * Y) + c_[4] * (Y * X)
+    X = (np.arange(ws, dtype=np.float32) / ws - 0.5)[None, :]
+    Y = (np.arange(hs, dtype=np.float32) / hs - 0.5)[:, None]
+    c_ = coef.astype(np.float32)
+    thr = (c_[0] + level * contrast + c_[1] * X + c_[3] * X * X) + (c_[2] * Y + c_[5] * Y * Y) + c_[4] * (Y * X)
     mask = ((small > thr) if contrast > 0 else (small < thr)).astype(np.uint8)
-    return Segmentation(mask, contrast, noise)
+    return Segmentation(mask, contrast, noise, image=small)
+
+
+def _otsu_background(sub):
+    """Background samples from an Otsu split, the background being the class on most of the border."""
+    above = sub > otsu(sub.ravel())
+    border = np.concatenate([above[0], above[-1], above[:, 0], above[:, -1]])
+    obj0 = ~above if border.mean() > 0.5 else above
+    bgm = cv2.erode((~obj0).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    return bgm.ravel() if bgm.sum() >= 50 else None
+
+
+def _trimmed_background(A, vals, keep: float = 0.5, rounds: int = 4):
+    """Background samples from a trimmed fit: the half of the samples nearest a quadratic surface, refitted
+    ``rounds`` times (an object covering a small part of an unevenly lit image)."""
+    use = np.ones(len(vals), bool)
+    for _ in range(rounds):
+        coef = np.linalg.solve(A[use].T @ A[use] + 1e-9 * np.eye(6), A[use].T @ vals[use])
+        r = np.abs(vals - A @ coef)
+        use = r <= np.quantile(r, keep)
+    return use if use.sum() >= 50 else None
+
+
+def _refit(A, vals, inl, small, step, shape, rounds):
+    """The background surface refitted to the samples within a quarter of the contrast; the object is the
+    far side, dark or bright by the sign of most far samples. Returns (coefficients, contrast, noise)."""
+    for it in range(rounds + 1):
+        coef = np.linalg.solve(A[inl].T @ A[inl] + 1e-9 * np.eye(6), A[inl].T @ vals[inl])
+        res = vals - A @ coef
+        if it in (0, rounds):
+            noise = _noise(small, step, inl.reshape(shape))
+        far = np.abs(res) > max(5 * noise, 0.3 * float(np.percentile(np.abs(res), 99.5)))
+        if far.sum() < 10:
+            return coef, 0.0, noise
+        dark = np.sum(res[far] < 0) >= np.sum(res[far] > 0)
+        contrast = float(np.median(res[far & ((res < 0) if dark else (res > 0))]))
+        if it < rounds:
+            inl = np.abs(res) <= 0.25 * abs(contrast)
+    return coef, contrast, noise
+
+
+def _noise(small, step: int, bg) -> float:
+    """Noise of the background from differences of horizontally neighbouring pixels at the background
+    samples (a smooth, non-quadratic background, such as a hot spot or vignetting, is not noise)."""
+    yy, xx = np.nonzero(bg)
+    yy, xx = yy * step, xx * step
+    keep = xx + 1 < small.shape[1]
+    if not keep.any():
+        return 1e-6
+    d = small[yy[keep], xx[keep] + 1] - small[yy[keep], xx[keep]]
+    return 1.4826 * float(np.median(np.abs(d))) / np.sqrt(2) + 1e-6
 
 
 def largest_region(mask) -> tuple[np.ndarray, tuple]:
@@ -143,14 +198,56 @@ def fill_holes(region, *, keep_area=(0.0, 0.0)) -> np.ndarray:
     return out
 
 
-def fill_thin_lines(mask, length_px: float, n_dirs: int = 8) -> np.ndarray:
-    """The mask with background lines thinner than ``length_px`` filled, in any direction (uint8).
+def band_directions(mask, bridge_px: float, radius_px: float, min_coherence: float = 0.8) -> np.ndarray:
+    """The direction across the band at every pixel of a silhouette [rad, 0..π) (h, w) float32; where
+    the edges nearby do not agree on one (coherence below ``min_coherence``: the tube's ends), that of
+    the nearest pixel where they do.
+
+    The silhouette with its slots bridged (a closing by a disk of
+    ``bridge_px``, holes filled) is a band; the gradients of its edges point
+    across it. Their structure tensor, smoothed over ``radius_px`` (about
+    the band's half width), gives the dominant gradient orientation: across
+    the band inside it, whatever its bend.
+    """
+    r = max(int(round(bridge_px)), 1)
+    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    pad = r + 2
+    big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+    band = fill_holes(cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)[pad:-pad, pad:-pad]).astype(np.float32)
+    # the tensor varies on the scale of the radius: computed on a copy reduced to about 4 px per radius
+    k = max(1, int(radius_px // 4))
+    h, w = band.shape
+    small = cv2.resize(band, (max(w // k, 1), max(h // k, 1)), interpolation=cv2.INTER_AREA) if k > 1 else band
+    s1, s2 = max(0.5 * radius_px / k, 0.7), max(float(radius_px) / k, 1.0)
+    b = cv2.GaussianBlur(small, (0, 0), s1)
+    gx, gy = cv2.Sobel(b, cv2.CV_32F, 1, 0), cv2.Sobel(b, cv2.CV_32F, 0, 1)
+    jxx, jxy, jyy = (cv2.GaussianBlur(v, (0, 0), s2) for v in (gx * gx, gx * gy, gy * gy))
+    if k > 1:
+        jxx, jxy, jyy = (cv2.resize(v, (w, h), interpolation=cv2.INTER_LINEAR) for v in (jxx, jxy, jyy))
+    ang = (0.5 * np.arctan2(2 * jxy, jxx - jyy)) % np.float32(np.pi)
+    # where the gradients do not agree on one direction (the tube's ends, the holder), the direction of
+    # the nearest pixel where they do
+    coherent = np.sqrt((jxx - jyy) ** 2 + 4 * jxy ** 2) >= min_coherence * np.maximum(jxx + jyy, 1e-12)
+    if not coherent.any():
+        return np.full(mask.shape, np.nan, np.float32)
+    _, lab = cv2.distanceTransformWithLabels((~coherent).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5,
+                                             labelType=cv2.DIST_LABEL_PIXEL)
+    src = np.zeros(int(lab.max()) + 1, np.float32)
+    src[lab[coherent]] = ang[coherent]
+    return src[lab]
+
+
+def fill_thin_lines(mask, length_px: float, n_dirs: int = 8, *, across=None, tol_deg: float = 25.0) -> np.ndarray:
+    """The mask with background lines thinner than ``length_px`` filled (uint8).
 
     A union of closings by line segments of ``length_px`` at ``n_dirs``
     orientations. A specular streak along a dark tube, cut by deep slots into
     pieces that join the slots, disconnects the tube's halves; it is
     narrower than a slot, so a segment shorter than the slot width fills it
-    and no slot.
+    and no slot. With ``across`` (:func:`band_directions`), a pixel is filled
+    only by segments within ``tol_deg`` of the direction across the tube: a
+    streak runs along the tube and is filled; the mouth of a nearly closed
+    slot, thin along the tube, is not.
     """
     L = int(max(3, round(length_px)))
     L += 1 - L % 2
@@ -158,10 +255,15 @@ def fill_thin_lines(mask, length_px: float, n_dirs: int = 8) -> np.ndarray:
     big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
     out = big.copy()
     c = L // 2
+    tol = np.radians(tol_deg)
     for k in range(n_dirs):
         a = np.pi * k / n_dirs
         ker = np.zeros((L, L), np.uint8)
         d = np.array([np.cos(a), np.sin(a)]) * (L // 2)
         cv2.line(ker, (int(round(c - d[0])), int(round(c - d[1]))), (int(round(c + d[0])), int(round(c + d[1]))), 1)
-        out |= cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)
+        closed = cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)
+        if across is not None:
+            diff = np.abs((across - a + np.pi / 2) % np.pi - np.pi / 2)
+            closed[pad:-pad, pad:-pad] &= (diff <= tol).astype(np.uint8)
+        out |= closed
     return out[pad:-pad, pad:-pad]

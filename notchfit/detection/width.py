@@ -2,8 +2,10 @@
 
 A fronto-parallel view is assumed: the tube's width in pixels, measured
 across straight stretches of its outer edges, is ``2R``. First a rough
-width from the downsampled silhouette (slots bridged by a closing; the
-thinnest long band of the silhouette is the tube), then the precise one
+width from the downsampled silhouette (slots bridged by a closing; of the
+bands the silhouette shows, the tube is the one that holds the geometry's
+slots at the scale its width implies: a clamp's bar may be as thin), then
+the precise one
 from full-resolution intensity profiles across the tube (50 % crossings of
 both outer edges, stations on the straight edge next to every refined
 corner).
@@ -16,42 +18,59 @@ import math
 import cv2
 import numpy as np
 
-__all__ = ["measure_diameter", "rough_radius", "rough_tube_radius"]
+__all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along",
+           "tube_radius"]
 
 
-def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3) -> float:
-    """Tube radius in pixels of a downsampled silhouette (NaN if not found).
+def _close_disk(region, r: int, border=cv2.BORDER_REPLICATE):
+    """A closing by a disk of radius ``r`` (two distance transforms), padded by ``r + 2``: (closed, pad)."""
+    pad = r + 2
+    big = cv2.copyMakeBorder(region, pad, pad, pad, pad, border, value=0)
+    # dilate (distance to the set <= r), then erode
+    dil = (cv2.distanceTransform(1 - big, cv2.DIST_L2, 5) <= r).astype(np.uint8)
+    return (cv2.distanceTransform(dil, cv2.DIST_L2, 5) > r).astype(np.uint8) | big, pad
+
+
+def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3) -> list:
+    """Band radii [px] of a downsampled silhouette: the peaks of its distance-transform ridge values.
 
     The silhouette closed by a disk of ``close_px`` (the slots bridged) has a
-    distance-transform ridge along the tube at the tube's radius; a holder's
-    ridge lies higher. The radius is the smallest ridge value whose
-    histogram count is at least ``peak_fraction`` of the largest count.
+    distance-transform ridge along every band at the band's half width (the
+    tube's radius, a clamp's bar's, a holder's). Peaks of the ridge-value
+    histogram whose count is at least ``peak_fraction`` of the largest,
+    smallest first.
     """
     r = max(int(close_px), 1)
-    pad = r + 2
-    big = cv2.copyMakeBorder(region, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
-    # a closing by a disk from two distance transforms: dilate (distance to the set <= r), then erode
-    dil = (cv2.distanceTransform(1 - big, cv2.DIST_L2, 5) <= r).astype(np.uint8)
-    closed = (cv2.distanceTransform(dil, cv2.DIST_L2, 5) > r).astype(np.uint8) | big
+    closed, pad = _close_disk(region, r)
     dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)[pad:-pad, pad:-pad]
     ridge = (dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6) & (dt >= min_radius_px)
     v = dt[ridge]
     if len(v) < 10:
-        return math.nan
+        return []
     hi = int(math.ceil(v.max())) + 2
     h, edges = np.histogram(v, bins=np.arange(0, hi + 1, 1.0))
     h = np.convolve(h, [0.25, 0.5, 0.25], mode="same")
     peaks = [i for i in range(1, len(h) - 1) if h[i] >= h[i - 1] and h[i] >= h[i + 1] and h[i] > 0]
     if not peaks:
-        return math.nan
+        return []
     top = max(h[i] for i in peaks)
-    i0 = min(i for i in peaks if h[i] >= peak_fraction * top)
-    sel = (v >= edges[max(i0 - 1, 0)]) & (v < edges[min(i0 + 2, len(edges) - 1)])
-    return float(np.median(v[sel])) + 0.5
+    out = []
+    for i0 in peaks:
+        if h[i0] >= peak_fraction * top:
+            sel = (v >= edges[max(i0 - 1, 0)]) & (v < edges[min(i0 + 2, len(edges) - 1)])
+            out.append(float(np.median(v[sel])) + 0.5)
+    return out
+
+
+def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3) -> float:
+    """Tube radius in pixels of a downsampled silhouette (NaN if not found): the smallest of
+    :func:`ridge_peaks` (a holder's ridge lies higher than the tube's)."""
+    peaks = ridge_peaks(region, close_px, min_radius_px=min_radius_px, peak_fraction=peak_fraction)
+    return peaks[0] if peaks else math.nan
 
 
 def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5) -> float:
-    """Tube radius of a silhouette [px] without knowing the scale.
+    """Tube radius of a silhouette [px] without knowing the scale (no slot pattern used).
 
     :func:`rough_radius` for closing radii 2, 3, 4, 6, ... px up to
     ``max_close_px``; the largest estimate whose closing was at most
@@ -61,13 +80,131 @@ def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5) -> f
     (a straight band does not thicken under a closing).
     """
     best = math.nan
+    for r, est in _closing_series(region, max_close_px, lambda reg, c: [rough_radius(reg, c)]):
+        if np.isfinite(est) and est >= min_ratio * r and not est <= best:
+            best = est
+    return best
+
+
+def _closing_series(region, max_close_px, fn):
+    """(closing radius, estimate) for every estimate of ``fn(region, r)`` over r = 2, 3, 4, 6, ..."""
     r = 2.0
     while r <= max_close_px:
-        est = rough_radius(region, int(round(r)))
-        if np.isfinite(est) and est >= min_ratio * round(r) and not est <= best:
-            best = est
+        for est in fn(region, int(round(r))):
+            yield int(round(r)), est
         r *= 1.4
-    return best
+
+
+def radius_candidates(region, *, max_close_px: int, min_ratio: float = 0.5, merge: float = 0.12,
+                      peak_fraction: float = 0.05) -> list:
+    """Every band radius [px] the silhouette shows under closings up to ``max_close_px`` (a closing at
+    most ``1 / min_ratio`` times the radius; a ridge peak ``peak_fraction`` of the highest: a short tube
+    beside a long clamp bar counts), estimates within ``merge`` of each other merged."""
+    peaks = lambda reg, c: ridge_peaks(reg, c, peak_fraction=peak_fraction)
+    ests = sorted(e for r, e in _closing_series(region, max_close_px, peaks) if e >= min_ratio * r)
+    out = []
+    for e in ests:
+        if out and e <= out[-1][-1] * (1 + merge):
+            out[-1].append(e)
+        else:
+            out.append([e])
+    return [float(np.median(g)) for g in out]
+
+
+def _slot_gaps(region, radius_px, *, slot_width, slot_depth, radius, close_factor, area_range,
+               width_range=(0.5, 1.6), streak=0.2):
+    """The slot-bridged band and its slot-sized gaps at the scale ``radius_px / radius``: (closed, labels,
+    slot labels). A gap is a slot where its area is ``area_range`` times ``w d`` and its widest inscribed
+    disk ``width_range`` times ``w`` (a band half the tube's width, made by a streak, shows slots twice
+    too wide); thin parts (``streak`` w, a streak joining the slots) are opened away first."""
+    s = radius_px / radius
+    r = int(math.ceil(close_factor * slot_width * s)) + 1
+    closed, pad = _close_disk(region, r, border=cv2.BORDER_CONSTANT)
+    closed = closed[pad:-pad, pad:-pad]
+    gaps = (closed & (1 - region)).astype(np.uint8)
+    k = int(round(streak * slot_width * s))
+    if k >= 1:
+        gaps = cv2.morphologyEx(gaps, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
+    n, lab, st, _ = cv2.connectedComponentsWithStats(gaps, connectivity=8)
+    if n <= 1:
+        return closed, lab, []
+    area = slot_width * slot_depth * s * s
+    dtg = cv2.distanceTransform(gaps, cv2.DIST_L2, 5)
+    sel = lab > 0
+    widest = np.zeros(n)
+    np.maximum.at(widest, lab[sel], dtg[sel])
+    widest = 2 * widest[1:] + 1
+    ids = [k for k in range(1, n) if area_range[0] * area <= st[k, cv2.CC_STAT_AREA] <= area_range[1] * area
+           and width_range[0] * slot_width * s <= widest[k - 1] <= width_range[1] * slot_width * s]
+    return closed, lab, ids
+
+
+def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: float, radius: float,
+                close_factor: float, area_range, pitch=(0.0, np.inf), length: float = 0.0) -> int:
+    """How many slot-sized gaps lie along the band of half width ``radius_px`` if that band is the tube.
+
+    At the scale ``radius_px / radius``, the slots (``slot_width`` x
+    ``slot_depth`` [m]) are bridged by a closing of ``close_factor``
+    slot widths; gaps of slot size (:func:`_slot_gaps`) that reach within
+    ``radius_px`` of the band's ridge (ridge values within 25 % of
+    ``radius_px``) and lie a slot pitch (``pitch`` = (smallest, largest)
+    distance to the nearest slot [m]) from another one are counted: a
+    clamp's bar or a holder as wide as a tube holds no slot, a band of
+    noise or texture no slot pattern. A band whose ridge is shorter than
+    ``length`` [m] (30 % of the tube) holds none.
+    """
+    closed, lab, ids = _slot_gaps(region, radius_px, slot_width=slot_width, slot_depth=slot_depth, radius=radius,
+                                  close_factor=close_factor, area_range=area_range)
+    if not ids:
+        return 0
+    s = radius_px / radius
+    dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)
+    ridge = (dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6) & (np.abs(dt - radius_px) <= 0.25 * radius_px)
+    if ridge.sum() < 0.3 * length * s:
+        return 0
+    near = cv2.distanceTransform((~ridge).astype(np.uint8), cv2.DIST_L2, 5) <= 1.05 * radius_px + 1
+    along = sorted(set(np.unique(lab[near & (lab > 0)]).tolist()) & set(ids))
+    if len(along) < 2:
+        return len(along)
+    yy, xx = np.nonzero(np.isin(lab, along))
+    labs = lab[yy, xx]
+    cen = np.stack([np.bincount(labs, xx, lab.max() + 1)[along], np.bincount(labs, yy, lab.max() + 1)[along]], 1) \
+        / np.bincount(labs, minlength=lab.max() + 1)[along][:, None]
+    dd = np.linalg.norm(cen[:, None] - cen[None], axis=2) + np.diag(np.full(len(along), np.inf))
+    nn = dd.min(1)
+    return int(np.sum((nn >= 0.5 * pitch[0] * s) & (nn <= 2.2 * pitch[1] * s)))
+
+
+def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_range, filled=None,
+                min_slot_px: float = 2.0):
+    """Tube radius of a silhouette [px] without knowing the scale: of the bands it shows
+    (:func:`radius_candidates`), the one that holds the geometry's slots (:func:`slots_along`: most slots,
+    up to the number of joints; the nearer count, then the wider band, on a tie); the thinnest band
+    (:func:`rough_tube_radius`) where no band holds a slot. ``filled``: the silhouette with its holes
+    filled (a streak's), for the bands' widths; the slots are counted on ``region``. Bands whose slots
+    would be narrower than ``min_slot_px`` or that are wider than a quarter of the image are not tried.
+
+    Returns
+    -------
+    radius [px] (NaN: none), slots found along it (at most the number of joints)
+    """
+    filled = region if filled is None else filled
+    R = geom.outer_radius
+    w, d = float(np.median(geom.slot_widths)), float(np.median(geom.slot_depths))
+    best = None
+    w_min = float(np.min(geom.slot_widths))
+    for rc in radius_candidates(filled, max_close_px=max_close_px):
+        if w_min * rc / R < min_slot_px or rc > 0.25 * min(region.shape):
+            continue                     # slots too narrow to be seen at this scale, or a band too wide
+        n = slots_along(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
+                        area_range=area_range, pitch=(float(np.min(geom.pitches)), float(np.max(geom.pitches))),
+                        length=geom.tip_z - geom.base_edge_z)
+        key = (min(n, geom.n_joints), -abs(n - geom.n_joints), rc)
+        if n > 0 and (best is None or key > best[0]):
+            best = (key, rc)
+    if best is None:
+        return rough_tube_radius(filled, max_close_px=max_close_px), 0
+    return best[1], best[0][0]
 
 
 def _crossings(t, P, level, t0, sign):
@@ -160,3 +297,118 @@ def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur
     good = np.isfinite(tn) & (sgn * (a_o - a_b) > 0.5 * abs(contrast)) & np.isfinite(P[:, t <= window[0] * width0_px]).all(1)
     tf = _edges(t, P, tf0, (-a, -2 * b - 2), (2 * b + 2, a), sgn, rising=False)
     return np.where(good, tf - tn, np.nan)
+
+
+def band_centreline(region, radius_px: float, *, slot_width: float, slot_depth: float, radius: float,
+                    close_factor: float, area_range, tol: float = 0.06, reach: float = 2.5) -> np.ndarray:
+    """Points on the tube's centreline where it has its full width (P, 2) [px of ``region``].
+
+    The ridge of the slot-bridged band (as :func:`slots_along`) within
+    ``reach`` radii of a slot (the tube, not another band of its width)
+    where its distance transform is within ``tol`` of its median there
+    (the full width: away from the slots, the tip and the holder).
+    """
+    closed, lab, ids = _slot_gaps(region, radius_px, slot_width=slot_width, slot_depth=slot_depth, radius=radius,
+                                  close_factor=close_factor, area_range=area_range)
+    slots = np.isin(lab, ids)
+    if not slots.any():
+        return np.zeros((0, 2))
+    dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)
+    near = cv2.distanceTransform((~slots).astype(np.uint8), cv2.DIST_L2, 5) <= reach * radius_px
+    ridge = (dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6) & near & (np.abs(dt - radius_px) <= 0.3 * radius_px)
+    if not ridge.any():
+        return np.zeros((0, 2))
+    mode = float(np.median(dt[ridge]))                   # the rough radius may be 20 % off: the tube's own
+    yy, xx = np.nonzero(ridge & (np.abs(dt - mode) <= tol * mode))
+    return np.stack([xx, yy], 1).astype(float)
+
+
+def band_width(img, centres, normals, width0_px: float, contrast: float, *, step: float = 0.5,
+               reach: float = 0.8, blur_px: float = math.nan, skew_offset: float = 0.08, max_skew_deg: float = 10.0):
+    """The tube's width [px] along profiles across it (S,), NaN where not measured; the direction error
+    of each profile (its edges' shift along two neighbours ``skew_offset`` widths away, alike for both
+    edges and at most ``max_skew_deg``; else left uncorrected) corrected.
+
+    See :func:`band_width_along` for the parameters.
+    """
+    along = np.stack([-normals[:, 1], normals[:, 0]], 1)
+    d = skew_offset * width0_px
+    runs = [band_width_along(img, centres + k * d * along, normals, width0_px, contrast, step=step, reach=reach,
+                             blur_px=blur_px) for k in (0.0, -1.0, 1.0)]
+    (w, tn, tf), (_, tn_a, tf_a), (_, tn_b, tf_b) = runs
+    # the (parallel) edges run at an angle e to the profile's perpendicular: both shift by 2 d tan(e)
+    # between the neighbours; the width is w cos(e)
+    tan_e = 0.5 * ((tf_b - tf_a) + (tn_b - tn_a)) / (2 * d)
+    # the two edges must shift alike (a neighbour that meets a slot or the tube's end does not); a skew
+    # beyond ``max_skew_deg`` is not the profile's
+    agree = np.abs((tf_b - tf_a) - (tn_b - tn_a)) <= 0.1 * (2 * d) + 1.0
+    ok = np.isfinite(tan_e) & agree & (np.abs(tan_e) <= math.tan(math.radians(max_skew_deg)))
+    return w / np.sqrt(1.0 + np.where(ok, tan_e, 0.0) ** 2)
+
+
+def band_width_along(img, centres, normals, width0_px: float, contrast: float, *, step: float = 0.5,
+                     reach: float = 0.8, blur_px: float = math.nan):
+    """The tube's width [px] along one profile per centre (S,), NaN where not measured.
+
+    Each profile runs through a centreline point along the normal, ``reach``
+    times the rough width ``width0_px`` each way (the rough width may be 25 %
+    off). The outer edges are the outermost crossings of the level halfway
+    between the background (the profile's ends) and the object (a streak
+    inside the tube does not count: it is not outermost), then refined to
+    50 % crossings between straight-line levels on each side (shading).
+
+    Parameters
+    ----------
+    img : ndarray (H, W)
+        The full-resolution image.
+    centres, normals : ndarray (S, 2)
+        Profile centres [px] and unit directions across the tube.
+    contrast : float
+        Object minus background level (its sign is the polarity).
+    blur_px : float
+        Edge blur σ [px]; measured from the profiles when NaN.
+
+    Returns
+    -------
+    widths, near edge, far edge : ndarray (S,) [px] (positions along the profile from its centre)
+    """
+    t = np.arange(-reach * width0_px, reach * width0_px + step, step)
+    pts = centres[:, None, :] + t[None, :, None] * normals[:, None, :]
+    H, W = img.shape
+    lo = np.maximum(np.floor(pts.reshape(-1, 2).min(0)) - 2, 0).astype(int)
+    hi = np.minimum(np.ceil(pts.reshape(-1, 2).max(0)) + 3, [W, H]).astype(int)
+    if np.any(hi <= lo):
+        nan = np.full(len(centres), np.nan)
+        return nan, nan, nan
+    roi = np.ascontiguousarray(img[lo[1]:hi[1], lo[0]:hi[0]], dtype=np.float32)
+    P = cv2.remap(roi, (pts[..., 0] - lo[0]).astype(np.float32), (pts[..., 1] - lo[1]).astype(np.float32),
+                  cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan")).astype(float)
+    sg = 1.0 if contrast > 0 else -1.0
+    Q = np.where(np.isfinite(P), sg * P, -1e9)                      # outside the image: not object
+    obj = np.percentile(Q[:, np.abs(t) <= 0.45 * width0_px], 80, axis=1)
+    edges = []
+    for side in (-1.0, 1.0):
+        bg = np.median(Q[:, (np.abs(t) >= 0.65 * width0_px) & (side * t > 0)], axis=1)
+        inside = Q >= 0.5 * (bg + obj)[:, None]
+        order = np.arange(len(t)) if side < 0 else np.arange(len(t))[::-1]
+        first = np.argmax(inside[:, order], axis=1)          # the outermost object sample from this side
+        edges.append((t[order][first], bg))
+    ok = (obj - np.maximum(edges[0][1], edges[1][1])) > 0.5 * abs(contrast)
+    b = blur_px if np.isfinite(blur_px) else 1.5
+    for it in range(1 if np.isfinite(blur_px) else 2):
+        a = 4 * b + 4
+        tn = _edges(t, P, edges[0][0], (2 * b + 2, a), (-a, -2 * b - 2), sg)
+        tf = _edges(t, P, edges[1][0], (-a, -2 * b - 2), (2 * b + 2, a), sg, rising=False)
+        if it == 0 and not np.isfinite(blur_px):
+            # the blur from the near edge's 25 % -> 75 % rise (1.349 σ), for the level windows
+            a_o, _ = _line_levels(t, P, np.nan_to_num(tn), (2 * b + 2, a))
+            a_b, _ = _line_levels(t, P, np.nan_to_num(tn), (-a, -2 * b - 2))
+            rise = [_crossings(t, P, np.nan_to_num(a_b + q * (a_o - a_b), nan=np.inf), np.nan_to_num(tn), sg)
+                    for q in (0.25, 0.75)]
+            d = (rise[1] - rise[0])[ok]
+            d = d[np.isfinite(d) & (d > 0)]
+            b = float(np.clip(np.median(d) / 1.349, 0.5, 0.1 * width0_px)) if len(d) else b
+    w = tf - tn
+    ok &= np.isfinite(w) & (w > 0.5 * width0_px) & (w < 1.5 * width0_px)
+    return np.where(ok, w, np.nan), tn, tf
+

@@ -48,6 +48,7 @@ from ..io import write_camera, write_image
 from ..kinematics import chain, link_origins
 from ..notches import notch_points, to_plane
 from ..units import MM
+from .raster import polygon_coverage, union_coverage
 
 __all__ = [
     "RenderedBoard",
@@ -59,93 +60,11 @@ __all__ = [
     "render_board",
     "render_manipulator",
     "render_study_images",
+    "union_coverage",
 ]
 
 
-# ----------------------------------------------------------------------------- rasteriser
-def polygon_coverage(polygons, shape, *, supersample: int = 8, offset=(0, 0)) -> np.ndarray:
-    """Fraction of each pixel inside a set of polygons (even-odd rule).
-
-    Pixel ``(row, col)`` covers ``[col - 0.5, col + 0.5] x [row - 0.5, row + 0.5]``
-    (CONVENTIONS.md). Each pixel is sampled on ``supersample`` sub-rows at
-    their centres; along a sub-row the covered length is exact. This is the
-    unbiased pixel-centre sampling of ``skimage.draw.polygon`` on a
-    supersampled grid, with the x supersampling taken to its limit, and it
-    costs O(crossings) instead of O(pixels x vertices).
-
-    Parameters
-    ----------
-    polygons : sequence of array_like (K_i, 2)
-        Closed polygons as (u, v) vertices [px] (the last vertex joins the first).
-    shape : (height, width)
-        Output size.
-    supersample : int
-        Sub-rows per pixel.
-    offset : (u0, v0)
-        Pixel coordinates of the output's pixel (0, 0) (to render a region).
-
-    Returns
-    -------
-    ndarray (height, width) float64 in [0, 1]
-    """
-    H, W = int(shape[0]), int(shape[1])
-    S = int(supersample)
-    if S < 1:
-        raise ValueError(f"supersample must be >= 1, got {supersample}")
-    x0s, y0s, x1s, y1s = [], [], [], []
-    for poly in polygons:
-        p = np.asarray(poly, float)
-        if p.ndim != 2 or p.shape[1] != 2 or len(p) < 3:
-            raise ValueError("each polygon must be an array of shape (K >= 3, 2)")
-        if not np.isfinite(p).all():
-            raise ValueError("polygon vertices must be finite (part of the outline is behind the camera?)")
-        q = np.roll(p, -1, axis=0)
-        x0s.append(p[:, 0] - offset[0]); y0s.append(p[:, 1] - offset[1])
-        x1s.append(q[:, 0] - offset[0]); y1s.append(q[:, 1] - offset[1])
-    x0, y0, x1, y1 = (np.concatenate(a) for a in (x0s, y0s, x1s, y1s))
-    # sub-row r (0 .. H*S-1) is at v = (r + 0.5)/S - 0.5 ; in sub-row units Y = (v + 0.5) S - 0.5
-    Y0 = (y0 + 0.5) * S - 0.5
-    Y1 = (y1 + 0.5) * S - 0.5
-    lo, hi = np.minimum(Y0, Y1), np.maximum(Y0, Y1)
-    r_lo = np.maximum(np.ceil(lo), 0).astype(np.int64)
-    r_hi = np.minimum(np.ceil(hi), H * S).astype(np.int64)      # rows r with lo <= r < hi
-    cnt = np.maximum(r_hi - r_lo, 0)
-    cov = np.zeros((H, W + 2))
-    if cnt.sum() == 0:
-        return cov[:, 1:W + 1]
-    e = np.repeat(np.arange(len(cnt)), cnt)
-    start = np.repeat(np.cumsum(cnt) - cnt, cnt)
-    r = r_lo[e] + (np.arange(len(e)) - start)
-    t = (r - Y0[e]) / (Y1[e] - Y0[e])
-    x = x0[e] + t * (x1[e] - x0[e])
-    order = np.lexsort((x, r))
-    r, x = r[order], x[order]
-    if len(r) % 2:
-        raise ValueError("polygon scanline has an odd number of crossings (not closed?)")
-    ra, xa, xb = r[0::2], x[0::2], x[1::2]
-    if not np.array_equal(ra, r[1::2]):
-        raise ValueError("polygon scanline crossings do not pair up")
-    row = ra // S
-    # clip spans to the output; pixel c spans [c - 0.5, c + 0.5)
-    xa = np.clip(xa, -0.5, W - 0.5)
-    xb = np.clip(xb, -0.5, W - 0.5)
-    keep = xb > xa
-    row, xa, xb = row[keep], xa[keep], xb[keep]
-    ca = np.floor(xa + 0.5).astype(np.int64)
-    cb = np.floor(xb + 0.5).astype(np.int64)
-    same = ca == cb
-    # columns shifted by +1 in `cov` so that index -1 and W are harmless
-    np.add.at(cov, (row[same], ca[same] + 1), xb[same] - xa[same])
-    d = ~same
-    np.add.at(cov, (row[d], ca[d] + 1), (ca[d] + 0.5) - xa[d])
-    np.add.at(cov, (row[d], cb[d] + 1), xb[d] - (cb[d] - 0.5))
-    full = np.zeros((H, W + 3))
-    np.add.at(full, (row[d], ca[d] + 2), 1.0)
-    np.add.at(full, (row[d], cb[d] + 1), -1.0)
-    cov += np.cumsum(full, axis=1)[:, :W + 2]
-    return np.clip(cov[:, 1:W + 1] / S, 0.0, 1.0)
-
-
+# ----------------------------------------------------------------------------- outlines
 def _subdivide(poly, max_len):
     """Insert points so that no edge of the closed polygon is longer than ``max_len``."""
     p = np.asarray(poly, float)
