@@ -3,6 +3,7 @@
 import cv2
 import numpy as np
 import pandas as pd
+import pytest
 
 from notchfit import io
 from notchfit.camera import CameraModel
@@ -125,3 +126,52 @@ def test_detect_cli_photo_without_calibration_and_stated_base(tmp_path, capsys):
     assert (det["status"] == "ok").sum() == r.visible.sum()
     ov = cv2.imread(str(out / "overlays" / "0001.jpg"))
     assert max(ov.shape[:2]) == 1000                # readable at any photo size: the crop at 1000 px
+
+
+def _tone_curve_experiment(tmp_path, image_gamma=None):
+    """A wrist photographed as a camera writes it: a tone curve (gamma 2.2), blur, JPEG."""
+    from notchfit.render.scenes import Scene, render_scene, scene_camera
+
+    geom = io.load_geometry(io.datasets_dir() / "geometry" / "wrist_asymmetric.toml")
+    th = np.array([0.2, 0.25, 0.3, 0.3, 0.25])
+    cam, plane = scene_camera(th, geom, image_size=(900, 760), mm_per_px=1 / 60, angle_deg=90)
+    r = render_scene(th, geom, cam, plane=plane, scene=Scene(holder="chuck", gamma=2.2, blur_sigma=2.0),
+                     rng=np.random.default_rng(44))
+    folder = tmp_path / f"exp{image_gamma}"
+    (folder / "images").mkdir(parents=True)
+    write_camera(cam, folder / "camera.yml")
+    cv2.imwrite(str(folder / "images" / "0001.jpg"), r.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    pd.DataFrame([{"sample": 1, "time_s": 1.0, "tension_right_N": 0.5, "image": "images/0001.jpg"}]) \
+        .to_csv(folder / "samples.csv", index=False)
+    gamma = "" if image_gamma is None else f"image_gamma = {image_gamma}\n"
+    (folder / "experiment.toml").write_text(f'name = "exp"\ngeometry = "{io.datasets_dir() / "geometry"}'
+                                            f'/wrist_asymmetric.toml"\ncalibration = "camera.yml"\n{gamma}')
+    return folder, r
+
+
+def test_detect_undoes_a_cameras_tone_curve_in_jpeg_files(tmp_path, capsys):
+    """JPEG files without image_gamma are taken as a camera's tone curve (gamma 2.2, said in the log and
+    detect_run.json): the corners come out as in linear light; image_gamma = 1 keeps the values, and
+    the 50 % crossings of the blurred edges move toward the dark side (about 0.3 sigma of blur)."""
+    rms = {}
+    for g in (None, 1):
+        folder, r = _tone_curve_experiment(tmp_path, g)
+        out = tmp_path / f"out{g}"
+        assert main(["detect", str(folder), "--out", str(out), "--no-overlays"]) == 0
+        said = capsys.readouterr().out
+        run = io.read_json(out / "detect_run.json")
+        assert ("assumed a camera's tone curve" in said) == (g is None)
+        assert run["image_gamma_assumed"] == (["exp"] if g is None else [])
+        assert run["samples"]["exp"]["sample 1"]["image_gamma"] == (2.2 if g is None else 1.0)
+        det = pd.read_csv(out / "detections.csv")
+        ok = (det["status"] == "ok").to_numpy()
+        uv = det[["u_px", "v_px"]].to_numpy()[ok]
+        err = np.linalg.norm(uv - r.points_px[det["point"].to_numpy()[ok] - 1], axis=1) / 60
+        rms[g] = np.sqrt(np.mean(err ** 2))
+    assert rms[None] <= 0.003 < rms[1]
+
+
+def test_image_gamma_out_of_range_names_the_line(tmp_path):
+    folder, _ = _tone_curve_experiment(tmp_path, 0.5)
+    with pytest.raises(ValueError, match=r"line 4: image_gamma must be a number from 1 \(linear light\) to 4"):
+        io.read_experiment(folder)

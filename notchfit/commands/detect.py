@@ -41,6 +41,22 @@ Examples:
 
 #: JPEG quality of the overlays (they are looked at, never measured again: lossy is fine).
 OVERLAY_JPEG_QUALITY = 85
+#: The tone curve assumed for a camera's JPEG files when experiment.toml gives no ``image_gamma``
+#: (sRGB-like encoding; edges are found in linear light, where a blurred edge's 50 % crossing
+#: is the edge). Other formats (PNG, TIFF: renders, scientific cameras) are taken as linear.
+JPEG_GAMMA = 2.2
+_JPEG_SUFFIXES = (".jpg", ".jpeg")
+
+
+def image_gamma(exp, image) -> tuple[float, bool]:
+    """The tone-curve exponent to undo for ``image`` of ``exp``, and whether it was assumed.
+
+    ``image_gamma`` of experiment.toml when given; else :data:`JPEG_GAMMA` for a
+    JPEG file and 1 (linear light) for any other format.
+    """
+    if exp.image_gamma is not None:
+        return exp.image_gamma, False
+    return (JPEG_GAMMA if Path(image).suffix.lower() in _JPEG_SUFFIXES else 1.0), True
 
 
 def add_arguments(parser) -> None:
@@ -67,7 +83,8 @@ def detect_one(item: dict) -> dict:
 
     img = io.load_image(item["image"])
     cam = _camera(str(item["calibration"])) if item["calibration"] is not None else None
-    det = detect_notches(img, cam, item["geometry"], mirror=item["mirror"], base=item["base"])
+    det = detect_notches(img, cam, item["geometry"], mirror=item["mirror"], base=item["base"],
+                         tone_gamma=item.get("tone_gamma", 1.0))
     if item["overlay"] is not None:
         ov = detection_overlay(img, det, item["sample"], full=item.get("full_overlay", False))
         # the run made the folder in its staging area; no mkdir here: a task still running on a Dask
@@ -76,7 +93,17 @@ def detect_one(item: dict) -> dict:
     return {"table": detections_table(item["sample"], det), "image_status": det.image_status,
             "message": det.message, "n_ok": det.n_ok, "base_side": det.base_side,
             "scale_mm_per_px": det.scale_mm_per_px, "scale_sigma_mm_per_px": det.scale_sigma,
-            "assumption": det.assumption or None}
+            "assumption": det.assumption or None, "image_gamma": item.get("tone_gamma", 1.0)}
+
+
+def _say_assumed_gamma(exps) -> None:
+    """One line per experiment whose JPEG images are taken as a camera's tone curve (assumed, not stated)."""
+    for e in exps:
+        jpeg = [p for p in e.image_paths or () if p is not None and image_gamma(e, p) == (JPEG_GAMMA, True)]
+        if jpeg:
+            print(f"  {e.name}: JPEG images and no image_gamma in experiment.toml: assumed a camera's tone "
+                  f"curve (gamma {JPEG_GAMMA:g}), undone before the edges are found (image_gamma = 1 if "
+                  "the files hold linear light)")
 
 
 def run(args) -> int:
@@ -104,6 +131,7 @@ def run(args) -> int:
             failed[e.name] = str(exc)
             continue
         plan.append(e)
+    _say_assumed_gamma(plan)
     if not plan:
         raise InputError("nothing to detect: " + "; ".join(f"{k}: {v}" for k, v in failed.items()))
     outputs = ["detect_run.json"] + [str(io.experiment_output_dir("", e.name, study) / "detections.csv")
@@ -118,7 +146,7 @@ def run(args) -> int:
                 ov = None if args.no_overlays else run_.path(sub / "overlays" / f"{int(s):04d}.jpg")
                 items.append({"image": img, "calibration": e.calibration_path, "geometry": e.geometry,
                               "base": e.base, "mirror": e.mirror, "sample": int(s), "overlay": ov,
-                              "full_overlay": args.full_overlays})
+                              "full_overlay": args.full_overlays, "tone_gamma": image_gamma(e, img)[0]})
                 keys.append(f"{e.name}/{int(s)}" if study else f"sample {int(s)}")
                 owners.append(e.name)
         res = run_batch(detect_one, items, keys=keys, jobs=args.jobs, scheduler=args.scheduler, desc="detect",
@@ -136,8 +164,11 @@ def run(args) -> int:
             n_ok_images += sum(1 for r in rows if r.ok and r.value["image_status"] == "ok")
         for r in res.failures:
             failed[r.key] = r.error
+        assumed = sorted({e.name for e in plan for p in e.image_paths or () if p is not None
+                          and image_gamma(e, p)[1] and image_gamma(e, p)[0] != 1.0})
         io.write_json_atomic(io.provenance("detect", args.input, experiments=[e.name for e in plan],
-                                           samples=summary, failures=failed), run_.path("detect_run.json"))
+                                           samples=summary, image_gamma_assumed=assumed, failures=failed),
+                             run_.path("detect_run.json"))
     n_done = sum(r.ok for r in res.items)
     print(f"detect: {n_done} of {n_total} images processed ({n_ok_images} with every point ok) "
           f"in {res.seconds:.1f} s; outputs in {args.out}")

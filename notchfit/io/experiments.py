@@ -50,7 +50,10 @@ __all__ = [
     "write_experiment",
 ]
 
-_TOML_KEYS = {"name", "description", "geometry", "mirror", "calibration", "uncertainty", "protocol", "base"}
+_TOML_KEYS = {"name", "description", "geometry", "mirror", "calibration", "uncertainty", "protocol", "base",
+              "image_gamma"}
+#: The tone-curve exponents ``image_gamma`` may take (1: the images are in linear light).
+IMAGE_GAMMA_RANGE = (1.0, 4.0)
 #: Where the tube's base enters a photograph (``base`` in experiment.toml; absent: found by the detector).
 BASE_SIDES = ("top", "bottom", "left", "right")
 _UNCERTAINTY_KEYS = {"point_mm": "point_sigma", "tension_N": "tension_sigma", "angle_deg": "angle_sigma"}
@@ -100,6 +103,11 @@ class Experiment:
         ``[protocol] ramp_time_s`` [s]: after each sample the tensions moved
         linearly to the next sample's over this time, then rested (0: a step);
         None when experiment.toml does not say.
+    image_gamma : float or None
+        The images' tone curve: a pixel value ``v`` stands for the light
+        ``(v / full) ** image_gamma`` (1: linear light, a camera's JPEG about
+        2.2); None when experiment.toml does not say (``detect`` then assumes
+        2.2 for JPEG files and 1 for others, and says so).
     """
 
     name: str
@@ -117,6 +125,7 @@ class Experiment:
     ramp_time: float | None = None
     angles: np.ndarray | None = None
     angle_sigma: float | None = None
+    image_gamma: float | None = None
 
     @property
     def sample_ids(self) -> np.ndarray:
@@ -220,7 +229,7 @@ def read_experiment_toml(path) -> dict:
         probs.add(doc.line_of(k), f"unknown key {k!r} (known: {', '.join(sorted(_TOML_KEYS))})")
     out = {"name": path.parent.name, "description": "", "geometry": "default", "mirror": False,
            "calibration": None, "point_sigma": None, "tension_sigma": None, "angle_sigma": None, "base": None,
-           "ramp_time": None}
+           "ramp_time": None, "image_gamma": None}
     for key in ("name", "description", "geometry", "calibration"):
         if key in data:
             v = data[key]
@@ -245,6 +254,13 @@ def read_experiment_toml(path) -> dict:
             out["base"] = data["base"]
     if "protocol" in data:
         _protocol(doc, data["protocol"], probs, out)
+    if "image_gamma" in data:
+        v, (lo, hi) = data["image_gamma"], IMAGE_GAMMA_RANGE
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo <= v <= hi:
+            probs.add(doc.line_of("image_gamma"), f"image_gamma must be a number from {lo:g} (linear light) to "
+                                                  f"{hi:g}, got {v!r} (a camera's JPEG: about 2.2)")
+        else:
+            out["image_gamma"] = float(v)
     probs.raise_if_any()
     return out
 
@@ -536,7 +552,7 @@ def read_experiment(path, *, missing_images: str = "error") -> Experiment:
                       mirror=meta["mirror"], calibration_path=calib, point_sigma=meta["point_sigma"],
                       tension_sigma=meta["tension_sigma"], samples=samples, points=points,
                       image_paths=image_paths, base=meta["base"], ramp_time=meta["ramp_time"],
-                      angles=angles, angle_sigma=meta["angle_sigma"])
+                      angles=angles, angle_sigma=meta["angle_sigma"], image_gamma=meta["image_gamma"])
 
 
 def is_experiment_dir(path) -> bool:

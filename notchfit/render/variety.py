@@ -21,7 +21,6 @@ Lengths that are physical (blur, defocus and motion in px) are given at
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
