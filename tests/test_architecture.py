@@ -16,7 +16,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "notchfit"
 
 #: physics: pure models over numpy arrays; they read and write no files.
 PHYSICS = ("geometry", "kinematics", "notches", "cables", "springs", "statics", "friction",
-           "_friction_kernels", "friction_params", "shapes", "units", "validation", "paper", "polygon", "section")
+           "_friction_kernels", "_hysteresis_kernels", "_spring_kernels", "friction_params", "shapes", "units",
+           "validation", "paper", "polygon", "section")
 #: analysis: returns objects, writes nothing.
 ANALYSIS = ("fitting", "diagnosis")
 #: modules whose functions may exceed the length limit: the numba kernels (one
