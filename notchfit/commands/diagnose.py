@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from .. import io
-from ..diagnosis import CAUSES, Diagnosis, diagnose
+from ..diagnosis import CAUSES, Diagnosis, choose_metric, diagnose
 from ..figures.diagnosis import write_diagnosis_figures
 from ..friction import save_params
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
@@ -16,21 +16,28 @@ from ._points import points_file, points_problem
 NAME = "diagnose"
 ORDER = 60
 HELP = "name the physical cause of the friction model's discrepancies and measure the gain"
-DESCRIPTION = """Diagnose a study against the paper's friction model (Sec. IV-B).
+DESCRIPTION = """Diagnose a study against the friction model (Sec. IV-B).
 
-Calibrates the baseline (k_lin, k_mid, mu_d) on training experiments,
-compares it with held-out experiments (cross-validation by experiment),
-reports discrepancy signatures, fits every candidate extension
-(proximal_friction, static_friction, joint_hysteresis, external_load,
-stiffness_gradient, calibration_error), names the cause (or "none" /
-"unexplained"), saves the extended model and the held-out gain.
+Calibrates the baseline (k_lin, k_mid, mu_d; E_lin, E_se, mu_d for a tube
+with material springs) on training experiments, compares it with held-out
+experiments (cross-validation by experiment), reports discrepancy
+signatures, fits every candidate extension (proximal_friction,
+static_friction, joint_hysteresis, external_load, stiffness_gradient,
+calibration_error), names the cause (or "none" / "unexplained"), then tries
+a second cause with it (named when it removes a further significant part of
+the held-out discrepancy), saves the extended model and the held-out gain.
 
 Writes into --out: diagnosis.json (docs/data-formats.md), extended_model.toml
-(read by `notchfit simulate --model`), diagnosis_*.png and their data.
+(read by `notchfit simulate --model`), diagnosis_*.png and their data
+(diagnosis_cause_<id>.png: one per named cause).
 
 Notch points come from each experiment's notch_points.csv, or, for an
 experiment without one, from the detections.csv of a `notchfit detect` run
 (--points DIR, default: the --out folder; --detections is the old name).
+Experiments measured as joint angles (angles.csv) are compared in degrees
+(--metric: auto takes notch points when every experiment has them, else
+angles). The protocol is [protocol] ramp_time_s of experiment.toml; where it
+is absent the diagnosis estimates it (--assume-step: take a step instead).
 The (model x fold) calibrations run in parallel (--jobs, or a Dask cluster
 with --scheduler); --seed seeds the noise floor's Monte Carlo draws.
 
@@ -38,6 +45,7 @@ Examples:
   notchfit diagnose study/ --out results/
   notchfit diagnose study/ --out results/ --jobs 2 --points detections/
   notchfit diagnose study/ --out results/ --causes proximal_friction,static_friction
+  notchfit diagnose wrist_study/ --out results/ --metric angles --one-cause
   notchfit diagnose study/ --out results/ --scheduler tcp://10.0.0.5:8786
 """
 
@@ -56,6 +64,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--max-folds", type=int, default=6,
                         help="leave-one-experiment-out up to this many experiments, else k-fold")
     parser.add_argument("--seed", type=int, default=0, help="seed of the noise floor's draws (default 0)")
+    parser.add_argument("--metric", choices=("auto", "points", "angles"), default="auto",
+                        help="compare notch points (mm) or joint angles (deg); auto: points when every "
+                             "experiment has them, else angles")
+    parser.add_argument("--one-cause", action="store_true", help="name at most one cause (no second-cause step)")
+    parser.add_argument("--assume-step", action="store_true",
+                        help="where experiment.toml gives no [protocol], assume a step instead of estimating it")
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     add_batch_options(parser)
 
@@ -87,6 +101,13 @@ def _experiments(args) -> tuple[list, dict]:
     """
     scan = io.scan_study(args.study, missing_images="keep")
     points_dir = args.points if args.points is not None else args.out
+    angle_only = [e for e in scan.experiments if e.points is None and not e.has_images and e.angles is not None]
+    if args.metric == "angles" or (args.metric == "auto" and angle_only):
+        try:
+            if choose_metric(scan.experiments, args.metric) == "angles":
+                return list(scan.experiments), scan.problems
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
     exps, problems = io.attach_detections(scan.experiments, points_dir, require=False)
     if problems:
         raise InputError("no notch points for " + "; ".join(f"{k}: {v}" for k, v in problems.items()))
@@ -108,13 +129,16 @@ def run(args) -> int:
     exps, unread = _experiments(args)
     with io.OutputRun(args.out, outputs=list(OUTPUTS), force=args.force, name="diagnose") as run_:
         diag = diagnose(exps, jobs=args.jobs, scheduler=args.scheduler, seed=args.seed,
-                              causes=causes, max_folds=args.max_folds,
-                              progress=lambda m: print(f"diagnose: {m}", file=sys.stderr))
+                        causes=causes, max_folds=args.max_folds, metric=args.metric,
+                        second_cause=not args.one_cause, estimate_protocol=not args.assume_step,
+                        progress=lambda m: print(f"diagnose: {m}", file=sys.stderr))
         data = write_diagnosis(diag, run_.stage, figures=not args.no_figures)
     g = data["gain"]
-    print(f"cause: {data['cause']}")
-    print(f"held-out rms: baseline {g['baseline']:.3f} mm, extended {g['extended']:.3f} mm "
+    unit = "mm" if diag.metric == "points" else "deg"
+    print(f"cause: {data['cause']}" + (f" (causes: {', '.join(data['causes'])})" if len(data["causes"]) > 1 else ""))
+    print(f"held-out rms: baseline {g['baseline']:.3f} {unit}, extended {g['extended']:.3f} {unit} "
           f"({g['reduction_pct']:.1f}% lower)")
+    print(f"protocol: {diag.protocol['text']}", file=sys.stderr)
     print(f"wrote {Path(args.out) / 'diagnosis.json'}")
     if unread:
         print(f"diagnosed {len(exps)} experiments; {len(unread)} sub-folder(s) of the study left out:")
