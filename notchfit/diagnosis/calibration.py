@@ -221,13 +221,16 @@ def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base)
     return _Problem(tuple(preps), specs, sc, x0, lo, hi, n_reg, cache, base)
 
 
-def _probe_starts(pb: _Problem, start: dict, paper_start: bool = True) -> list[np.ndarray]:
+def _probe_starts(pb: _Problem, start: dict, paper_start: bool = True, keep: float = 1.1) -> list[np.ndarray]:
     """Start points of the least-squares runs: ``x0``, or the best probe from ``x0`` and from the
     base model's values.
 
     The baseline optimum may have compensated the missing effect (e.g. a soft
     mid-range rate standing in for a stiffness gradient): the extension's
     probes are tried from it and from the base model's (the paper's) values.
+    The fit runs from the better of the two; from the other as well only when
+    its best probe's cost is within ``keep`` times the better one's (the two
+    basins are then not told apart by the probes).
     """
     probe_idx = [i for i, s in enumerate(pb.specs) if s.probes and s.name not in start]
     if not probe_idx:
@@ -235,7 +238,7 @@ def _probe_starts(pb: _Problem, start: dict, paper_start: bool = True) -> list[n
     paper = pb.x0.copy()
     for i, s in enumerate(baseline_specs(pb.base)):
         paper[i] = s.x_of_spec_value(s.start)
-    starts = []
+    found = []
     for base_x in ((pb.x0, paper) if paper_start else (pb.x0,)):
         best = (np.inf, base_x)
         for combo in itertools.product(*(pb.specs[i].probes for i in probe_idx)):
@@ -245,8 +248,9 @@ def _probe_starts(pb: _Problem, start: dict, paper_start: bool = True) -> list[n
             cost = float(np.sum(pb.residuals(x) ** 2))
             if cost < best[0]:
                 best = (cost, x)
-        starts.append(np.clip(best[1], pb.lo, pb.hi))
-    return starts
+        found.append(best)
+    low = min(c for c, _ in found)
+    return [np.clip(x, pb.lo, pb.hi) for c, x in sorted(found, key=lambda t: t[0]) if c <= keep * low]
 
 
 def _standard_errors(pb: _Problem, res, vals: dict, n_res: int) -> dict:
@@ -264,8 +268,8 @@ def _standard_errors(pb: _Problem, res, vals: dict, n_res: int) -> dict:
 
 
 def calibrate(preps, cause=None, start: dict | None = None, *,
-              diff_step: float = 2e-3, max_nfev: int = 60, ftol: float = 1e-4,
-              xtol: float = 1e-4, cache: SimulationCache | None = None,
+              diff_step: float = 2e-3, max_nfev: int = 60, ftol: float = 1e-3,
+              xtol: float = 1e-3, cache: SimulationCache | None = None,
               scales: StudyScales | None = None, base: FrictionParams | None = None,
               paper_start: bool = True) -> Calibration:
     """Fit the baseline (``cause=None``), a candidate or a pair of candidates on experiments ``preps``.

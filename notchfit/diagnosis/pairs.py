@@ -1,12 +1,16 @@
 """Two causes at once: the second-cause step, and what each named cause contributes.
 
-After the best single cause ``a`` is named, each promising second candidate
-``b`` is fitted together with ``a`` (starting from ``a``'s fold optimum) on
-the same folds and scored against ``a`` alone with the same significance rule
-as the first step (:func:`notchfit.diagnosis.decision.score_candidate`):
-paired ``z >= z_crit`` on the held-out per-sample errors and at least
-``min_excess_removed`` of ``a``'s remaining excess over the noise floor. No
-second cause is tried when ``a`` already explains the data within the noise.
+After the best single cause ``a`` is named, every second candidate ``b`` is
+first fitted together with ``a`` on all experiments (a screen, started from
+``a``'s fold optima): the one that lowers the in-sample error most (and any
+within ``screen_tol`` of it) is then fitted on the same folds as ``a`` and
+scored against ``a`` alone with the same significance rule as the first step
+(:func:`notchfit.diagnosis.decision.score_candidate`): paired ``z >= z_crit``
+on the held-out per-sample errors and at least ``min_excess_removed`` of
+``a``'s remaining excess over the noise floor. When even in-sample the best
+pair removes less than half that fraction, no pair is cross-validated (an
+in-sample gain overstates the held-out one). No second cause is tried when
+``a`` already explains the data within the noise.
 
 Each named cause's contribution is its Shapley share of the held-out mean
 squared discrepancy removed (the average, over both orders of adding the two
@@ -17,17 +21,22 @@ and the discrepancy signatures it moves.
 from __future__ import annotations
 
 import math
+import multiprocessing
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
+from ..batch import run_batch
+from .calibration import SimulationCache, calibrate, predict_points
 from .crossval import HeldOut
 from .decision import fmt_err, score_candidate
 from .noise import paired_z, pooled_rms
+from .prepare import sample_mse
 from .results import Contribution
 from .signatures import signatures
 from .specs import CANDIDATES, model_key
 
-__all__ = ["contributions", "pair_sentence", "second_candidates", "second_step"]
+__all__ = ["contributions", "pair_sentence", "screen_pairs", "second_candidates", "second_step"]
 
 #: Per cause, the signatures whose change says which discrepancy it removes:
 #: (name, value a perfect model gives, words).
@@ -60,8 +69,47 @@ def second_candidates(c1: str, cands, *, max_second: int = 4) -> list[str]:
     return [c.cause for c in pool[:max_second]]
 
 
+def _fit_all(args):
+    """A model fitted on every experiment and its in-sample mean squared error (a batch item)."""
+    preps, model, start, scales, base, kw = args
+    with threadpool_limits(limits=1):
+        cache = SimulationCache()
+        cal = calibrate(preps, model, start, cache=cache, scales=scales, base=base, paper_start=False, **kw)
+        pred = [predict_points(p, cal.values, cache=cache, base=base)[0] for p in preps]
+        ms = float(np.nanmean(np.concatenate([sample_mse(p, q) for p, q in zip(preps, pred)])))
+    return model_key(model), cal, ms
+
+
+def screen_pairs(c1: str, second, preps, start: dict, *, scales, base, calibrate_kw=None, jobs: int = 1) -> dict:
+    """``c1`` alone and with each second candidate, fitted on every experiment from ``start``.
+
+    Returns
+    -------
+    dict
+        ``{model key: (Calibration, in-sample mean squared error [m² or rad²])}``.
+    """
+    models = [(c1,)] + [(c1, c2) for c2 in second]
+    items = [(tuple(preps), m, dict(start), scales, base, dict(calibrate_kw or {})) for m in models]
+    res = run_batch(_fit_all, items, keys=[model_key(m) for m in models], jobs=jobs, progress=False,
+                    start_method=multiprocessing.get_start_method())
+    if res.failures:
+        raise RuntimeError(res.summary("second-cause screen"))
+    return {k: (cal, ms) for k, cal, ms in res.values()}
+
+
+def _to_cross_validate(c1, second, screen, noise, min_excess_removed, screen_tol, max_cv) -> list[str]:
+    """The second candidates whose screen earns a cross-validation (module docstring)."""
+    ms1 = screen[c1][1]
+    ms = {c2: screen[model_key((c1, c2))][1] for c2 in second}
+    order = sorted(second, key=ms.get)
+    if ms1 - ms[order[0]] < 0.5 * min_excess_removed * (ms1 - noise):
+        return []
+    return [c for c in order if ms[c] <= screen_tol * ms[order[0]]][:max_cv]
+
+
 def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit: float,
-                min_excess_removed: float, none_tol: float, against_baseline=None):
+                min_excess_removed: float, none_tol: float, against_baseline=None, screen=None,
+                screen_tol: float = 1.05, max_cv: int = 2):
     """Fit ``c1`` with each second candidate and name the best if it is significant.
 
     Parameters
@@ -83,6 +131,13 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
         The baseline's per-sample held-out errors and their mean: when ``c1``
         was not significant alone, the pair must also be significant against
         the baseline (two effects that mask each other).
+    screen : callable, optional
+        ``screen(second) -> {model key: (Calibration, in-sample mse)}``
+        (:func:`screen_pairs`); without it every second candidate is
+        cross-validated.
+    screen_tol, max_cv : float, int
+        Cross-validate the best screened pair and those within ``screen_tol``
+        of its in-sample error, at most ``max_cv``.
 
     Returns
     -------
@@ -90,13 +145,20 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
     held_pairs : dict
         ``{"c1+c2": HeldOut}``.
     results : tuple of CandidateResult
-        Each pair scored against ``c1`` alone.
+        Each cross-validated pair scored against ``c1`` alone.
+    screened : dict
+        The screen's ``{model key: (Calibration, in-sample mse)}`` (empty without one).
     """
     m1 = held[c1]
     mse1 = m1.sample_mse(preps)
     ms1 = float(np.nanmean(np.concatenate(mse1)))
     if ms1 <= noise * (1.0 + none_tol) or not second:
-        return None, {}, ()
+        return None, {}, (), {}
+    screened = screen(second) if screen is not None else {}
+    if screened:
+        second = _to_cross_validate(c1, second, screened, noise, min_excess_removed, screen_tol, max_cv)
+        if not second:
+            return None, {}, (), screened
     starts = [cal.values for cal in m1.calibrations]
     models = [(c1, c2) for c2 in second]
     hp = run(models, {model_key(m): starts for m in models})
@@ -109,7 +171,7 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
         ok = score_candidate(best.cause.split("+"), hp[best.cause], preps, base_mse, base_ms, base_ms - noise,
                              z_crit=z_crit, min_excess_removed=min_excess_removed).significant
     c2 = best.cause.split("+")[1] if ok else None
-    return c2, hp, res
+    return c2, hp, res, screened
 
 
 def _removes(cause: str, without: HeldOut, final: HeldOut, preps, noise: float, metric: str) -> str:

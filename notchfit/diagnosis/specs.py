@@ -158,7 +158,7 @@ CANDIDATES: dict[str, tuple[ParamSpec, ...]] = {
     "static_friction": (ParamSpec("mu_s_excess", 0.0, 0.8, 0.05,
                                   probes=tuple(round(0.05 * i, 2) for i in range(17))),),
     "joint_hysteresis": (ParamSpec("hysteresis_torque", 0.0, 0.6, 0.025, scale="torque",
-                                   probes=(0.006, 0.012, 0.025, 0.05, 0.1, 0.2)),
+                                   probes=(0.008, 0.02, 0.05, 0.12)),
                          ParamSpec("hysteresis_onset", 0.0, 5.0, 0.0, scale="angle", probes=(0.0, 1.2)),
                          ParamSpec("hysteresis_yield", 0.0, 1.0, 0.0, scale="angle")),
     "external_load": (ParamSpec("tip_force_x", -3.0, 3.0, 0.0, probes=(-0.3, 0.0, 0.3)),

@@ -12,7 +12,7 @@ from .calibration import calibrate
 from .crossval import folds_by_experiment, run_folds
 from .decision import decide, explain, hysteresis_shape, rank_candidates, score_candidate
 from .noise import pooled_rms
-from .pairs import contributions, pair_sentence, second_candidates, second_step
+from .pairs import contributions, pair_sentence, screen_pairs, second_candidates, second_step
 from .prepare import choose_metric, prepare_experiment
 from .results import Diagnosis, Gain
 from .scope import applicable_causes, base_model, resolve_protocol
@@ -90,10 +90,10 @@ def _setup(experiments, causes, metric, estimate_protocol, kw, jobs, say, *, non
 
 
 def _second(st: _Study, cause, held, cands, run, noise, base_mse, *, second_cause, max_second, z_crit,
-            min_excess_removed, none_tol, say):
+            min_excess_removed, none_tol, say, kw, jobs):
     """The second-cause step (:mod:`notchfit.diagnosis.pairs`): (causes, pair results, within noise,
-    first cause). For ``unexplained`` the step starts from the best single candidate that improved on
-    the baseline, and the pair must be significant against the baseline too."""
+    first cause, screened fits). For ``unexplained`` the step starts from the best single candidate that
+    improved on the baseline, and the pair must be significant against the baseline too."""
     base_ms = _mean_mse(base_mse)
     first, against = cause, None
     if cause == "unexplained" and second_cause and cands:
@@ -101,27 +101,39 @@ def _second(st: _Study, cause, held, cands, run, noise, base_mse, *, second_caus
         if best.heldout_rms**2 < base_ms and best.z > 0:
             first, against = best.cause, (base_mse, base_ms)
     if first not in CANDIDATES or not second_cause:
-        return ((first,) if first in CANDIDATES else ()), (), False, first
+        return ((first,) if first in CANDIDATES else ()), (), False, first, {}
     within = _mean_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + none_tol)
     second = [c for c in second_candidates(first, cands, max_second=max_second) if c in st.order]
     if not within and second:
-        say(f"fitting {len(second)} second causes with {first}")
-    c2, hp, res = second_step(first, held, st.preps, run, noise, second, z_crit=z_crit,
-                              min_excess_removed=min_excess_removed, none_tol=none_tol, against_baseline=against)
+        say(f"screening {len(second)} second causes with {first} on all experiments")
+    start = _fold_mean(held[first])
+    screen = partial(screen_pairs, first, preps=st.preps, start=start, scales=st.scales, base=st.base,
+                     calibrate_kw=kw, jobs=jobs)
+    c2, hp, res, screened = second_step(first, held, st.preps, run, noise, second, z_crit=z_crit,
+                                        min_excess_removed=min_excess_removed, none_tol=none_tol,
+                                        against_baseline=against, screen=lambda sec: screen(sec))
     held.update(hp)
     if against is not None:
-        return ((first, c2) if c2 else ()), res, within, first
-    return ((first, c2) if c2 else (first,)), res, within, first
+        return ((first, c2) if c2 else ()), res, within, first, screened
+    return ((first, c2) if c2 else (first,)), res, within, first, screened
 
 
-def _extended(st: _Study, causes, held, kw):
+def _fold_mean(held) -> dict:
+    """The mean of a model's fold optima (a start for its fit on every experiment)."""
+    cals = held.calibrations
+    return {k: float(np.mean([c.values[k] for c in cals])) for k in cals[0].values}
+
+
+def _extended(st: _Study, causes, held, screened, kw):
     """The extended model fitted on every experiment (None without a named cause), started from the
-    mean of its fold optima."""
+    mean of its fold optima (or the second-cause screen's fit of it)."""
     if not causes:
         return None
-    cals = held[model_key(causes)].calibrations
-    start = {k: float(np.mean([c.values[k] for c in cals])) for k in cals[0].values}
-    return calibrate(st.preps, causes, start, scales=st.scales, base=st.base, paper_start=False, **kw)
+    key = model_key(causes)
+    if key in screened:
+        return screened[key][0]
+    return calibrate(st.preps, causes, _fold_mean(held[key]), scales=st.scales, base=st.base, paper_start=False,
+                     **kw)
 
 
 def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_folds: int = 6,
@@ -211,11 +223,11 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     cands = [score_candidate(c, held[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
                              min_excess_removed=min_excess_removed) for c in order]
     cause = decide(base_ms <= noise * (1.0 + none_tol), cands)
-    named, pair_res, within, first = _second(st, cause, held, cands, run, noise, base_mse,
-                                             second_cause=second_cause, max_second=max_second, z_crit=z_crit,
-                                             min_excess_removed=min_excess_removed, none_tol=none_tol, say=say)
+    named, pair_res, within, first, screened = _second(
+        st, cause, held, cands, run, noise, base_mse, second_cause=second_cause, max_second=max_second,
+        z_crit=z_crit, min_excess_removed=min_excess_removed, none_tol=none_tol, say=say, kw=kw, jobs=jobs)
     say(f"fitting the extended model ({model_key(named)}) on all experiments")
-    extended = _extended(st, named, held, kw)
+    extended = _extended(st, named, held, screened, kw)
     ext_mse = held[model_key(named)].sample_mse(preps) if named else base_mse
     return _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
                    ext_mse, noise, seed, none_tol=none_tol, z_crit=z_crit, min_removed=min_excess_removed)
