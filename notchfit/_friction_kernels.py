@@ -20,8 +20,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ._hysteresis_kernels import (bouc_wen_step, hyst_direction, hyst_rate_torque, hyst_relax, hyst_rest,
-                                  hyst_state, hyst_stiffness, hyst_threshold, superelastic_torque,
+from ._hysteresis_kernels import (bouc_wen_step, hyst_direction, hyst_rate_torque, hyst_relax, hyst_relax_target,
+                                  hyst_rest, hyst_state, hyst_stiffness, hyst_threshold, superelastic_torque,
                                   superelastic_update)
 from ._spring_kernels import spring_angle, spring_mag, spring_torque  # noqa: F401 (re-exported)
 
@@ -628,9 +628,17 @@ def _advance(th, F, tau, h, par, J, out, hS, hS_out):
 
 @njit(cache=True)
 def _advance_hyst(th, F, tau, h, par, J, out, hS, hS_out):
-    """:func:`_advance` with the hysteresis family's stops (exact piecewise-exponential relaxation)."""
+    """:func:`_advance` with the hysteresis family's stops (exact piecewise-exponential relaxation:
+    one exponential when the motion stays on one piece of the law, with the decay factors shared by
+    the joints of unit scale when every joint has the same law, else the piece-by-piece walk)."""
     hyst, hon = par[P_H], par[P_HON]
     ke = hyst_stiffness(hyst, hon, par[P_HY])
+    uni = par[P_UNI] != 0.0
+    e = np.empty(3)
+    if uni:
+        e[0] = math.exp(-J[J_K1, 0] * h / J[J_B, 0])
+        e[1] = math.exp(-J[J_K2, 0] * h / J[J_B, 0])
+        e[2] = math.exp(-J[J_K3, 0] * h / J[J_B, 0])
     for i in range(th.shape[0]):
         th0 = J[J_TH0, i]
         x0 = th[i] - th0
@@ -639,8 +647,13 @@ def _advance_hyst(th, F, tau, h, par, J, out, hS, hS_out):
             out[i] = th[i]
             hS_out[i] = hS[i]
             continue
-        x1 = hyst_relax(x0, hS[i], F[i], J[J_B, i], h, d, ke, hyst, hon, J[J_K1, i], J[J_K2, i], J[J_K3, i],
-                        J[J_TM, i], J[J_TS, i], J[J_S, i])
+        k1, k2, k3, tm, ts, s, bd = J[J_K1, i], J[J_K2, i], J[J_K3, i], J[J_TM, i], J[J_TS, i], J[J_S, i], J[J_B, i]
+        xs, K, piece = hyst_relax_target(x0, hS[i], F[i], d, ke, hyst, hon, k1, k2, k3, tm, ts, s)
+        if K > 0.0:
+            f = e[piece] if (uni and s == 1.0 and piece >= 0) else math.exp(-K * h / bd)
+            x1 = xs + (x0 - xs) * f
+        else:
+            x1 = hyst_relax(x0, hS[i], F[i], bd, h, d, ke, hyst, hon, k1, k2, k3, tm, ts, s)
         out[i] = th0 + x1
         hS_out[i] = hyst_state(x1, x0, hS[i], d, ke, hyst, hon)
 
@@ -735,7 +748,9 @@ def _settle(th, TL, TR, par, J, out, work, tol, maxiter, hS, hS_out):
                 d = hyst_direction(F - spring_torque(x0, k1, k2, k3, tm, ts, s), x0, hS[i], ke, hyst, hon)
                 new = th[i]
                 if d != 0:
-                    x1 = hyst_rest(x0, hS[i], F, d, ke, hyst, hon, k1, k2, k3, tm, ts, s)
+                    x1, K, _ = hyst_relax_target(x0, hS[i], F, d, ke, hyst, hon, k1, k2, k3, tm, ts, s)
+                    if not K > 0.0:
+                        x1 = hyst_rest(x0, hS[i], F, d, ke, hyst, hon, k1, k2, k3, tm, ts, s)
                     new = th0 + x1
                     hS_out[i] = hyst_state(x1, x0, hS[i], d, ke, hyst, hon)
             elif hyst > 0.0:

@@ -214,6 +214,54 @@ def hyst_relax(x0, S0, F, bd, t, d, ke, h, on, k1, k2, k3, tm, ts, s):
     return x
 
 
+@njit(cache=True, inline="always")
+def _spring_piece(x, tm, ts):
+    """Piece of the spring law holding ``x``: 0 linear, ±1 mid range, ±2 beyond the stop."""
+    a = abs(x)
+    if a < tm:
+        return 0
+    sg = 1 if x > 0.0 else -1
+    return sg if a < ts else 2 * sg
+
+
+@njit(cache=True, inline="always")
+def _threshold_piece(x, on):
+    """Piece of the threshold holding ``x``: 0 where it is 0 (inside ``(1 - ρ) θ_h``), ±1 on the ramp,
+    ±2 where it is ``h`` (beyond ``θ_h``; sign of ``x``); always 2 without an onset."""
+    if on <= 0.0:
+        return 2
+    a = abs(x)
+    if a <= (1.0 - HYST_RAMP) * on:
+        return 0
+    sg = 1 if x > 0.0 else -1
+    return sg if a < on else 2 * sg
+
+
+@njit(cache=True)
+def hyst_relax_target(x0, S0, F, d, ke, h, on, k1, k2, k3, tm, ts, s):
+    """The one-exponential case of :func:`hyst_relax`: ``(x*, K, piece)`` when the motion from ``x0``
+    toward the virtual equilibrium ``x*`` of the law's linear piece at ``x0`` (slope ``K``) stays on
+    that piece — the spring's piece and the threshold's, the stop slipping or the play — so that
+    ``x(t) = x* + (x0 - x*) e^{-K t / b}``; ``piece`` is the spring's (0/1/2: ``K = s k1, s k2, s k3``)
+    when the threshold is constant there, else -1. ``(NaN, 0, -1)`` when the motion crosses pieces."""
+    r0 = hyst_threshold(abs(x0), h, on)
+    if ke < math.inf and S0 * d < r0:
+        return math.nan, 0.0, -1                     # the stop is elastic: several pieces
+    sp = _spring_piece(x0, tm, ts)
+    tp = _threshold_piece(x0, on)
+    a = abs(sp)
+    K = s * (k1 if a == 0 else (k2 if a == 1 else k3))
+    ramp = tp == 1 or tp == -1
+    if ramp:
+        K += d * tp * h / (HYST_RAMP * on)
+    if K <= 0.0:
+        return math.nan, 0.0, -1
+    xs = x0 + (F - spring_torque(x0, k1, k2, k3, tm, ts, s) - d * r0) / K
+    if _spring_piece(xs, tm, ts) != sp or _threshold_piece(xs, on) != tp:
+        return math.nan, 0.0, -1
+    return xs, K, (-1 if ramp else a)
+
+
 @njit(cache=True)
 def hyst_rest(x0, S0, F, d, ke, h, on, k1, k2, k3, tm, ts, s):
     """First rest point ``τ(x) + S(x) = F`` in direction ``d`` from ``(x0, S0)`` (the relaxation's limit)."""

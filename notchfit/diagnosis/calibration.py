@@ -221,7 +221,7 @@ def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base)
     return _Problem(tuple(preps), specs, sc, x0, lo, hi, n_reg, cache, base)
 
 
-def _probe_starts(pb: _Problem, start: dict, paper_start: bool = True, keep: float = 1.1) -> list[np.ndarray]:
+def _probe_starts(pb: _Problem, start: dict, paper_start: bool = True, keep: float = math.inf) -> list[np.ndarray]:
     """Start points of the least-squares runs: ``x0``, or the best probe from ``x0`` and from the
     base model's values.
 
@@ -271,7 +271,7 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
               diff_step: float = 2e-3, max_nfev: int = 60, ftol: float = 1e-3,
               xtol: float = 1e-3, cache: SimulationCache | None = None,
               scales: StudyScales | None = None, base: FrictionParams | None = None,
-              paper_start: bool = True) -> Calibration:
+              paper_start: bool = True, keep_start: float = math.inf) -> Calibration:
     """Fit the baseline (``cause=None``), a candidate or a pair of candidates on experiments ``preps``.
 
     Bounded least squares (``scipy.optimize.least_squares``, ``trf``) on the
@@ -309,6 +309,12 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
     paper_start : bool
         Also probe and fit from the base model's values (False: from ``start``
         only, e.g. a pair started from its first cause's optimum).
+    keep_start : float
+        Fit from the second start too when its best probe's cost is within this
+        factor of the first's (default: always; a probe's cost does not tell
+        which start's basin the fit ends in: a tip load fitted from the
+        baseline optimum's best probe stopped at half the true force, from the
+        paper's values it found it).
 
     Returns
     -------
@@ -319,7 +325,7 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
     base = base or FrictionParams()
     pb = _problem(preps, model, start, cache or SimulationCache(), scales or StudyScales.of(preps, base), base)
     res = None
-    for xs in _probe_starts(pb, start, paper_start):
+    for xs in _probe_starts(pb, start, paper_start, keep_start):
         r = least_squares(pb.residuals, xs, bounds=(pb.lo, pb.hi), method="trf", diff_step=diff_step,
                           max_nfev=max_nfev, ftol=ftol, xtol=xtol, x_scale="jac")
         if res is None or r.cost < res.cost:
