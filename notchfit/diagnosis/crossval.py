@@ -18,7 +18,7 @@ from ..batch import run_batch
 from .calibration import Calibration, SimulationCache, calibrate, predict_points, reregister
 from .noise import noise_floor
 from .prepare import sample_mse
-from .specs import StudyScales, as_model, model_key
+from .specs import PAPER_START, StudyScales, as_model, model_key
 
 __all__ = ["FoldTask", "HeldOut", "folds_by_experiment", "run_fold", "run_folds"]
 
@@ -81,9 +81,11 @@ def run_fold(task: FoldTask) -> FoldResult:
     with threadpool_limits(limits=1):
         cache = SimulationCache()
         train = [task.preps[i] for i in task.train]
-        # a pair starts from its first cause's optimum on this fold: no restart from the paper's values
+        # the candidates whose fit may end in another basin from the baseline's (or, for a pair, the
+        # first cause's) optimum are also fitted from the paper's values (specs.PAPER_START)
+        paper = task.cause[-1] in PAPER_START if task.cause else False
         cal = calibrate(train, task.cause, task.start, cache=cache, scales=task.scales, base=task.base,
-                        paper_start=len(task.cause) < 2, **task.calibrate_kw)
+                        paper_start=paper, **task.calibrate_kw)
         preds = {}
         for i in task.test:
             prep = task.preps[i]

@@ -34,7 +34,7 @@ from .noise import paired_z, pooled_rms
 from .prepare import sample_mse
 from .results import Contribution
 from .signatures import signatures
-from .specs import CANDIDATES, model_key
+from .specs import CANDIDATES, PAPER_START, model_key
 
 __all__ = ["contributions", "pair_sentence", "screen_pairs", "second_candidates", "second_step"]
 
@@ -74,8 +74,10 @@ def _fit_all(args):
     preps, model, start, scales, base, kw = args
     with threadpool_limits(limits=1):
         cache = SimulationCache()
-        cal = calibrate(preps, model, start, cache=cache, scales=scales, base=base, paper_start=False, **kw)
-        pred = [predict_points(p, cal.values, cache=cache, base=base)[0] for p in preps]
+        cal = calibrate(preps, model, start, cache=cache, scales=scales, base=base,
+                        paper_start=model[-1] in PAPER_START, **kw)
+        reg = cal.registration or (None,) * len(preps)
+        pred = [predict_points(p, cal.values, registration=r, cache=cache, base=base)[0] for p, r in zip(preps, reg)]
         ms = float(np.nanmean(np.concatenate([sample_mse(p, q) for p, q in zip(preps, pred)])))
     return model_key(model), cal, ms
 
@@ -240,9 +242,9 @@ def contributions(causes, held: dict, preps, noise: float, values: dict, *, metr
 
 
 def pair_sentence(causes, contribs, pair_results, c1: str, *, metric: str, z_crit: float,
-                  min_removed: float, within_noise: bool, alone: bool = True) -> str:
+                  min_removed: float, within_noise: bool, alone: bool = True, screened=None) -> str:
     """The second step and each cause's contribution, in words (``alone``: ``c1`` was significant
-    by itself)."""
+    by itself; ``screened``: the screen's ``{model key: (Calibration, in-sample mse)}``)."""
     if not alone and len(causes) == 2:
         r = next(x for x in pair_results if set(x.cause.split("+")) == set(causes))
         step = (f" No cause is significant alone, but two together are: starting from the best single "
@@ -251,8 +253,13 @@ def pair_sentence(causes, contribs, pair_results, c1: str, *, metric: str, z_cri
                 "over noise; significant against the baseline as well).")
     elif within_noise:
         step = f" {c1} alone explains the held-out data within the noise: no second cause was tried."
+    elif not pair_results and screened and len(screened) > 1:
+        best = min((k for k in screened if "+" in k), key=lambda k: screened[k][1])
+        step = (f" Fitted on all experiments with each other candidate, {c1} improved too little to try a "
+                f"second cause on held-out data (best in-sample: {best}, {fmt_err(math.sqrt(screened[c1][1]), metric)} "
+                f"-> {fmt_err(math.sqrt(screened[best][1]), metric)}).")
     elif not pair_results:
-        step = f" No other candidate improved on the baseline: no second cause was tried with {c1}."
+        step = f" No second cause was tried with {c1}."
     elif len(causes) == 1:
         best = min(pair_results, key=lambda r: r.heldout_rms)
         step = (f" Adding a second cause to {c1} removes no further significant part of the discrepancy "

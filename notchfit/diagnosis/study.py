@@ -230,11 +230,11 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     extended = _extended(st, named, held, screened, kw)
     ext_mse = held[model_key(named)].sample_mse(preps) if named else base_mse
     return _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
-                   ext_mse, noise, seed, none_tol=none_tol, z_crit=z_crit, min_removed=min_excess_removed)
+                   ext_mse, noise, seed, screened, none_tol=none_tol, z_crit=z_crit, min_removed=min_excess_removed)
 
 
 def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
-            ext_mse, noise, seed, *, none_tol, z_crit, min_removed) -> Diagnosis:
+            ext_mse, noise, seed, screened, *, none_tol, z_crit, min_removed) -> Diagnosis:
     """The :class:`Diagnosis`: contributions, explanation, gains."""
     preps = st.preps
     metric = preps[0].metric
@@ -245,7 +245,8 @@ def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_b
                    min_removed=min_removed, metric=metric, baseline=_baseline_words(st.base))
     if named:
         text += pair_sentence(causes, contribs, pair_res, first, metric=metric, z_crit=z_crit,
-                              min_removed=min_removed, within_noise=within, alone=cause == first)
+                              min_removed=min_removed, within_noise=within, alone=cause == first,
+                              screened=screened)
         if "joint_hysteresis" in named:
             text += hysteresis_shape(extended.values, st.scales.angle)
     if st.skipped["candidates"]:
