@@ -260,7 +260,9 @@ class Diagnosis:
         out = {
             "experiments": list(self.experiments),
             "metric": self.metric,
-            "baseline": {"model": "moses2015", "params": self.baseline.values,
+            "baseline": {"model": ("moses2015" if defaults.spring_law == "rates"
+                                   else f"moses2015-{defaults.spring_law}-{defaults.friction_law}"),
+                         "params": self.baseline.values,
                          "se": self.baseline.se,
                          "fixed": {"mu_s_minus_mu_d": BASELINE_MU_EXCESS, "b": defaults.b,
                                    "v_thr": defaults.v_thr},
