@@ -92,13 +92,14 @@ def _setup(experiments, causes, metric, estimate_protocol, kw, jobs, say, *, non
 def _second(st: _Study, cause, held, cands, run, noise, base_mse, *, second_cause, max_second, z_crit,
             min_excess_removed, none_tol, say, kw, jobs):
     """The second-cause step (:mod:`notchfit.diagnosis.pairs`): (causes, pair results, within noise,
-    first cause, screened fits). For ``unexplained`` the step starts from the best single candidate that
-    improved on the baseline, and the pair must be significant against the baseline too."""
+    first cause, screened fits). For ``unexplained`` the step starts from the single candidate with the
+    lowest held-out error if it is below the baseline's (two strong effects can each keep the other's
+    candidate from significance), and the pair must be significant against the baseline too."""
     base_ms = _mean_mse(base_mse)
     first, against = cause, None
     if cause == "unexplained" and second_cause and cands:
         best = min(cands, key=lambda c: c.heldout_rms)
-        if best.heldout_rms**2 < base_ms and best.z > 0:
+        if best.heldout_rms**2 < base_ms:
             first, against = best.cause, (base_mse, base_ms)
     if first not in CANDIDATES or not second_cause:
         return ((first,) if first in CANDIDATES else ()), (), False, first, {}
