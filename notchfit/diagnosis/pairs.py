@@ -71,7 +71,7 @@ def second_candidates(c1: str, cands, *, max_second: int = 4) -> list[str]:
 
 def _fit_all(args):
     """A model fitted on every experiment and its in-sample mean squared error (a batch item)."""
-    preps, model, start, scales, base, kw = args
+    preps, model, start, scales, base, kw, variant = args
     with threadpool_limits(limits=1):
         cache = SimulationCache()
         cal = calibrate(preps, model, start, cache=cache, scales=scales, base=base,
@@ -79,24 +79,50 @@ def _fit_all(args):
         reg = cal.registration or (None,) * len(preps)
         pred = [predict_points(p, cal.values, registration=r, cache=cache, base=base)[0] for p, r in zip(preps, reg)]
         ms = float(np.nanmean(np.concatenate([sample_mse(p, q) for p, q in zip(preps, pred)])))
-    return model_key(model), cal, ms
+    return model_key(model), cal, ms, variant
 
 
-def screen_pairs(c1: str, second, preps, start: dict, *, scales, base, calibrate_kw=None, jobs: int = 1) -> dict:
-    """``c1`` alone and with each second candidate, fitted on every experiment from ``start``.
+def union_start(first: dict, c1: str, second: dict) -> dict:
+    """A pair's start with each cause at its own single optimum: the first cause's parameters from
+    ``first``, the baseline's and the second cause's from ``second`` (the first cause's fit may have
+    bent the baseline's parameters to stand in for the second effect, e.g. μ_d for a joint
+    hysteresis; the second's holds the baseline values that go with that effect)."""
+    return {**second, **{s.name: first[s.name] for s in CANDIDATES[c1]}}
+
+
+def screen_pairs(c1: str, second, preps, start: dict, *, others: dict | None = None, scales, base,
+                 calibrate_kw=None, jobs: int = 1) -> dict:
+    """``c1`` alone and with each second candidate, fitted on every experiment.
+
+    A pair is fitted from ``start`` (``c1``'s optimum, the second cause's
+    parameters from their probes) and, when ``others`` gives the second
+    cause's own single optimum, also from :func:`union_start` (each cause
+    where it fitted alone, the baseline where the second did: a first cause
+    that compensated the second one holds the probes' fit in its basin); the
+    lower cost is kept.
 
     Returns
     -------
     dict
-        ``{model key: (Calibration, in-sample mean squared error [m² or rad²])}``.
+        ``{model key: (Calibration, in-sample mean squared error [m² or rad²], start)}``,
+        ``start`` ``"first"`` or ``"union"``.
     """
-    models = [(c1,)] + [(c1, c2) for c2 in second]
-    items = [(tuple(preps), m, dict(start), scales, base, dict(calibrate_kw or {})) for m in models]
-    res = run_batch(_fit_all, items, keys=[model_key(m) for m in models], jobs=jobs, progress=False,
-                    start_method=multiprocessing.get_start_method())
+    others = others or {}
+    kw = dict(calibrate_kw or {})
+    items = [(tuple(preps), (c1,), dict(start), scales, base, kw, "first")]
+    for c2 in second:
+        items.append((tuple(preps), (c1, c2), dict(start), scales, base, kw, "first"))
+        if c2 in others:
+            items.append((tuple(preps), (c1, c2), union_start(start, c1, others[c2]), scales, base, kw, "union"))
+    res = run_batch(_fit_all, items, keys=[f"{model_key(it[1])}/{it[-1]}" for it in items], jobs=jobs,
+                    progress=False, start_method=multiprocessing.get_start_method())
     if res.failures:
         raise RuntimeError(res.summary("second-cause screen"))
-    return {k: (cal, ms) for k, cal, ms in res.values()}
+    out = {}
+    for k, cal, ms, variant in res.values():
+        if k not in out or cal.cost < out[k][0].cost:
+            out[k] = (cal, ms, variant)
+    return out
 
 
 def _to_cross_validate(c1, second, screen, noise, min_excess_removed, screen_tol, max_cv) -> list[str]:
@@ -134,9 +160,10 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
         was not significant alone, the pair must also be significant against
         the baseline (two effects that mask each other).
     screen : callable, optional
-        ``screen(second) -> {model key: (Calibration, in-sample mse)}``
+        ``screen(second) -> {model key: (Calibration, in-sample mse, start)}``
         (:func:`screen_pairs`); without it every second candidate is
-        cross-validated.
+        cross-validated. A pair whose screen fit was best from the union
+        start is cross-validated from each fold's union start.
     screen_tol, max_cv : float, int
         Cross-validate the best screened pair and those within ``screen_tol``
         of its in-sample error, at most ``max_cv``.
@@ -149,7 +176,7 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
     results : tuple of CandidateResult
         Each cross-validated pair scored against ``c1`` alone.
     screened : dict
-        The screen's ``{model key: (Calibration, in-sample mse)}`` (empty without one).
+        The screen's ``{model key: (Calibration, in-sample mse, start)}`` (empty without one).
     """
     m1 = held[c1]
     mse1 = m1.sample_mse(preps)
@@ -161,9 +188,13 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
         second = _to_cross_validate(c1, second, screened, noise, min_excess_removed, screen_tol, max_cv)
         if not second:
             return None, {}, (), screened
-    starts = [cal.values for cal in m1.calibrations]
     models = [(c1, c2) for c2 in second]
-    hp = run(models, {model_key(m): starts for m in models})
+    starts = {}
+    for m in models:
+        union = screened.get(model_key(m), (None, None, "first"))[2] == "union"
+        starts[model_key(m)] = [union_start(c.values, c1, held[m[1]].calibrations[k].values) if union
+                                else c.values for k, c in enumerate(m1.calibrations)]
+    hp = run(models, starts)
     res = tuple(score_candidate(m, hp[model_key(m)], preps, mse1, ms1, ms1 - noise, z_crit=z_crit,
                                 min_excess_removed=min_excess_removed, new=(m[1],)) for m in models)
     best = min(res, key=lambda r: r.heldout_rms)

@@ -89,30 +89,53 @@ def _setup(experiments, causes, metric, estimate_protocol, kw, jobs, say, *, non
                   {"signatures": skipped_signatures(preps), "candidates": skipped}, usable)
 
 
+def _masked_first(st: _Study, cands, held, kw, jobs, say):
+    """For ``unexplained``: every pair of the candidates screened on all experiments; the pair that
+    lowers the in-sample error most gives the first cause (the one better alone) and the second.
+
+    Returns ``(first, second, screened)`` (``(None, None, {})`` with fewer than two candidates).
+    """
+    pool = [c.cause for c in sorted(cands, key=lambda c: c.heldout_rms)
+            if c.cause in st.order and (c.cause != "static_friction" or c.significant)]
+    if len(pool) < 2:
+        return None, None, {}
+    say(f"no single cause is significant: screening the {len(pool) * (len(pool) - 1) // 2} pairs of candidates")
+    screened = {}
+    for i, a in enumerate(pool[:-1]):
+        screened.update(screen_pairs(a, pool[i + 1:], st.preps, _fold_mean(held[a]), scales=st.scales,
+                                     others={c: _fold_mean(held[c]) for c in pool[i + 1:]}, base=st.base,
+                                     calibrate_kw=kw, jobs=jobs))
+    best = min((k for k in screened if "+" in k), key=lambda k: screened[k][1])
+    first, second = best.split("+")
+    return first, second, screened
+
+
 def _second(st: _Study, cause, held, cands, run, noise, base_mse, *, second_cause, max_second, z_crit,
             min_excess_removed, none_tol, say, kw, jobs):
     """The second-cause step (:mod:`notchfit.diagnosis.pairs`): (causes, pair results, within noise,
-    first cause, screened fits). For ``unexplained`` the step starts from the single candidate with the
-    lowest held-out error if it is below the baseline's (two strong effects can each keep the other's
-    candidate from significance), and the pair must be significant against the baseline too."""
+    first cause, screened fits). For ``unexplained`` (two strong effects can each keep the other's
+    candidate from significance) every pair is screened and the best is cross-validated from the
+    candidate better alone; it must be significant against the baseline too."""
     base_ms = _mean_mse(base_mse)
-    first, against = cause, None
-    if cause == "unexplained" and second_cause and cands:
-        best = min(cands, key=lambda c: c.heldout_rms)
-        if best.heldout_rms**2 < base_ms:
-            first, against = best.cause, (base_mse, base_ms)
-    if first not in CANDIDATES or not second_cause:
-        return ((first,) if first in CANDIDATES else ()), (), False, first, {}
+    if not second_cause or (cause not in CANDIDATES and cause != "unexplained"):
+        return ((cause,) if cause in CANDIDATES else ()), (), False, cause, {}
+    if cause == "unexplained":
+        first, c2, pre = _masked_first(st, cands, held, kw, jobs, say)
+        if first is None:
+            return (), (), False, cause, {}
+        second, against, screen = [c2], (base_mse, base_ms), (lambda sec: pre)
+    else:
+        first, against = cause, None
+        second = [c for c in second_candidates(first, cands, max_second=max_second) if c in st.order]
+        screen = partial(screen_pairs, first, preps=st.preps, start=_fold_mean(held[first]), scales=st.scales,
+                         others={c: _fold_mean(held[c]) for c in second}, base=st.base, calibrate_kw=kw,
+                         jobs=jobs)
+        if second:
+            say(f"screening {len(second)} second causes with {first} on all experiments")
     within = _mean_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + none_tol)
-    second = [c for c in second_candidates(first, cands, max_second=max_second) if c in st.order]
-    if not within and second:
-        say(f"screening {len(second)} second causes with {first} on all experiments")
-    start = _fold_mean(held[first])
-    screen = partial(screen_pairs, first, preps=st.preps, start=start, scales=st.scales, base=st.base,
-                     calibrate_kw=kw, jobs=jobs)
     c2, hp, res, screened = second_step(first, held, st.preps, run, noise, second, z_crit=z_crit,
                                         min_excess_removed=min_excess_removed, none_tol=none_tol,
-                                        against_baseline=against, screen=lambda sec: screen(sec))
+                                        against_baseline=against, screen=screen)
     held.update(hp)
     if against is not None:
         return ((first, c2) if c2 else ()), res, within, first, screened
