@@ -20,11 +20,19 @@ import math
 import numpy as np
 from numba import njit
 
+from ._hysteresis_kernels import (bouc_wen_step, hyst_direction, hyst_rate_torque, hyst_relax, hyst_relax_target,
+                                  hyst_rest, hyst_state, hyst_stiffness, hyst_threshold, superelastic_torque,
+                                  superelastic_update)
+from ._spring_kernels import spring_angle, spring_mag, spring_torque  # noqa: F401 (re-exported)
+
 # ---- packed parameter vector (the spring and damping entries hold joint 1's values; the
 # kernels read every joint's own from the per-joint table ``J``)
 (P_K1, P_K2, P_K3, P_TM, P_TS, P_MUD, P_MUS, P_B, P_VTHR, P_BETA, P_H, P_FX, P_FZ, P_RX,
- P_LAW, P_UNI, P_ARMU) = range(17)
-N_PAR = 17
+ P_LAW, P_UNI, P_ARMU, P_HON, P_HY, P_BWZ, P_BWA, P_SEG) = range(22)
+N_PAR = 22
+# P_H, P_HON, P_HY: the joint-hysteresis family (threshold, onset, yield angle;
+# :mod:`notchfit._hysteresis_kernels`); P_BWZ, P_BWA, P_SEG: the generator's Bouc-Wen
+# torque and stiffness and superelastic gap (reference solver only)
 #: friction laws (``P_LAW``): the seed's per-link channel law, the capstan law of a lumen tendon
 LAW_CHANNEL, LAW_CAPSTAN = 0, 1
 
@@ -39,39 +47,6 @@ N_J = 12
 # (straight joints) or μ_s == μ_d, where the paper's strict |ΔT| < μ_s N can never hold
 STICK_SLACK = 1e-9
 LAND_SLACK = 1e-6
-
-
-@njit(cache=True, inline="always")
-def spring_mag(x, k1, k2, k3, tm, ts):
-    """Unscaled spring torque magnitude for ``x = |θ| >= 0`` (Fig. 17)."""
-    if x < tm:
-        return k1 * x
-    if x < ts:
-        return k1 * tm + k2 * (x - tm)
-    return k1 * tm + k2 * (ts - tm) + k3 * (x - ts)
-
-
-@njit(cache=True, inline="always")
-def spring_torque(th, k1, k2, k3, tm, ts, s):
-    """Odd spring torque ``τ(θ)`` with joint scale ``s`` [N m]."""
-    if th >= 0.0:
-        return s * spring_mag(th, k1, k2, k3, tm, ts)
-    return -(s * spring_mag(-th, k1, k2, k3, tm, ts))
-
-
-@njit(cache=True, inline="always")
-def spring_angle(tq, k1, k2, k3, tm, ts, s):
-    """Inverse spring ``θ(τ)`` [rad]; odd."""
-    y = abs(tq) / s
-    y1 = k1 * tm
-    y2 = y1 + k2 * (ts - tm)
-    if y < y1:
-        x = y / k1
-    elif y < y2:
-        x = tm + (y - y1) / k2
-    else:
-        x = ts + (y - y2) / k3
-    return x if tq >= 0.0 else -x
 
 
 @njit(cache=True, inline="always")
@@ -203,6 +178,22 @@ def band_update(tb, tm, ebeta, embeta):
 
 
 @njit(cache=True)
+def _hysteretic_states(th, thd, dt, J, h, hon, ke, stop_on, hS, bw_on, bwa, bwz, bwz_t, se_on, seg, xi):
+    """Advance the joints' hysteretic states by one Euler increment ``dt θ̇`` (reference solver)."""
+    for i in range(th.shape[0]):
+        dev = th[i] - J[J_TH0, i]
+        dx = dt * thd[i]
+        if stop_on:
+            r = hyst_threshold(abs(dev), h, hon)
+            hS[i] = min(max(hS[i] + ke * dx, -r), r)
+        if bw_on:
+            bwz_t[i] = bouc_wen_step(bwz_t[i], dx, bwa, bwz)
+        if se_on:
+            xi[i] = superelastic_update(dev, xi[i], seg, J[J_K1, i], J[J_K2, i], J[J_K3, i], J[J_TM, i],
+                                        J[J_TS, i], J[J_S, i])
+
+
+@njit(cache=True)
 def reference_kernel(t_s, TLm, TRm, par, J, dt_max, ramp_time, settle_time):
     """The paper's four-step algorithm, explicit Euler (Sec. IV-B).
 
@@ -220,7 +211,10 @@ def reference_kernel(t_s, TLm, TRm, par, J, dt_max, ramp_time, settle_time):
     rest, ``θ = θ0``) and the tendons' moment arms (drive
     ``a_R,j T_R[j] - a_L,j T_L[j]``; cable speed through link ``j``
     ``v_c[j] = s_c Σ_{k>j} a_c,k θ̇_k``). ``par[P_LAW]`` selects the channel or
-    the capstan law (:func:`slide_law`).
+    the capstan law (:func:`slide_law`). Joint hysteresis: the play or stop of
+    :mod:`notchfit._hysteresis_kernels` (the stop's state advanced by each
+    Euler increment), and the generator's Bouc-Wen torque and superelastic
+    flexure (explicit in the same increments).
 
     Returns per sample: θ (S, n), tension profiles L, R (S, n), base tensions
     after the band L, R (S,), the last slip direction of each link during
@@ -236,6 +230,12 @@ def reference_kernel(t_s, TLm, TRm, par, J, dt_max, ramp_time, settle_time):
     embeta = math.exp(-beta)
     use_tip = fx != 0.0 or fz != 0.0
     stick_fac = mus * (1.0 + STICK_SLACK)
+    hon = par[P_HON]
+    ke = hyst_stiffness(h, hon, par[P_HY])
+    stop_on = h > 0.0 and ke < math.inf
+    bwz, bwa, seg = par[P_BWZ], par[P_BWA], par[P_SEG]
+    bw_on = bwz > 0.0 and bwa > 0.0
+    se_on = seg > 0.0
 
     th = J[J_TH0].copy()
     thd = np.zeros(n)
@@ -247,6 +247,9 @@ def reference_kernel(t_s, TLm, TRm, par, J, dt_max, ramp_time, settle_time):
     lastR = np.zeros(max(n - 1, 0), np.int8)
     sinabs = np.zeros(n)
     tip = np.zeros(n)
+    hS = np.zeros(n)       # the stop's torque
+    bwz_t = np.zeros(n)    # Bouc-Wen torque
+    xi = np.zeros(n)       # superelastic martensite fraction (signed)
     tbL = 0.0
     tbR = 0.0
 
@@ -311,17 +314,19 @@ def reference_kernel(t_s, TLm, TRm, par, J, dt_max, ramp_time, settle_time):
                     x = rx * (TR[i] - TL[i])
                 else:
                     x = J[J_AR, i] * TR[i] - J[J_AL, i] * TL[i]
-                x -= spring_torque(th[i] - J[J_TH0, i], J[J_K1, i], J[J_K2, i], J[J_K3, i],
-                                   J[J_TM, i], J[J_TS, i], J[J_S, i])
+                dev = th[i] - J[J_TH0, i]
+                if se_on:
+                    x -= superelastic_torque(dev, xi[i], J[J_K1, i], J[J_K2, i], J[J_K3, i],
+                                             J[J_TM, i], J[J_TS, i], J[J_S, i])
+                else:
+                    x -= spring_torque(dev, J[J_K1, i], J[J_K2, i], J[J_K3, i],
+                                       J[J_TM, i], J[J_TS, i], J[J_S, i])
+                if bw_on:
+                    x -= bwz_t[i]
                 if use_tip:
                     x += tip[i]
                 if h > 0.0:
-                    if x > h:
-                        x = x - h
-                    elif x < -h:
-                        x = x + h
-                    else:
-                        x = 0.0
+                    x = hyst_rate_torque(x, dev, hS[i], ke, h, hon)
                 thd[i] = x / J[J_B, i]
             # ---- Step 3 + Step 4: cable speeds and the stick/slip state machine
             ssum = 0.0
@@ -352,9 +357,12 @@ def reference_kernel(t_s, TLm, TRm, par, J, dt_max, ramp_time, settle_time):
                     lastL[i] = sL[i]
                 if sR[i] != 0:
                     lastR[i] = sR[i]
-            # ---- explicit Euler update
+            # ---- explicit Euler update (and the hysteretic states over the same increments)
             for i in range(n):
                 th[i] += dt * thd[i]
+            if stop_on or bw_on or se_on:
+                _hysteretic_states(th, thd, dt, J, h, hon, ke, stop_on, hS, bw_on, bwa, bwz, bwz_t,
+                                   se_on, seg, xi)
         nsteps_total += nst
         for i in range(n):
             o_th[k, i] = th[i]
@@ -481,12 +489,14 @@ def _geometry_terms(th, par, J, G):
 
 
 @njit(cache=True)
-def _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL):
-    """Steps 1-3 at a configuration (its table ``G``): tension propagation, drive torques
-    ``F``, rates, cable speeds. ``v[i]``, ``vL[i]``: the right and left cables' speeds
-    through link ``i`` (``ibd`` = ``1/b_j``)."""
+def _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL, th, hS):
+    """Steps 1-3 at a configuration ``th`` (its table ``G``, the stops' torques ``hS``):
+    tension propagation, drive torques ``F``, rates, cable speeds. ``v[i]``, ``vL[i]``: the
+    right and left cables' speeds through link ``i`` (``ibd`` = ``1/b_j``)."""
     n = TL.shape[0]
     hyst, rx = par[P_H], par[P_RX]
+    hon = par[P_HON]
+    ke = hyst_stiffness(hyst, hon, par[P_HY])
     armu = par[P_ARMU] != 0.0
     TL[0] = tbL
     TR[0] = tbR
@@ -508,12 +518,7 @@ def _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL):
     for i in range(n):
         x = F[i] - G[G_TAU, i]
         if hyst > 0.0:
-            if x > hyst:
-                x -= hyst
-            elif x < -hyst:
-                x += hyst
-            else:
-                x = 0.0
+            x = hyst_rate_torque(x, th[i] - J[J_TH0, i], hS[i], ke, hyst, hon)
         thd[i] = x * ibd[i]
     ssum = 0.0
     ssumL = 0.0
@@ -595,7 +600,7 @@ def _segment(x, tm, ts):
 
 
 @njit(cache=True)
-def _advance(th, F, tau, h, par, J, out):
+def _advance(th, F, tau, h, par, J, out, hS, hS_out):
     """Every joint by the exact relaxation over ``h`` with its drive ``F`` held.
 
     The spring acts on ``θ - θ0`` (the rest angle). Fast path: when the
@@ -603,10 +608,17 @@ def _advance(th, F, tau, h, par, J, out):
     one exponential, ``θ* + (θ - θ*) e^{-k h/b}`` (with ``par[P_UNI]`` — every
     joint with the same law and damping — the three decay factors are shared
     by all joints of unit scale); otherwise :func:`relax` crosses the breaks
-    at their exact times.
+    at their exact times. A hysteresis with an onset or a yield angle moves by
+    :func:`notchfit._hysteresis_kernels.hyst_relax` (its stops' torques
+    ``hS`` -> ``hS_out``); otherwise the stops hold no state.
     """
     n = th.shape[0]
     hyst = par[P_H]
+    if hyst > 0.0 and (par[P_HON] > 0.0 or par[P_HY] > 0.0):
+        _advance_hyst(th, F, tau, h, par, J, out, hS, hS_out)
+        return
+    for i in range(n):
+        hS_out[i] = hS[i]
     if par[P_UNI] != 0.0:
         _advance_uniform(th, F, tau, h, hyst, J, out)
         return
@@ -628,6 +640,38 @@ def _advance(th, F, tau, h, par, J, out):
             out[i] = target + (th[i] - target) * e
         else:
             out[i] = th0 + relax(dev, y, bd, h, k1, k2, k3, tm, ts, s)
+
+
+@njit(cache=True)
+def _advance_hyst(th, F, tau, h, par, J, out, hS, hS_out):
+    """:func:`_advance` with the hysteresis family's stops (exact piecewise-exponential relaxation:
+    one exponential when the motion stays on one piece of the law, with the decay factors shared by
+    the joints of unit scale when every joint has the same law, else the piece-by-piece walk)."""
+    hyst, hon = par[P_H], par[P_HON]
+    ke = hyst_stiffness(hyst, hon, par[P_HY])
+    uni = par[P_UNI] != 0.0
+    e = np.empty(3)
+    if uni:
+        e[0] = math.exp(-J[J_K1, 0] * h / J[J_B, 0])
+        e[1] = math.exp(-J[J_K2, 0] * h / J[J_B, 0])
+        e[2] = math.exp(-J[J_K3, 0] * h / J[J_B, 0])
+    for i in range(th.shape[0]):
+        th0 = J[J_TH0, i]
+        x0 = th[i] - th0
+        d = hyst_direction(F[i] - tau[i], x0, hS[i], ke, hyst, hon)
+        if d == 0:
+            out[i] = th[i]
+            hS_out[i] = hS[i]
+            continue
+        k1, k2, k3, tm, ts, s, bd = J[J_K1, i], J[J_K2, i], J[J_K3, i], J[J_TM, i], J[J_TS, i], J[J_S, i], J[J_B, i]
+        xs, K, piece = hyst_relax_target(x0, hS[i], F[i], d, ke, hyst, hon, k1, k2, k3, tm, ts, s)
+        if K > 0.0:
+            f = e[piece] if (uni and s == 1.0 and piece >= 0) else math.exp(-K * h / bd)
+            x1 = xs + (x0 - xs) * f
+        else:
+            x1 = hyst_relax(x0, hS[i], F[i], bd, h, d, ke, hyst, hon, k1, k2, k3, tm, ts, s)
+        out[i] = th0 + x1
+        hS_out[i] = hyst_state(x1, x0, hS[i], d, ke, hyst, hon)
 
 
 @njit(cache=True)
@@ -684,20 +728,26 @@ def _cross_fraction(v0, v1, vthr):
 
 
 @njit(cache=True)
-def _settle(th, TL, TR, par, J, out, work, tol, maxiter):
+def _settle(th, TL, TR, par, J, out, work, tol, maxiter, hS, hS_out):
     """Rest state with every link sticking (all tensions frozen).
 
     Per joint ``τ(θ) = F`` (or the play operator ``θ ∈ [τ⁻¹(F - h), τ⁻¹(F + h)]``
-    nearest to the current ``θ``); the tip-load torques depend on the whole
+    nearest to the current ``θ``; with an onset or a yield angle the first rest
+    point of :func:`notchfit._hysteresis_kernels.hyst_rest`, the stops' torques
+    ``hS`` -> ``hS_out``); the tip-load torques depend on the whole
     configuration and are iterated to a fixed point (``tol`` [rad], ``maxiter``).
     """
     n = th.shape[0]
     hyst, fx, fz, rx = par[P_H], par[P_FX], par[P_FZ], par[P_RX]
+    hon = par[P_HON]
+    ke = hyst_stiffness(hyst, hon, par[P_HY])
+    family = hyst > 0.0 and (hon > 0.0 or par[P_HY] > 0.0)
     armu = par[P_ARMU] != 0.0
     use_tip = fx != 0.0 or fz != 0.0
     for i in range(n):
         out[i] = th[i]
         work[i] = 0.0
+        hS_out[i] = hS[i]
     for it in range(maxiter):
         if use_tip:
             tip_torques(out, J[J_DX], J[J_DZ], fx, fz, work)
@@ -709,7 +759,17 @@ def _settle(th, TL, TR, par, J, out, work, tol, maxiter):
                 F = J[J_AR, i] * TR[i] - J[J_AL, i] * TL[i] + work[i]
             k1, k2, k3, tm, ts, s, th0 = (J[J_K1, i], J[J_K2, i], J[J_K3, i], J[J_TM, i], J[J_TS, i],
                                           J[J_S, i], J[J_TH0, i])
-            if hyst > 0.0:
+            if family:
+                x0 = th[i] - th0
+                d = hyst_direction(F - spring_torque(x0, k1, k2, k3, tm, ts, s), x0, hS[i], ke, hyst, hon)
+                new = th[i]
+                if d != 0:
+                    x1, K, _ = hyst_relax_target(x0, hS[i], F, d, ke, hyst, hon, k1, k2, k3, tm, ts, s)
+                    if not K > 0.0:
+                        x1 = hyst_rest(x0, hS[i], F, d, ke, hyst, hon, k1, k2, k3, tm, ts, s)
+                    new = th0 + x1
+                    hS_out[i] = hyst_state(x1, x0, hS[i], d, ke, hyst, hon)
+            elif hyst > 0.0:
                 lo = th0 + spring_angle(F - hyst, k1, k2, k3, tm, ts, s)
                 hi = th0 + spring_angle(F + hyst, k1, k2, k3, tm, ts, s)
                 new = min(max(th[i], lo), hi)
@@ -735,20 +795,21 @@ def fast_kernel(t_s, TLm, TRm, par, J, ramp_time, settle_time, h_min, h_max, gro
     m = max(n - 1, 0)
     th = J[J_TH0].copy()
     return fast_intervals(t_s, TLm, TRm, t_s[0] - settle_time, 0.0, 0.0, True, th, np.zeros(n), np.zeros(n),
-                          np.zeros(m, np.int8), np.zeros(m, np.int8), np.zeros(2), par, J, ramp_time, h_min,
-                          h_max, growth, max_events, max_micro, settle_tol, settle_maxiter, land_sticks, dth_max,
+                          np.zeros(m, np.int8), np.zeros(m, np.int8), np.zeros(2), np.zeros(n), par, J, ramp_time,
+                          h_min, h_max, growth, max_events, max_micro, settle_tol, settle_maxiter, land_sticks, dth_max,
                           order)
 
 
 @njit(cache=True)
-def fast_intervals(t_s, TLm, TRm, t_prev, prev_left, prev_right, first, th, TL, TR, sL, sR, band, par, J,
+def fast_intervals(t_s, TLm, TRm, t_prev, prev_left, prev_right, first, th, TL, TR, sL, sR, band, hS, par, J,
                    ramp_time, h_min, h_max, growth, max_events, max_micro, settle_tol, settle_maxiter,
                    land_sticks, dth_max, order):
     """The fast solver from a given state over the intervals ending at the samples ``t_s``.
 
     The state — joint angles ``th``, tension profiles ``TL``, ``TR`` (n), the
-    links' stick/slip states ``sL``, ``sR`` (n-1, int8) and the base tensions
-    after the proximal band ``band`` (2: left, right) — is read and updated in
+    links' stick/slip states ``sL``, ``sR`` (n-1, int8), the base tensions
+    after the proximal band ``band`` (2: left, right) and the hysteresis
+    stops' torques ``hS`` (n; the play holds none) — is read and updated in
     place, so that consecutive calls continue one history exactly (the
     real-time predictor, :class:`notchfit.predictor.Predictor`). The first
     interval starts at ``t_prev`` with the measured tensions ``prev_left``,
@@ -808,6 +869,8 @@ def fast_intervals(t_s, TLm, TRm, t_prev, prev_left, prev_right, first, th, TL, 
     TRp = np.zeros(n)
     # trial state
     th_e = np.zeros(n)
+    hS_e = np.zeros(n)
+    hS_s = np.zeros(n)
     TL_e = np.zeros(n)
     TR_e = np.zeros(n)
     G_e = np.zeros((7, n))
@@ -871,22 +934,22 @@ def fast_intervals(t_s, TLm, TRm, t_prev, prev_left, prev_right, first, th, TL, 
             # ---- Steps 1-3
             if not fresh:
                 _geometry_terms(th, par, J, G)
-                _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL)
+                _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL, th, hS)
             # ---- Step 4, repeated with θ frozen while links keep slipping
             _state_machine(TL, TR, sL, sR, G[G_SIN], v, vL, mus, vthr, law, lastL, lastR, flags,
                            phiL, phiR, TLp, TRp)
             while flags[0] == 1 and nmicro < max_micro:
                 nmicro += 1
                 nsteps_total += 1
-                _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL)
+                _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL, th, hS)
                 _state_machine(TL, TR, sL, sR, G[G_SIN], v, vL, mus, vthr, law, lastL, lastR, flags,
                                phiL, phiR, TLp, TRp)
             if flags[0] == 1 or flags[2] == 1:
                 # cap reached (slipped links take their law) or frozen tensions corrected
-                _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL)
+                _forces(TL, TR, sL, sR, tbL, tbR, par, J, ibd, G, F, thd, v, vL, th, hS)
             # ---- rest state in closed form once everything sticks
             if not in_ramp and flags[1] == 0 and settle_tol >= 0.0:
-                _settle(th, TL, TR, par, J, th_e, work, settle_tol, settle_maxiter)
+                _settle(th, TL, TR, par, J, th_e, work, settle_tol, settle_maxiter, hS, hS_s)
                 ok = True
                 for i in range(n):
                     sin_s[i] = wrap_measure(th_e[i], law)
@@ -898,6 +961,7 @@ def fast_intervals(t_s, TLm, TRm, t_prev, prev_left, prev_right, first, th, TL, 
                 if ok:
                     for i in range(n):
                         th[i] = th_e[i]
+                        hS[i] = hS_s[i]
                     nsteps_total += 1
                     break
             # ---- trial step, event location (h_max bounds the step while a link
@@ -911,25 +975,25 @@ def fast_intervals(t_s, TLm, TRm, t_prev, prev_left, prev_right, first, th, TL, 
                     rmax = max(rmax, abs(thd[i]))
                 if rmax * h > dth_max:
                     h = max(dth_max / rmax, h_micro_min)
-            _advance(th, F, G[G_TAU], h, par, J, th_e)
+            _advance(th, F, G[G_TAU], h, par, J, th_e, hS, hS_e)
             fresh = False
             if not in_ramp:
                 for i in range(n):
                     TL_e[i] = TL[i]
                     TR_e[i] = TR[i]
                 _geometry_terms(th_e, par, J, G_e)
-                _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, J, ibd, G_e, F_e, thd_e, v_e, vL_e)
+                _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, J, ibd, G_e, F_e, thd_e, v_e, vL_e, th_e, hS_e)
                 correct = order == 2 and (flags[1] == 1 or use_tip)
                 if correct:
                     # corrector: the drive's mean over the step (trapezoid), then re-evaluate
                     for i in range(n):
                         Fa[i] = 0.5 * (F[i] + F_e[i])
-                    _advance(th, Fa, G[G_TAU], h, par, J, th_e)
+                    _advance(th, Fa, G[G_TAU], h, par, J, th_e, hS, hS_e)
                     for i in range(n):
                         TL_e[i] = TL[i]
                         TR_e[i] = TR[i]
                     _geometry_terms(th_e, par, J, G_e)
-                    _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, J, ibd, G_e, F_e, thd_e, v_e, vL_e)
+                    _forces(TL_e, TR_e, sL, sR, tbL, tbR, par, J, ibd, G_e, F_e, thd_e, v_e, vL_e, th_e, hS_e)
                 phi = 1.0
                 if nev < max_events:
                     _margins(TL, sL, G[G_SIN], vL, mus, vthr, law, gL)
@@ -955,9 +1019,9 @@ def fast_intervals(t_s, TLm, TRm, t_prev, prev_left, prev_right, first, th, TL, 
                     if correct:
                         for i in range(n):
                             Fa[i] = F[i] + 0.5 * phi * (F_e[i] - F[i])
-                        _advance(th, Fa, G[G_TAU], h, par, J, th_e)
+                        _advance(th, Fa, G[G_TAU], h, par, J, th_e, hS, hS_e)
                     else:
-                        _advance(th, F, G[G_TAU], h, par, J, th_e)
+                        _advance(th, F, G[G_TAU], h, par, J, th_e, hS, hS_e)
                     for i in range(m):
                         phiL[i] = -1.0
                         phiR[i] = -1.0
@@ -968,6 +1032,7 @@ def fast_intervals(t_s, TLm, TRm, t_prev, prev_left, prev_right, first, th, TL, 
                         TRp[i] = TR[i]
             for i in range(n):
                 th[i] = th_e[i]
+                hS[i] = hS_e[i]
             if fresh:
                 for i in range(n):
                     TL[i] = TL_e[i]

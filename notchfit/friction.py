@@ -64,7 +64,13 @@ Two solvers of the same model (``method=``):
 * ``hysteresis_torque`` ``h`` (``joint_hysteresis``): a play operator in each
   joint, ``b θ̇ = F - τ(θ) ∓ h`` outside the band ``|F - τ(θ)| <= h`` and
   ``θ̇ = 0`` inside (``F`` = applied torque): rate independent, leaves a
-  residual bend up to ``τ⁻¹(h)`` at zero tension difference.
+  residual bend up to ``τ⁻¹(h)`` at zero tension difference. With
+  ``hysteresis_onset`` the band's width grows with the deflection from zero
+  (flag-shaped loops confined to large bends, no residual bend), with
+  ``hysteresis_yield`` the element is elastic before it slips (a stop:
+  elastic-plastic Masing loops); :mod:`notchfit._hysteresis_kernels`.
+  The generator's laws ``bouc_wen_*`` and ``superelastic_gap`` (hidden-effect
+  studies) are simulated by the reference solver only.
 * ``tip_force_x``, ``tip_force_z`` (``external_load``): a constant
   manipulator-frame force at the tool point ``(0, 0, n p)``, joint torques
   ``J_X(θ)^T (f_x, f_z, 0)`` (Eqs. 18–20, as
@@ -103,8 +109,9 @@ from .cables import pulled_side
 from .geometry import Geometry, default_geometry
 from .notches import notch_points
 from .shapes import line_fit
-from .friction_params import (DEFAULT_DAMPING_TIME, FRICTION_LAWS, PARAM_KEYS, PER_JOINT_FIELDS,  # noqa: F401
-                              QUASI_STATIC_DAMPING_TIME, SPRING_LAWS, FrictionParams, _kernel_inputs, default_params, params_from_mapping,
+from .friction_params import (DEFAULT_DAMPING_TIME, FRICTION_LAWS, GENERATOR_LAWS, PARAM_KEYS,  # noqa: F401
+                              PER_JOINT_FIELDS, QUASI_STATIC_DAMPING_TIME, SPRING_LAWS, FrictionParams,
+                              _kernel_inputs, check_fast_laws, default_params, params_from_mapping,
                               params_to_mapping)
 from .units import MM
 from .validation import readonly
@@ -553,6 +560,7 @@ def _solve(time, tension_left, tension_right, params, geom, *, method, dt, ramp_
             raise ValueError(f"dt must be > 0 s, got {dt}")
         out = _k.reference_kernel(t, tl, tr, par, J, dt, float(ramp_time), float(settle_time))
     elif method == "fast":
+        check_fast_laws(params)
         fast = dict(fast)
         if fast["order"] is None:
             fast["order"] = 2 if (params.tip_force_x != 0.0 or params.tip_force_z != 0.0) else 1

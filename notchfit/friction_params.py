@@ -30,6 +30,8 @@ __all__ = [
     "DEFAULT_DAMPING_TIME",
     "QUASI_STATIC_DAMPING_TIME",
     "FRICTION_LAWS",
+    "GENERATOR_LAWS",
+    "check_fast_laws",
     "FrictionParams",
     "PARAM_KEYS",
     "PER_JOINT_FIELDS",
@@ -55,6 +57,13 @@ PARAM_KEYS = {
     "tip_force_x": "tip_force_x_N",
     "tip_force_z": "tip_force_z_N",
     "stiffness_gradient": "stiffness_gradient",
+    # the joint-hysteresis family (written only when not at their defaults)
+    "hysteresis_onset": "hysteresis_onset_rad",
+    "hysteresis_yield": "hysteresis_yield_rad",
+    # laws of the hidden-effect generator (reference solver only; written only when set)
+    "bouc_wen_torque": "bouc_wen_torque_Nm",
+    "bouc_wen_stiffness": "bouc_wen_stiffness_Nm_per_rad",
+    "superelastic_gap": "superelastic_gap_Nm",
     # real tubes (docs/models.md, "Real tubes: mechanics"); written only when not at their defaults
     "spring_law": "spring_law",
     "friction_law": "friction_law",
@@ -74,6 +83,8 @@ PER_JOINT_FIELDS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop")
 #: per-joint properties of one tube that a model may hold in place of its geometry's (None: the geometry's)
 _TUBE_FIELDS = ("rest_angle", "slot_depth_offset")
 SPRING_LAWS = ("rates", "material")
+#: the generator's hysteresis laws: the reference solver has them, the fast solver refuses them
+GENERATOR_LAWS = ("bouc_wen_torque", "superelastic_gap")
 FRICTION_LAWS = ("channel", "capstan")
 #: The seed tube's damping as a time constant, ``b / k_lin`` = 0.03 / 0.4829 s (Sec. IV-B):
 #: ``DEFAULT_DAMPING_TIME * 0.4829 == 0.03`` exactly in floating point (tested).
@@ -85,6 +96,22 @@ DEFAULT_DAMPING_TIME = paper.DAMPING / paper.FRICTION_K_LIN
 #: wrists are within 0.1° of that limit and the same for samples 0.5 s or 5 s apart (at the seed
 #: tube's 62 ms: up to 1.7° and 8.7° off; docs/history.md).
 QUASI_STATIC_DAMPING_TIME = 1e-3
+
+
+def check_fast_laws(params: "FrictionParams") -> None:
+    """Refuse the generator's hysteresis laws (:data:`GENERATOR_LAWS`) for the fast solver and the
+    predictor: they are simulated by the reference solver only.
+
+    Raises
+    ------
+    ValueError
+        Naming the laws that are set.
+    """
+    gen = [f for f in GENERATOR_LAWS if getattr(params, f) != 0.0]
+    if gen:
+        raise ValueError(f"{', '.join(gen)}: a hysteresis law of the hidden-effect generator, simulated by "
+                         "the reference solver only (method='reference'); the fast solver has the "
+                         "hysteresis family of hysteresis_torque, hysteresis_onset and hysteresis_yield")
 
 
 @dataclass(frozen=True)
@@ -110,7 +137,25 @@ class FrictionParams:
     proximal_beta : float
         Capstan band between load cell and base, ``β = μ × wrap angle`` (>= 0).
     hysteresis_torque : float
-        Play-operator joint hysteresis ``h`` [N m] (>= 0).
+        Joint hysteresis threshold ``h`` [N m] (>= 0): with the two fields
+        below at 0 a play operator of constant width ``2h``
+        (:mod:`notchfit._hysteresis_kernels`).
+    hysteresis_onset : float
+        ``θ_h`` [rad] (>= 0): the threshold is 0 below a deflection of
+        ``θ_h / 2`` and ``h`` beyond ``θ_h``, linear between: loops confined to
+        large deflections (flag-shaped, superelastic), no residual bend.
+    hysteresis_yield : float
+        ``θ_y`` [rad] (>= 0): the elastic deflection of the hysteretic element
+        before it slips (a stop of stiffness ``h/θ_y``, at most ``θ_h/2`` when
+        ``θ_h > 0``): elastic-plastic (Masing) loops. 0: the rigid play.
+    bouc_wen_torque, bouc_wen_stiffness : float
+        Generator law (reference solver only): a Bouc-Wen hysteretic torque in
+        each joint with ultimate torque ``z_u`` [N m] and initial stiffness
+        ``A`` [N m/rad] (``n = 1``, ``β = γ``); 0: off.
+    superelastic_gap : float
+        Generator law (reference solver only): the flexures' plateau is a
+        two-branch superelastic transformation whose reverse plateau lies this
+        much below the loading one [N m] (flag-shaped loops); 0: off.
     tip_force_x, tip_force_z : float
         Constant manipulator-frame force at the tool point [N].
     stiffness_gradient : float
@@ -164,6 +209,11 @@ class FrictionParams:
     tip_force_x: float = 0.0
     tip_force_z: float = 0.0
     stiffness_gradient: float = 0.0
+    hysteresis_onset: float = 0.0
+    hysteresis_yield: float = 0.0
+    bouc_wen_torque: float = 0.0
+    bouc_wen_stiffness: float = 0.0
+    superelastic_gap: float = 0.0
     spring_law: str = "rates"
     friction_law: str = "channel"
     damping_time: float = 0.0
@@ -212,8 +262,13 @@ class FrictionParams:
             raise ValueError(f"mu_s must be >= mu_d (static >= sliding), got mu_s={self.mu_s}, mu_d={self.mu_d}")
         if self.proximal_beta < 0:
             raise ValueError(f"proximal_beta must be >= 0, got {self.proximal_beta}")
-        if self.hysteresis_torque < 0:
-            raise ValueError(f"hysteresis_torque must be >= 0, got {self.hysteresis_torque}")
+        for name in ("hysteresis_torque", "hysteresis_onset", "hysteresis_yield", "bouc_wen_torque",
+                     "bouc_wen_stiffness", "superelastic_gap"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if (self.bouc_wen_torque > 0) != (self.bouc_wen_stiffness > 0):
+            raise ValueError("bouc_wen_torque and bouc_wen_stiffness must be both > 0 (the law on) or both 0, "
+                             f"got {self.bouc_wen_torque} and {self.bouc_wen_stiffness}")
         if not -1.0 < self.stiffness_gradient < 1.0:
             raise ValueError(f"stiffness_gradient must be in (-1, 1), got {self.stiffness_gradient}")
 
@@ -374,6 +429,9 @@ class FrictionParams:
         par[_k.P_TM], par[_k.P_TS], par[_k.P_B] = J[_k.J_TM, 0], J[_k.J_TS, 0], J[_k.J_B, 0]
         par[_k.P_MUD], par[_k.P_MUS], par[_k.P_VTHR] = self.mu_d, self.mu_s, self.v_thr
         par[_k.P_BETA], par[_k.P_H] = self.proximal_beta, self.hysteresis_torque
+        par[_k.P_HON], par[_k.P_HY] = self.hysteresis_onset, self.hysteresis_yield
+        par[_k.P_BWZ], par[_k.P_BWA] = self.bouc_wen_torque, self.bouc_wen_stiffness
+        par[_k.P_SEG] = self.superelastic_gap
         par[_k.P_FX], par[_k.P_FZ] = self.tip_force_x, self.tip_force_z
         rows = [_k.J_K1, _k.J_K2, _k.J_K3, _k.J_TM, _k.J_TS, _k.J_B]
         par[_k.P_UNI] = float(np.all(J[rows] == J[rows, :1]))

@@ -28,7 +28,7 @@ from numba import njit
 
 from . import _friction_kernels as _k
 from .friction import FrictionParams, default_params
-from .friction_params import _kernel_inputs
+from .friction_params import _kernel_inputs, check_fast_laws
 from .geometry import Geometry, default_geometry
 from .notches import point_projector, points_kernel
 
@@ -104,6 +104,7 @@ class Predictor:
         if tension_sigma is not None and not (math.isfinite(tension_sigma) and tension_sigma >= 0):
             raise ValueError(f"tension_sigma must be >= 0 N, got {tension_sigma}")
         p = self.params
+        check_fast_laws(p)
         if order is None:
             order = 2 if (p.tip_force_x != 0.0 or p.tip_force_z != 0.0) else 1
         if order not in (1, 2):
@@ -127,7 +128,7 @@ class Predictor:
         n = self.geom.n_joints
         m = max(n - 1, 0)
         # float state: θ, T_L, T_R (n each), the band's base tensions (2); int state: sL, sR
-        self._state = np.zeros(3 * n + 2)
+        self._state = np.zeros(4 * n + 2)     # θ, T_L, T_R, the stops' torques, the band's base tensions
         self._state[:n] = self._J[_k.J_TH0]
         self._links = np.zeros(2 * m, np.int8)
         # inputs: time, T_L, T_R of the new sample; time, T_L, T_R of the previous; first
@@ -201,9 +202,9 @@ def _step(inp, state, links, par, J, opts, per_joint, link, lx, lz, work, with_p
     """One interval of :func:`notchfit._friction_kernels.fast_intervals` and the points, compiled in one call."""
     n = J.shape[1]
     m = links.shape[0] // 2
-    th, TL, TR, band = state[:n], state[n:2 * n], state[2 * n:3 * n], state[3 * n:]
+    th, TL, TR, hS, band = state[:n], state[n:2 * n], state[2 * n:3 * n], state[3 * n:4 * n], state[4 * n:]
     out = _k.fast_intervals(inp[0:1], inp[1:2], inp[2:3], inp[3], inp[4], inp[5], inp[6] != 0.0, th, TL, TR,
-                            links[:m], links[m:], band, par, J, opts[0], opts[1], opts[2], opts[3], int(opts[4]),
+                            links[:m], links[m:], band, hS, par, J, opts[0], opts[1], opts[2], opts[3], int(opts[4]),
                             int(opts[5]), opts[6], int(opts[7]), opts[8] != 0.0, opts[9], int(opts[10]))
     pts = np.empty((link.shape[0], 2))
     if with_points:

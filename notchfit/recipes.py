@@ -2,10 +2,12 @@
 
 A recipe describes a study the way a lab would run it (several paper-like
 bend/unbend tests, Sec. IV, Fig. 11) and the hidden truth that produced it:
-the ranges of the base model parameters, at most one hidden effect (a cause
-id of docs/data-formats.md and its size), the measurement noise, the plane
-transform, what is measured (notch points, joint angles or both) and the
-protocol of every experiment. :func:`load_recipe` reads one (shipped by name,
+the ranges of the base model parameters, the hidden effects (none, one or
+several cause ids of docs/data-formats.md, each with the fields of one of
+its laws, :data:`EFFECT_LAWS`, and their sizes), the measurement noise, the
+plane transform, what is measured (notch points, joint angles or both) and
+the protocol of every experiment (the drive's ramp time and whether
+experiment.toml records it). :func:`load_recipe` reads one (shipped by name,
 or a TOML path); :mod:`notchfit.synth` draws and writes the study.
 """
 
@@ -27,28 +29,39 @@ __all__ = [
     "CAUSES",
     "EFFECT_ALIASES",
     "EFFECT_FIELDS",
+    "EFFECT_LAWS",
     "OBSERVATIONS",
     "PAPER_VALUES",
     "TENSION_RESOLUTION",
     "ProtocolSpec",
     "Recipe",
     "bend_unbend_protocol",
+    "combine_recipes",
     "list_recipes",
     "load_recipe",
     "recipe_from_dict",
 ]
 
-#: Cause ids of docs/data-formats.md and the recipe/truth fields that set each effect.
-EFFECT_FIELDS = {
-    "none": (),
-    "proximal_friction": ("proximal_beta",),
-    "static_friction": ("mu_s_excess",),
-    "joint_hysteresis": ("hysteresis_torque",),
-    "external_load": ("tip_force_x", "tip_force_z"),
-    "stiffness_gradient": ("stiffness_gradient",),
-    "calibration_error": ("scale_error", "k_radial"),
+#: Cause ids of docs/data-formats.md and the recipe/truth fields of each law that can produce the
+#: effect (the first is the cause's default). Joint hysteresis: the play of the candidate family
+#: (``hysteresis_torque``; with ``hysteresis_onset`` and ``hysteresis_yield`` the whole family), or
+#: the generator's laws that no candidate fits: Bouc-Wen loops and a two-branch superelastic plateau.
+EFFECT_LAWS = {
+    "none": ((),),
+    "proximal_friction": (("proximal_beta",),),
+    "static_friction": (("mu_s_excess",),),
+    "joint_hysteresis": (("hysteresis_torque",), ("hysteresis_torque", "hysteresis_onset", "hysteresis_yield"),
+                         ("bouc_wen_torque", "bouc_wen_stiffness"), ("superelastic_gap",)),
+    "external_load": (("tip_force_x", "tip_force_z"),),
+    "stiffness_gradient": (("stiffness_gradient",),),
+    "calibration_error": (("scale_error", "k_radial"),),
 }
+#: Each cause's default law's fields.
+EFFECT_FIELDS = {c: laws[0] for c, laws in EFFECT_LAWS.items()}
 CAUSES = tuple(c for c in EFFECT_FIELDS if c != "none")
+#: Effect fields that are :class:`notchfit.friction.FrictionParams` fields of the truth.
+_MODEL_EFFECTS = ("proximal_beta", "hysteresis_torque", "hysteresis_onset", "hysteresis_yield", "bouc_wen_torque",
+                  "bouc_wen_stiffness", "superelastic_gap", "tip_force_x", "tip_force_z", "stiffness_gradient")
 _BASE_FIELDS = ("k_lin", "k_mid", "mu_d", "E_lin", "E_se", "strain_lower")
 #: Old names of effect fields, still read (recipe files and :meth:`Recipe.replace`).
 EFFECT_ALIASES = {"static_excess": "mu_s_excess"}
@@ -145,6 +158,19 @@ class Recipe:
     image_options: dict = field(default_factory=dict)
     observe: str = "points"
     angle_sigma_deg: float = 0.5
+    ramp_time_s: float = 0.0
+    record_protocol: bool = False
+
+    @property
+    def causes(self) -> tuple:
+        """The hidden causes (empty for ``"none"``)."""
+        c = (self.cause,) if isinstance(self.cause, str) else tuple(self.cause)
+        return tuple(x for x in c if x != "none")
+
+    @property
+    def effect_order(self) -> tuple:
+        """The effect fields in the order they are drawn: each cause's law, in cause order."""
+        return tuple(k for c in self.causes for k in _law_of(c, self.effect))
 
     def replace(self, **changes) -> "Recipe":
         """A copy with fields changed (validated again)."""
@@ -164,18 +190,10 @@ class Recipe:
     def __post_init__(self):
         object.__setattr__(self, "effect", {EFFECT_ALIASES.get(k, k): v for k, v in self.effect.items()})
         object.__setattr__(self, "random_sign", tuple(EFFECT_ALIASES.get(k, k) for k in self.random_sign))
-        if self.cause not in EFFECT_FIELDS:
-            raise ValueError(f"recipe {self.name!r}: cause must be one of {', '.join(EFFECT_FIELDS)}, "
-                             f"got {self.cause!r}")
-        allowed = EFFECT_FIELDS[self.cause]
-        bad = [k for k in self.effect if k not in allowed]
-        if bad:
-            raise ValueError(f"recipe {self.name!r}: effect field(s) {', '.join(bad)} do not belong to "
-                             f"cause {self.cause!r} (expected {', '.join(allowed) or 'none'})")
-        missing = [k for k in allowed if k not in self.effect]
-        if missing:
-            raise ValueError(f"recipe {self.name!r}: cause {self.cause!r} needs effect range(s) "
-                             f"{', '.join(missing)}")
+        if not isinstance(self.cause, str):
+            object.__setattr__(self, "cause", tuple(self.cause) if len(self.cause) != 1 else self.cause[0])
+        _check_causes(self)
+        allowed = self.effect_order
         for k in self.random_sign:
             if k not in allowed:
                 raise ValueError(f"recipe {self.name!r}: random_sign names {k!r}, not an effect field")
@@ -205,9 +223,57 @@ class Recipe:
             raise ValueError(f"recipe {self.name!r}: angle noise must be a finite number >= 0")
         if self.images and any(e.geometry not in (None, self.geometry) for e in self.experiments):
             raise ValueError(f"recipe {self.name!r}: rendered images need one geometry for the whole study")
-        if self.observe == "angles" and (self.images or self.cause == "calibration_error"):
+        if not (math.isfinite(self.ramp_time_s) and self.ramp_time_s >= 0):
+            raise ValueError(f"recipe {self.name!r}: [protocol] ramp_time_s must be a number >= 0")
+        if self.observe == "angles" and (self.images or "calibration_error" in self.causes):
             raise ValueError(f"recipe {self.name!r}: rendered images and a calibration error act on notch "
                              "points: they need observe = 'points' or 'both'")
+
+
+def _law_of(cause: str, effect: dict) -> tuple:
+    """The fields of the law of ``cause`` that ``effect`` gives (the largest that fits), or ()."""
+    fits = [law for law in EFFECT_LAWS[cause] if set(law) <= set(effect)]
+    return max(fits, key=len) if fits else ()
+
+
+def _check_causes(r: Recipe) -> None:
+    """The causes are known ids, each at most once, and the effect fields are exactly one law of each."""
+    names = (r.cause,) if isinstance(r.cause, str) else r.cause
+    bad = [c for c in names if c not in EFFECT_LAWS]
+    if bad or not names or (len(names) > 1 and "none" in names) or len(set(names)) != len(names):
+        raise ValueError(f"recipe {r.name!r}: cause must be one of {', '.join(EFFECT_LAWS)} or a list of "
+                         f"distinct causes, got {r.cause!r}")
+    used = set()
+    for c in r.causes:
+        law = _law_of(c, r.effect)
+        if not law:
+            alts = " or ".join("+".join(a) for a in EFFECT_LAWS[c])
+            raise ValueError(f"recipe {r.name!r}: cause {c!r} needs effect range(s) {alts}")
+        used |= set(law)
+    extra = [k for k in r.effect if k not in used]
+    if extra:
+        raise ValueError(f"recipe {r.name!r}: effect field(s) {', '.join(extra)} do not belong to "
+                         f"cause {r.cause!r} (expected {', '.join(sorted(used)) or 'none'})")
+
+
+def combine_recipes(*recipes: Recipe, name: str | None = None) -> Recipe:
+    """A study hiding every effect of ``recipes`` at once (each a one-cause recipe).
+
+    The first recipe gives the study (base ranges, noise, plane, experiments,
+    protocol); the others add their causes, effect ranges, random signs and
+    (calibration_error) the warp's centre and radius.
+    """
+    first = recipes[0]
+    causes, effect, signs = [], {}, []
+    warp = {}
+    for r in recipes:
+        causes += list(r.causes)
+        effect.update(r.effect)
+        signs += list(r.random_sign)
+        if "calibration_error" in r.causes:
+            warp = {"warp_center_mm": r.warp_center_mm, "warp_radius_mm": r.warp_radius_mm}
+    return first.replace(name=name or "+".join(r.name for r in recipes), cause=tuple(causes), effect=effect,
+                         random_sign=tuple(signs), description="; ".join(r.description for r in recipes), **warp)
 
 
 def _range(v, what) -> tuple:
@@ -222,7 +288,7 @@ def _range(v, what) -> tuple:
     return (lo, hi)
 
 
-_RECIPE_KEYS = {"name", "description", "seed", "geometry", "cause", "base", "min_rel_offset", "fixed",
+_RECIPE_KEYS = {"name", "description", "seed", "geometry", "cause", "causes", "base", "min_rel_offset", "fixed",
                 "effect", "noise", "plane", "protocol", "experiments", "images", "observe"}
 
 
@@ -234,6 +300,10 @@ def recipe_from_dict(d: dict, origin: str = "<recipe>") -> Recipe:
                          f"(known: {', '.join(sorted(_RECIPE_KEYS))})")
     kw = {k: d[k] for k in ("name", "description", "seed", "geometry", "cause", "min_rel_offset", "observe")
           if k in d}
+    if "causes" in d:
+        if "cause" in d:
+            raise ValueError(f"{origin}: give cause or causes, not both")
+        kw["cause"] = d["causes"]
     kw.setdefault("name", Path(origin).stem)
     if "base" in d:
         kw["base"] = dict(d["base"])
@@ -265,6 +335,10 @@ def recipe_from_dict(d: dict, origin: str = "<recipe>") -> Recipe:
     if plane:
         raise ValueError(f"{origin}: unknown [plane] key(s) {', '.join(plane)}")
     proto = dict(d.get("protocol", {}))
+    if "ramp_time_s" in proto:
+        kw["ramp_time_s"] = float(proto.pop("ramp_time_s"))
+    if "record" in proto:
+        kw["record_protocol"] = bool(proto.pop("record"))
     pkeys = {"peak_N", "n_up", "n_down", "dt_s", "counter_N", "pull"}
     bad = set(proto) - pkeys
     if bad:

@@ -9,9 +9,9 @@ pull directions), and it describes the "truth" that produced the data:
 * base friction-model parameters ``k_lin``, ``k_mid``, ``μ_d`` drawn
   uniformly in recipe ranges and *away from* the paper's values (by at least
   ``min_rel_offset``), so an analysis must calibrate them;
-* at most one hidden physical effect, one of the cause ids of
-  docs/data-formats.md, with its size drawn from a recipe range (optionally with
-  a random sign):
+* hidden physical effects — none, one, or several at once (``cause = [...]``) —
+  each a cause id of docs/data-formats.md, with its size drawn from a recipe
+  range (optionally with a random sign):
 
   ======================  =============================================
   cause                   truth-model field(s)
@@ -19,7 +19,14 @@ pull directions), and it describes the "truth" that produced the data:
   ``proximal_friction``   ``proximal_beta`` (capstan band before the base)
   ``static_friction``     ``mu_s_excess`` = ``μ_s - μ_d`` (paper: 0.01;
                           ``static_excess`` is read as an alias)
-  ``joint_hysteresis``    ``hysteresis_torque`` [N m]
+  ``joint_hysteresis``    ``hysteresis_torque`` [N m] (the play; with
+                          ``hysteresis_onset``, ``hysteresis_yield`` the
+                          candidate family), or laws no candidate has:
+                          ``bouc_wen_torque`` [N m] + ``bouc_wen_stiffness``
+                          [N m/rad] (smooth elastic-plastic loops),
+                          ``superelastic_gap`` [N m] (flag-shaped loops of a
+                          two-branch superelastic plateau);
+                          :mod:`notchfit._hysteresis_kernels`
   ``external_load``       ``tip_force_x``, ``tip_force_z`` [N]
   ``stiffness_gradient``  ``stiffness_gradient`` g
   ``calibration_error``   ``scale_error``, ``k_radial`` (a plane-frame
@@ -82,8 +89,9 @@ from .friction import FrictionParams, cable_displacement, simulate, stepwise_reg
 from .geometry import Geometry
 from .io import datasets_dir, load_geometry
 from .notches import notch_points, to_plane
-from .recipes import (_BASE_FIELDS, _PAPER_MU_S_EXCESS, _REFERENCE_VALUES, CAUSES, EFFECT_FIELDS, ProtocolSpec,
-                      Recipe, _protocol, bend_unbend_protocol, list_recipes, load_recipe, recipe_from_dict)
+from .recipes import (_BASE_FIELDS, _MODEL_EFFECTS, _PAPER_MU_S_EXCESS, _REFERENCE_VALUES, CAUSES, EFFECT_FIELDS,
+                      ProtocolSpec, Recipe, _protocol, bend_unbend_protocol, list_recipes, load_recipe,
+                      recipe_from_dict)
 from .units import DEG, MM
 from .warp import apply_point_warp
 
@@ -166,7 +174,8 @@ class SynthStudy:
     truth_solver: str = "reference"  # "reference", "fast" or "statics" (frictionless truth)
 
     @property
-    def cause(self) -> str:
+    def cause(self):
+        """The hidden cause (a tuple of causes for several at once)."""
         return self.recipe.cause
 
     def truth(self) -> dict:
@@ -192,7 +201,8 @@ class SynthStudy:
             }
         return {
             "note": "ground truth of a synthetic study; no analysis command reads this file",
-            "recipe": self.recipe.name, "seed": self.seed, "cause": self.cause,
+            "recipe": self.recipe.name, "seed": self.seed,
+            "cause": self.cause if isinstance(self.cause, str) else list(self.cause),
             "effect": dict(self.effect), "params": params, "geometry": self.geometry.name,
             "noise": {"point_mm": self.recipe.point_sigma_mm, "tension_N": self.recipe.tension_sigma_N,
                       "displacement_step_mm": self.recipe.displacement_step_mm,
@@ -225,7 +235,7 @@ def _draw_truth(recipe: Recipe, rng):
             values[k] = _draw_away(rng, lo, hi, _REFERENCE_VALUES[k], recipe.min_rel_offset)
     values.update({k: _fixed_value(v) for k, v in recipe.fixed.items()})
     effect = {}
-    for k in EFFECT_FIELDS[recipe.cause]:
+    for k in recipe.effect_order:
         lo, hi = recipe.effect[k]
         v = float(rng.uniform(lo, hi)) if hi > lo else lo
         if k in recipe.random_sign and rng.random() < 0.5:
@@ -238,7 +248,7 @@ def _draw_truth(recipe: Recipe, rng):
     elif "mu_s" not in params_kw:
         mu_d = params_kw.get("mu_d", FrictionParams().mu_d)
         params_kw["mu_s"] = mu_d + _PAPER_MU_S_EXCESS
-    for k in ("proximal_beta", "hysteresis_torque", "tip_force_x", "tip_force_z", "stiffness_gradient"):
+    for k in _MODEL_EFFECTS:
         if k in effect:
             params_kw[k] = effect[k]
     try:
@@ -269,7 +279,8 @@ def _fixed_value(v):
 def _frictionless(params: FrictionParams) -> bool:
     """No friction, band, hysteresis or tip load: the rest states are quasi-static equilibria."""
     return (params.mu_d == 0.0 and params.mu_s == 0.0 and params.proximal_beta == 0.0
-            and params.hysteresis_torque == 0.0 and params.tip_force_x == 0.0 and params.tip_force_z == 0.0)
+            and params.hysteresis_torque == 0.0 and params.tip_force_x == 0.0 and params.tip_force_z == 0.0
+            and params.bouc_wen_torque == 0.0 and params.superelastic_gap == 0.0)
 
 
 @dataclass(frozen=True)
@@ -318,11 +329,11 @@ def statics_truth(time, tension_left, tension_right, params: FrictionParams, geo
 
 def _simulate_one(args):
     """Truth simulation of one experiment (module level: runs in worker processes)."""
-    time, tl, tr, params, geom, method = args
+    time, tl, tr, params, geom, method, ramp = args
     if method == "statics":
         return statics_truth(time, tl, tr, params, geom)
     return simulate(time, tl if "left" in geom.tendons else None, tr if "right" in geom.tendons else None,
-                    params, geom, method=method)
+                    params, geom, method=method, ramp_time=ramp)
 
 
 def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: int = 1,
@@ -360,7 +371,7 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
     params, effect = _draw_truth(recipe, rng_params)
 
     warp = None
-    if recipe.cause == "calibration_error":
+    if "calibration_error" in recipe.causes:
         (cx0, cx1), (cy0, cy1) = recipe.warp_center_mm
         warp = {"scale_error": effect["scale_error"], "k_radial": effect["k_radial"],
                 "center": (float(rng_warp.uniform(cx0, cx1)) * MM, float(rng_warp.uniform(cy0, cy1)) * MM),
@@ -385,7 +396,8 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
         if spec.counter_N != 0 and other not in geoms[sources[spec.name]].tendons:
             raise ValueError(f"recipe {recipe.name!r}: experiment {spec.name}: the geometry has only the "
                              f"{spec.pull} tendon, so counter_N must be 0")
-    items = [(p[3], p[4], p[5], params, geoms[sources[p[0].name]], truth_method) for p in plans]
+    items = [(p[3], p[4], p[5], params, geoms[sources[p[0].name]], truth_method, recipe.ramp_time_s)
+             for p in plans]
     if jobs > 1 and len(items) > 1:
         res = run_batch(_simulate_one, items, jobs=jobs, keys=[p[0].name for p in plans],
                         desc="truth simulation")
@@ -500,6 +512,7 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
                                 calibration=calib_rel, point_sigma=r.point_sigma_mm * MM if
                                 (r.point_sigma_mm > 0 and not images) else None,
                                 tension_sigma=r.tension_sigma_N if r.tension_sigma_N > 0 else None,
+                                protocol={"ramp_time_s": r.ramp_time_s} if r.record_protocol else None,
                                 force=True)
         io.write_json_atomic(study.truth(), run.path("truth.json"))
     return out
@@ -518,7 +531,7 @@ def generate_study(recipe, out_dir, *, seed: int | None = None, force: bool = Fa
     """:func:`synthesize` then :func:`write_study`; returns the study with its ground truth."""
     if not isinstance(recipe, Recipe):
         recipe = load_recipe(recipe)
-    if (recipe.images if images is None else images) and recipe.cause == "calibration_error":
+    if (recipe.images if images is None else images) and "calibration_error" in recipe.causes:
         raise ValueError("calibration_error with rendered images is not supported: the warp acts on the "
                          "notch points; generate this study without --images")
     study = synthesize(recipe, seed, jobs=jobs, method=method)

@@ -16,8 +16,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "notchfit"
 
 #: physics: pure models over numpy arrays; they read and write no files.
 PHYSICS = ("geometry", "kinematics", "notches", "cables", "springs", "statics", "friction",
-           "_friction_kernels", "friction_params", "predictor", "shapes", "units", "validation", "paper", "polygon",
-           "section")
+           "_friction_kernels", "_hysteresis_kernels", "_spring_kernels", "friction_params", "predictor", "shapes",
+           "units", "validation", "paper", "polygon", "section")
 #: analysis: returns objects, writes nothing.
 ANALYSIS = ("fitting", "diagnosis", "identify")
 #: modules whose functions may exceed the length limit: the numba kernels (one

@@ -99,3 +99,101 @@ def test_ranking_points_to_static_friction_on_stalls():
     sigs = [{"signature": "loading_stalls", "value": 0.2}, {"signature": "loop_area_ratio", "value": 1.0}]
     top, _, why = rank_candidates(sigs, 2e-5)[0]
     assert top == "static_friction" and "stalls" in why
+
+
+# ----------------------------------------------------------------------------- issue 19: two causes, angles, scope
+def _prep(name="E1", metric="points", pulled=1, geom=None, S=4):
+    from notchfit.diagnosis import Prepared
+    from notchfit.geometry import default_geometry
+
+    g = geom or default_geometry()
+    shape = (S, g.n_points, 2) if metric == "points" else (S, g.n_joints)
+    return Prepared(name=name, geom=g, time=np.arange(1.0, S + 1), tension_left=np.ones(S),
+                    tension_right=np.ones(S), measured=np.zeros(shape), valid=np.ones(shape[:2], bool),
+                    transform=None, sigma=1e-3, theta_free=np.zeros((S, g.n_joints)), free_residuals=None,
+                    a=np.zeros(S), b=np.zeros(S), pulled=pulled, regime=np.array(["I"] * S), counter_tension=0.0,
+                    metric=metric)
+
+
+def test_second_candidates_keep_masked_ones_and_drop_noisy_static_friction():
+    from notchfit.diagnosis import CandidateResult
+    from notchfit.diagnosis.pairs import second_candidates
+
+    def c(cause, rms, sig=False):
+        return CandidateResult(cause, {}, 1, rms, rms, 0.0, 1.0, 0.1, sig)
+
+    cands = [c("joint_hysteresis", 1.0, True), c("external_load", 3.0), c("static_friction", 1.5),
+             c("calibration_error", 9.0), c("stiffness_gradient", 2.0)]
+    # a candidate worse than the baseline alone stays (a dominant effect can mask it); static
+    # friction only when significant alone
+    assert second_candidates("joint_hysteresis", cands) == ["stiffness_gradient", "external_load",
+                                                            "calibration_error"]
+    assert second_candidates("joint_hysteresis", cands, max_second=1) == ["stiffness_gradient"]
+
+
+def test_contribution_shares_add_up_to_the_removed_discrepancy():
+    """Shapley shares over the two orders of adding the causes: they add to one, and the cause that
+    removes more in both orders gets the larger share (docs/diagnosis.md)."""
+    from notchfit.diagnosis import HeldOut
+    from notchfit.diagnosis.pairs import contributions
+
+    p = _prep(metric="angles")
+    a, b = "external_load", "stiffness_gradient"
+    errs = {"baseline": 0.05, a: 0.02, b: 0.045, f"{a}+{b}": 0.01}       # rms per angle [rad]
+    held = {k: HeldOut(tuple(k.split("+")) if k != "baseline" else (), {0: np.full(p.measured.shape, e)},
+                       {0: np.zeros(p.measured.shape)}, {0: np.full(4, 1e-6)}) for k, e in errs.items()}
+    values = {"tip_force_x": 0.1, "tip_force_z": 0.0, "stiffness_gradient": 0.2}
+    out = contributions((a, b), held, (p,), 1e-6, values, metric="angles")
+    assert [c.cause for c in out] == [a, b]
+    assert sum(c.share for c in out) == pytest.approx(1.0)
+    msB, msA, msb, msAB = 0.05**2, 0.02**2, 0.045**2, 0.01**2
+    assert out[0].share == pytest.approx(0.5 * ((msB - msA) + (msb - msAB)) / (msB - msAB))
+    assert out[0].with_rms == pytest.approx(0.01) and out[0].without_rms == pytest.approx(0.045)
+    assert out[1].gain_pct == pytest.approx(50.0)                       # b added last: 0.02 -> 0.01
+    assert out[1].params == {"stiffness_gradient": 0.2} and out[0].without_key == b
+
+
+def test_scope_skips_what_angle_data_and_a_section_backbone_cannot_show():
+    from notchfit.diagnosis.scope import applicable_causes
+    from notchfit.diagnosis.signatures import skipped_signatures
+    from notchfit.io import load_geometry
+    from notchfit.synth import _geometry_source
+
+    wrist = load_geometry(_geometry_source("wrist_asymmetric"))
+    preps = (_prep("R1", "angles", geom=wrist), _prep("R2", "angles", geom=wrist))
+    usable, skipped = applicable_causes(preps, CAUSES)
+    assert set(skipped) == {"calibration_error", "external_load"}
+    assert usable == ("proximal_friction", "static_friction", "joint_hysteresis", "stiffness_gradient")
+    assert set(skipped_signatures(preps)) == {"spatial_pattern", "direction_asymmetry"}
+    seed = (_prep("L", pulled=-1), _prep("R", pulled=1))
+    assert applicable_causes(seed, CAUSES) == (CAUSES, {}) and skipped_signatures(seed) == {}
+
+
+def test_recorded_protocol_is_used_and_missing_one_is_said():
+    from notchfit.diagnosis.scope import resolve_protocol
+
+    preps = (_prep("A"), _prep("B"))
+    out, prot, cal = resolve_protocol(preps, {"A": 4.0, "B": 4.0}, None, None)
+    assert cal is None and prot["source"] == {"A": "experiment.toml", "B": "experiment.toml"}
+    out, prot, _ = resolve_protocol(preps, {"A": 4.0, "B": None}, None, None, estimate=False)
+    assert [p.ramp_time for p in out] == [0.0, 0.0] and prot["source"]["B"] == "assumed"
+    assert "B" in prot["text"] and "step" in prot["text"]
+
+
+def test_angle_metric_in_the_file():
+    from notchfit.diagnosis import CandidateResult, Gain
+    from notchfit.diagnosis.prepare import choose_metric
+    from notchfit.units import DEG
+
+    d = CandidateResult("joint_hysteresis", {}, 3, DEG, 2 * DEG, 0.0, 4.0, 0.5, True).to_dict("angles")
+    assert d["heldout_rms_deg"] == pytest.approx(2.0) and "heldout_rms_mm" not in d
+    assert Gain(2 * DEG, DEG).to_dict("angles")["extended"] == pytest.approx(1.0)
+
+    class E:
+        def __init__(self, name, points, angles):
+            self.name, self.points, self.angles = name, points, angles
+
+    assert choose_metric([E("a", 1, 1), E("b", 1, None)]) == "points"
+    assert choose_metric([E("a", None, 1), E("b", 1, 1)]) == "angles"
+    with pytest.raises(ValueError, match="one kind of measurement"):
+        choose_metric([E("a", None, 1), E("b", 1, None)])

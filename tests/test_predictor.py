@@ -38,10 +38,15 @@ def _wrist_history():
 
 
 @pytest.mark.parametrize("params", [FrictionParams(),
-                                    FrictionParams(proximal_beta=0.1, hysteresis_torque=0.002)],
-                         ids=["paper", "band+hysteresis"])
+                                    FrictionParams(proximal_beta=0.1, hysteresis_torque=0.002),
+                                    FrictionParams(hysteresis_torque=3e-3, hysteresis_onset=0.07,
+                                                   hysteresis_yield=2e-3)],
+                         ids=["paper", "band+hysteresis", "hysteresis-stop"])
 def test_seed_tube_equals_simulate(params):
-    """Seed tube, channel law (Sec. IV-B), Fig. 11 protocol with a 1 s ramp: predictor = simulate to 1e-9 rad."""
+    """Seed tube, channel law (Sec. IV-B), Fig. 11 protocol with a 1 s ramp: predictor = simulate to 1e-9 rad.
+
+    The hysteresis stop (onset and yield) holds a torque per joint between samples: the predictor
+    carries it as state like the angles."""
     p = bend_unbend(25.0, 0.45, pull="right")
     t, tl, tr = np.asarray(p.time), np.asarray(p.tension_left), np.asarray(p.tension_right)
     ref = simulate(t, tl, tr, params, settle_time=5.0, ramp_time=1.0)
@@ -91,6 +96,12 @@ def test_point_projector_matches_notch_points():
     for g in (default_geometry(), _wrist()):
         th = rng.normal(0.0, 0.1, g.n_joints)
         assert np.abs(point_projector(g)(th) - notch_points(th, g)).max() <= 1e-15
+
+
+def test_generator_laws_refused():
+    """The generator's Bouc-Wen law is simulated by the reference solver only: the predictor refuses it."""
+    with pytest.raises(ValueError, match="reference solver only"):
+        Predictor(FrictionParams(bouc_wen_torque=1e-3, bouc_wen_stiffness=0.5))
 
 
 def test_bad_inputs():

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from .. import io
-from ..diagnosis import CAUSES, Diagnosis, diagnose
+from ..diagnosis import CAUSES, Diagnosis, choose_metric, diagnose
 from ..figures.diagnosis import write_diagnosis_figures
 from ..friction import save_params
 from ..progress import Steps
@@ -16,22 +17,29 @@ from ._points import MISSING_HINT, lookup_points, points_problem
 NAME = "diagnose"
 ORDER = 60
 HELP = "name the physical cause of the friction model's discrepancies and measure the gain"
-DESCRIPTION = """Diagnose a study against the paper's friction model (Sec. IV-B).
+DESCRIPTION = """Diagnose a study against the friction model (Sec. IV-B).
 
-Calibrates the baseline (k_lin, k_mid, mu_d) on training experiments,
-compares it with held-out experiments (cross-validation by experiment),
-reports discrepancy signatures, fits every candidate extension
-(proximal_friction, static_friction, joint_hysteresis, external_load,
-stiffness_gradient, calibration_error), names the cause (or "none" /
-"unexplained"), saves the extended model and the held-out gain.
+Calibrates the baseline (k_lin, k_mid, mu_d; E_lin, E_se, mu_d for a tube
+with material springs) on training experiments, compares it with held-out
+experiments (cross-validation by experiment), reports discrepancy
+signatures, fits every candidate extension (proximal_friction,
+static_friction, joint_hysteresis, external_load, stiffness_gradient,
+calibration_error), names the cause (or "none" / "unexplained"), then tries
+a second cause with it (named when it removes a further significant part of
+the held-out discrepancy), saves the extended model and the held-out gain.
 
 Writes into --out: diagnosis.json (docs/data-formats.md), extended_model.toml
-(read by `notchfit simulate --model`), diagnosis_*.png and their data.
+(read by `notchfit simulate --model`), diagnosis_*.png and their data
+(diagnosis_cause_<id>.png: one per named cause).
 
 Notch points come from each experiment's own notch_points.csv, else from
 detections.csv of the `notchfit detect` run given with --points DIR
 (--detections is the old name), else from detections.csv in the --out
-folder (the log says which).
+folder, else an experiment's own angles.csv (the log says which).
+Experiments measured as joint angles are compared in degrees (--metric:
+auto takes notch points when every experiment has them, else angles). The
+protocol is [protocol] ramp_time_s of experiment.toml; where it is absent
+the diagnosis estimates it (--assume-step: take a step instead).
 The (model x fold) calibrations run in parallel (--jobs, or a Dask cluster
 with --scheduler); --seed seeds the noise floor's Monte Carlo draws.
 
@@ -39,6 +47,7 @@ Examples:
   notchfit diagnose study/ --out results/
   notchfit diagnose study/ --out results/ --jobs 2 --points detections/
   notchfit diagnose study/ --out results/ --causes proximal_friction,static_friction
+  notchfit diagnose wrist_study/ --out results/ --metric angles --one-cause
   notchfit diagnose study/ --out results/ --scheduler tcp://10.0.0.5:8786
 """
 
@@ -57,6 +66,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--max-folds", type=count_option(1), default=6,
                         help="leave-one-experiment-out up to this many experiments, else k-fold")
     parser.add_argument("--seed", type=count_option(0), default=0, help="seed of the noise floor's draws (default 0)")
+    parser.add_argument("--metric", choices=("auto", "points", "angles"), default="auto",
+                        help="compare notch points (mm) or joint angles (deg); auto: points when every "
+                             "experiment has them, else angles")
+    parser.add_argument("--one-cause", action="store_true", help="name at most one cause (no second-cause step)")
+    parser.add_argument("--assume-step", action="store_true",
+                        help="where experiment.toml gives no [protocol], assume a step instead of estimating it")
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     add_batch_options(parser)
 
@@ -92,6 +107,11 @@ def _experiments(args) -> tuple[list, dict]:
         raise InputError("no notch points for " + "; ".join(f"{k}: {v}" for k, v in lookup.problems.items())
                          + f"; {MISSING_HINT}")
     exps = list(lookup.experiments)
+    try:
+        if choose_metric(exps, args.metric) == "angles":
+            return exps, scan.problems
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
     bad = {e.name: points_problem(e, lookup.sources[e.name][1], "the diagnosis") for e in exps}
     bad = {k: v for k, v in bad.items() if v is not None}
     if bad:
@@ -112,13 +132,17 @@ def run(args) -> int:
     with io.OutputRun(args.out, outputs=list(OUTPUTS), force=args.force, name="diagnose") as run_, \
             Steps("diagnose") as steps:
         diag = diagnose(exps, jobs=args.jobs, scheduler=args.scheduler, seed=args.seed,
-                        causes=causes, max_folds=args.max_folds, progress=steps)
+                        causes=causes, max_folds=args.max_folds, metric=args.metric,
+                        second_cause=not args.one_cause, estimate_protocol=not args.assume_step,
+                        progress=steps)
         steps("writing diagnosis.json and the figures")
         data = write_diagnosis(diag, run_.stage, figures=not args.no_figures)
     g = data["gain"]
-    print(f"cause: {data['cause']}")
-    print(f"held-out rms: baseline {g['baseline']:.3f} mm, extended {g['extended']:.3f} mm "
+    unit = "mm" if diag.metric == "points" else "deg"
+    print(f"cause: {data['cause']}" + (f" (causes: {', '.join(data['causes'])})" if len(data["causes"]) > 1 else ""))
+    print(f"held-out rms: baseline {g['baseline']:.3f} {unit}, extended {g['extended']:.3f} {unit} "
           f"({g['reduction_pct']:.1f}% lower)")
+    print(f"protocol: {diag.protocol['text']}", file=sys.stderr)
     print(f"wrote {Path(args.out) / 'diagnosis.json'}")
     if unread:
         print(f"diagnosed {len(exps)} experiments; {len(unread)} sub-folder(s) of the study left out:")

@@ -1,7 +1,7 @@
 """Diagnosis: what the friction simulation gets wrong, the cause, the extension, the gain.
 
-Given measured experiments (tensions and notch points), :func:`diagnose`
-answers four questions about the paper's friction model (Sec. IV-B):
+Given measured experiments (tensions, and notch points or joint angles),
+:func:`diagnose` answers four questions about the friction model (Sec. IV-B):
 
 1. **What does the simulation get wrong?** The baseline (the friction
    simulator with ``k_lin``, ``k_mid`` and ``μ_d`` calibrated, docs/models.md)
@@ -28,11 +28,13 @@ a study's ``truth.json``. Modules:
 =================  ==========================================================
 ``specs``          candidate causes and their fitted parameters
 ``prepare``        measured experiments registered and summarised once
-``calibration``    predicted notch points, model calibration
+``scope``          the study's base model, applicable candidates, protocol
+``calibration``    predicted measurements, model calibration
 ``noise``          noise floor, paired significance, pooled rms
 ``crossval``       folds and the (model × fold) fan-out (processes or Dask)
 ``signatures``     what the held-out baseline gets wrong
 ``decision``       ranking, decision rule, explanation
+``pairs``          the second cause and each cause's contribution
 ``results``        typed results; ``Diagnosis.to_dict()`` is diagnosis.json
 ``study``          :func:`diagnose`, the whole analysis
 =================  ==========================================================
@@ -42,11 +44,11 @@ from .calibration import Calibration, SimulationCache, calibrate, predict_points
 from .crossval import HeldOut, folds_by_experiment, run_folds
 from .decision import rank_candidates
 from .noise import noise_floor, paired_z, pooled_rms
-from .prepare import Prepared, peak_regimes, prepare_experiment
-from .results import CandidateResult, Diagnosis, Gain, Signature
+from .prepare import Prepared, choose_metric, peak_regimes, prepare_experiment
+from .results import CandidateResult, Contribution, Diagnosis, Gain, Signature
 from .signatures import loading_stalls
-from .specs import (BASELINE, BASELINE_MU_EXCESS, CANDIDATES, CAUSES, REGISTRATION_BOUNDS,
-                    WARP_CENTER_RANGE, WARP_RADIUS, ParamSpec)
+from .specs import (BASELINE, BASELINE_MU_EXCESS, CANDIDATES, CAUSES, MATERIAL_BASELINE, REGISTRATION_BOUNDS,
+                    WARP_CENTER_RANGE, WARP_RADIUS, ParamSpec, StudyScales)
 from .study import diagnose
 
 __all__ = [
@@ -54,11 +56,13 @@ __all__ = [
     "BASELINE_MU_EXCESS",
     "CANDIDATES",
     "CAUSES",
+    "MATERIAL_BASELINE",
     "REGISTRATION_BOUNDS",
     "WARP_CENTER_RANGE",
     "WARP_RADIUS",
     "Calibration",
     "CandidateResult",
+    "Contribution",
     "Diagnosis",
     "Gain",
     "HeldOut",
@@ -66,7 +70,9 @@ __all__ = [
     "Prepared",
     "Signature",
     "SimulationCache",
+    "StudyScales",
     "calibrate",
+    "choose_metric",
     "diagnose",
     "folds_by_experiment",
     "loading_stalls",

@@ -17,6 +17,8 @@ from threadpoolctl import threadpool_limits
 from ..batch import run_batch
 from .calibration import Calibration, SimulationCache, calibrate, predict_points, reregister
 from .noise import noise_floor
+from .prepare import sample_mse
+from .specs import PAPER_START, StudyScales, as_model, model_key
 
 __all__ = ["FoldTask", "HeldOut", "folds_by_experiment", "run_fold", "run_folds"]
 
@@ -39,30 +41,36 @@ class FoldTask:
         Every experiment of the study.
     train, test : tuple of int
         Indices into ``preps``.
-    cause : str or None
-        The candidate (None: the baseline).
+    cause : tuple of str
+        The model: ``()`` the baseline, one candidate or a pair.
     start : dict or None
         Start values (the baseline's optimum on this fold for a candidate).
     calibrate_kw : dict
         Passed to :func:`notchfit.diagnosis.calibration.calibrate`.
     seed : int
         Seed of the noise floor's draws (:func:`notchfit.diagnosis.noise.noise_floor`).
+    scales : StudyScales
+        The whole study's scales (every fold fits in the same units).
+    base : FrictionParams or None
+        The base model (default: the paper's).
     """
 
     preps: tuple
     train: tuple
     test: tuple
-    cause: str | None
+    cause: tuple
     start: dict | None
     calibrate_kw: dict = field(default_factory=dict)
     seed: int = 0
+    scales: StudyScales = field(default_factory=StudyScales)
+    base: object = None
 
 
 @dataclass(frozen=True)
 class FoldResult:
-    """Calibration of one fold and its held-out predictions ``{index: (points, theta, floor)}``."""
+    """Calibration of one fold and its held-out predictions ``{index: (predicted, theta, floor)}``."""
 
-    cause: str | None
+    cause: tuple
     test: tuple
     calibration: Calibration
     predictions: dict
@@ -73,13 +81,17 @@ def run_fold(task: FoldTask) -> FoldResult:
     with threadpool_limits(limits=1):
         cache = SimulationCache()
         train = [task.preps[i] for i in task.train]
-        cal = calibrate(train, task.cause, task.start, cache=cache, **task.calibrate_kw)
+        # the candidates whose fit may end in another basin from the baseline's (or, for a pair, the
+        # first cause's) optimum are also fitted from the paper's values (specs.PAPER_START)
+        paper = task.cause[-1] in PAPER_START if task.cause else False
+        cal = calibrate(train, task.cause, task.start, cache=cache, scales=task.scales, base=task.base,
+                        paper_start=paper, **task.calibrate_kw)
         preds = {}
         for i in task.test:
             prep = task.preps[i]
-            T = reregister(prep, cal.values) if task.cause == "calibration_error" else None
-            P, theta = predict_points(prep, cal.values, transform=T, cache=cache)
-            preds[int(i)] = (P, theta, noise_floor(prep, cal.values, cache, seed=task.seed))
+            T = reregister(prep, cal.values) if "calibration_error" in task.cause else None
+            P, theta = predict_points(prep, cal.values, transform=T, cache=cache, base=task.base)
+            preds[int(i)] = (P, theta, noise_floor(prep, cal.values, cache, seed=task.seed, base=task.base))
     return FoldResult(task.cause, tuple(task.test), cal, preds)
 
 
@@ -89,19 +101,21 @@ class HeldOut:
 
     Attributes
     ----------
-    cause : str or None
-    points : dict
-        Experiment index -> predicted points (S, m, 2) [m].
+    cause : tuple of str
+        The model.
+    predicted : dict
+        Experiment index -> predicted measurements: points (S, m, 2) [m] or
+        joint angles (S, n) [rad].
     theta : dict
         Experiment index -> predicted joint angles (S, n) [rad].
     floor : dict
-        Experiment index -> noise floor (S,) [m²].
+        Experiment index -> noise floor (S,) [m² or rad²].
     calibrations : tuple of Calibration
         One per fold, in fold order.
     """
 
-    cause: str | None
-    points: dict = field(default_factory=dict)
+    cause: tuple
+    predicted: dict = field(default_factory=dict)
     theta: dict = field(default_factory=dict)
     floor: dict = field(default_factory=dict)
     calibrations: tuple = ()
@@ -109,28 +123,24 @@ class HeldOut:
     @classmethod
     def from_folds(cls, cause, results) -> HeldOut:
         """Collect the :class:`FoldResult` of one model (in fold order)."""
-        points, theta, floor = {}, {}, {}
+        predicted, theta, floor = {}, {}, {}
         for r in results:
             for i, (P, th, fl) in r.predictions.items():
-                points[i], theta[i], floor[i] = P, th, fl
-        return cls(cause, points, theta, floor, tuple(r.calibration for r in results))
+                predicted[i], theta[i], floor[i] = P, th, fl
+        return cls(as_model(cause), predicted, theta, floor, tuple(r.calibration for r in results))
 
     def mean_floor(self) -> float:
         """Mean noise floor over every held-out sample [m²] (:func:`notchfit.diagnosis.noise.noise_floor`)."""
         return float(np.nanmean(np.concatenate([self.floor[i] for i in sorted(self.floor)])))
 
     def sample_mse(self, preps) -> list[np.ndarray]:
-        """Per experiment, the mean squared point error of each sample [m²] (S,)."""
-        out = []
-        for i, p in enumerate(preps):
-            d2 = np.sum((self.points[i] - p.measured) ** 2, axis=-1)
-            d2[~p.valid] = np.nan
-            out.append(np.nanmean(d2, axis=1))
-        return out
+        """Per experiment, the mean squared error of each sample [m² or rad²] (S,)
+        (:func:`notchfit.diagnosis.prepare.sample_mse`)."""
+        return [sample_mse(p, self.predicted[i]) for i, p in enumerate(preps)]
 
 
 def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = None, seed: int = 0,
-              jobs: int = 1, scheduler=None) -> dict:
+              jobs: int = 1, scheduler=None, scales: StudyScales | None = None, base=None) -> dict:
     """Calibrate every model of ``causes`` on every fold and collect the held-out predictions.
 
     Parameters
@@ -138,10 +148,12 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
     preps : sequence of Prepared
     folds : list of ndarray
         Held-out indices of each fold (:func:`folds_by_experiment`).
-    causes : sequence of (str or None)
-        Models to calibrate (None: the baseline).
-    starts : list of dict, optional
-        Start values per fold (default: the specs' start values).
+    causes : sequence of models
+        Models to calibrate: None or ``()`` the baseline, a cause id, or a
+        tuple of causes (:func:`notchfit.diagnosis.specs.as_model`).
+    starts : list of dict, or dict of such lists, optional
+        Start values per fold (default: the specs' start values); a dict gives
+        them per model key (:func:`notchfit.diagnosis.specs.model_key`).
     calibrate_kw : dict, optional
     seed : int
         Seed of the noise floor's draws.
@@ -149,11 +161,15 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
         Worker processes (1: here; 0: one per CPU).
     scheduler : str or dask.distributed.Client, optional
         Run the (model × fold) items on this Dask cluster instead.
+    scales : StudyScales, optional
+        Default: the scales of ``preps``.
+    base : FrictionParams, optional
+        The base model (default: the paper's).
 
     Returns
     -------
     dict
-        ``{cause: HeldOut}``.
+        ``{model key: HeldOut}`` (``"baseline"``, ``"joint_hysteresis"``, ``"a+b"``).
 
     Raises
     ------
@@ -162,14 +178,17 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
     """
     preps = tuple(preps)
     all_idx = np.arange(len(preps))
-    starts = starts if starts is not None else [None] * len(folds)
+    scales = scales or StudyScales.of(preps, base)
+    models = [as_model(c) for c in causes]
     kw = dict(calibrate_kw or {})
     tasks, keys = [], []
-    for cause in causes:
+    for model in models:
+        st = starts.get(model_key(model)) if isinstance(starts, dict) else starts
+        st = st if st is not None else [None] * len(folds)
         for k, f in enumerate(folds):
             train = tuple(int(i) for i in np.setdiff1d(all_idx, f))
-            tasks.append(FoldTask(preps, train, tuple(int(i) for i in f), cause, starts[k], kw, seed))
-            keys.append(f"{cause or 'baseline'}/fold{k + 1}")
+            tasks.append(FoldTask(preps, train, tuple(int(i) for i in f), model, st[k], kw, seed, scales, base))
+            keys.append(f"{model_key(model)}/fold{k + 1}")
     # the platform's default start method (fork on Linux), whatever threads this process
     # runs: spawn would re-import notchfit in every worker (seconds per pool) and re-run
     # a caller's unguarded script
@@ -178,4 +197,4 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
     if res.failures:
         raise RuntimeError(res.summary("diagnosis calibrations"))
     results = res.values()
-    return {c: HeldOut.from_folds(c, [r for r in results if r.cause == c]) for c in causes}
+    return {model_key(m): HeldOut.from_folds(m, [r for r in results if r.cause == m]) for m in models}

@@ -18,12 +18,12 @@ import numpy as np
 
 from ..polygon import polygon_area
 from ..shapes import line_fit
-from ..units import MM
+from ..units import DEG, MM
 from .crossval import HeldOut
 from .noise import pooled_rms
 from .results import Signature
 
-__all__ = ["loading_stalls", "signatures"]
+__all__ = ["loading_stalls", "signatures", "skipped_signatures"]
 
 
 def _loop_area(T, phi) -> float:
@@ -94,9 +94,16 @@ class _Tally:
     asym: list = field(default_factory=list)
     n_stall: int = 0
     n_steps: int = 0
+    pulls: set = field(default_factory=set)
+
+    @property
+    def both_directions(self) -> bool:
+        """The study pulls both ways (the direction asymmetry is defined)."""
+        return len(self.pulls) > 1
 
     def add(self, p, th_p: np.ndarray, stall_ratio: float) -> None:
         """Add experiment ``p`` (Prepared) with predicted joint angles ``th_p`` (S, n) [rad]."""
+        self.pulls.add(p.pulled)
         tip_m = p.tip_angle
         tip_p = p.pulled * th_p.sum(axis=1)
         T = p.pulled_tension
@@ -124,12 +131,18 @@ class _Tally:
 
 def _regime_signatures(preps, mse, noise: float) -> list[Signature]:
     out = []
+    angles = preps[0].metric == "angles"
     for reg in ("I", "II", "III"):
         r = pooled_rms(mse, [p.regime == reg for p in preps])
         if np.isfinite(r):
-            out.append(Signature(f"heldout_rms_regime_{reg}", r, "m",
-                                 f"held-out baseline notch-point rms in regime {reg} is {r / MM:.3f} mm "
-                                 f"(noise floor {math.sqrt(noise) / MM:.3f} mm)"))
+            if angles:
+                out.append(Signature(f"heldout_rms_regime_{reg}", r / DEG, "deg",
+                                     f"held-out baseline joint-angle rms in regime {reg} is {r / DEG:.3f}° "
+                                     f"(noise floor {math.sqrt(noise) / DEG:.3f}°)"))
+            else:
+                out.append(Signature(f"heldout_rms_regime_{reg}", r, "m",
+                                     f"held-out baseline notch-point rms in regime {reg} is {r / MM:.3f} mm "
+                                     f"(noise floor {math.sqrt(noise) / MM:.3f} mm)"))
     return out
 
 
@@ -171,28 +184,43 @@ def _shape_signatures(t: _Tally) -> list[Signature]:
     out.append(Signature("backbone_residual", vb - vf, "rad",
                          f"joint-angle error (measured − baseline) is {vb:+.4f} rad on the base third and "
                          f"{vf:+.4f} rad on the tip third"))
-    v = float(np.mean(t.asym))
-    out.append(Signature("direction_asymmetry", v, "rad",
-                         f"the tip-angle error has mean {v:+.4f} rad in the manipulator frame over both pull "
-                         "directions (a mirror-symmetric model error averages out; a steady load does not)"))
+    if t.both_directions:
+        v = float(np.mean(t.asym))
+        out.append(Signature("direction_asymmetry", v, "rad",
+                             f"the tip-angle error has mean {v:+.4f} rad in the manipulator frame over both pull "
+                             "directions (a mirror-symmetric model error averages out; a steady load does not)"))
     return out
 
 
 def _study_signatures(preps, mse) -> list[Signature]:
-    """The spatial pattern of the free-θ residuals and the dependence on the counter-tension."""
-    free_ms = np.nanmean(np.concatenate([np.sum(p.free_residuals**2, -1)[p.valid] for p in preps]))
-    point_noise = np.mean([2 * p.sigma**2 for p in preps])
-    v = float(math.sqrt(free_ms / point_noise))
-    out = [Signature("spatial_pattern", v, "-",
-                     f"free-θ fits leave a residual {v:.2f}× the noise level: "
-                     + ("a pattern across the image that no joint configuration explains" if v > 1.3
-                        else "no pattern beyond noise"))]
+    """The spatial pattern of the free-θ residuals (notch points) and the dependence on the counter-tension."""
+    out = []
+    if preps[0].metric == "points":
+        free_ms = np.nanmean(np.concatenate([np.sum(p.free_residuals**2, -1)[p.valid] for p in preps]))
+        point_noise = np.mean([2 * p.sigma**2 for p in preps])
+        v = float(math.sqrt(free_ms / point_noise))
+        out.append(Signature("spatial_pattern", v, "-",
+                             f"free-θ fits leave a residual {v:.2f}× the noise level: "
+                             + ("a pattern across the image that no joint configuration explains" if v > 1.3
+                                else "no pattern beyond noise")))
     cts = [p.counter_tension for p in preps]
     ers = [math.sqrt(np.nanmean(m)) for m in mse]
     if len(set(np.round(cts, 6))) > 1:
         c = float(np.corrcoef(cts, ers)[0, 1])
         out.append(Signature("counter_tension_dependence", c, "-",
                              f"held-out error correlates with counter-tension at r = {c:+.2f}"))
+    return out
+
+
+def skipped_signatures(preps) -> dict:
+    """``{signature: reason}`` for the signatures this study cannot show."""
+    out = {}
+    if preps[0].metric == "angles":
+        out["spatial_pattern"] = ("needs notch points: the residual of free-θ fits across the image; the "
+                                  "experiments are measured as joint angles")
+    if len({p.pulled for p in preps}) < 2:
+        out["direction_asymmetry"] = ("needs both pull directions: every experiment pulls the same way "
+                                      "(e.g. a one-tendon wrist)")
     return out
 
 

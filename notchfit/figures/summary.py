@@ -146,36 +146,41 @@ def simulation_figure(cmp: pd.DataFrame):
     return fig
 
 
-def candidates_figure(candidates: pd.DataFrame, noise_mm: float, named=(), regimes: pd.DataFrame | None = None):
+def candidates_figure(candidates: pd.DataFrame, noise: float, named=(), regimes: pd.DataFrame | None = None,
+                      *, unit: str = "mm"):
     """Held-out error of the baseline and of each candidate extension; and by regime.
 
     Parameters
     ----------
     candidates : DataFrame
-        ``model, heldout_rms_mm`` with the baseline as ``model == "baseline"``.
-    noise_mm : float
-        The noise floor [mm].
+        ``model, heldout_rms_<unit>`` with the baseline as ``model == "baseline"``.
+    noise : float
+        The noise floor [unit].
     named : sequence of str
         The causes the diagnosis named (green).
     regimes : DataFrame, optional
-        ``regime, baseline, extended`` [mm].
+        ``regime, baseline, extended`` [unit].
+    unit : {"mm", "deg"}
+        Notch-point errors [mm] or joint-angle errors [deg].
     """
-    fig = new_figure(WIDTH, 2.9)
+    what = "point" if unit == "mm" else "joint-angle"
+    col = f"heldout_rms_{unit}"
+    fig = new_figure(WIDTH, 2.9 + 0.12 * max(0, len(candidates) - 8))
     axes = fig.subplots(1, 2 if regimes is not None and len(regimes) else 1, squeeze=False)[0]
-    c = candidates.sort_values("heldout_rms_mm", ascending=False)
+    c = candidates.sort_values(col, ascending=False)
     colours = ["tab:red" if m == "baseline" else ("tab:green" if m in named else "0.7") for m in c["model"]]
-    axes[0].barh(c["model"], c["heldout_rms_mm"], color=colours)
-    axes[0].axvline(noise_mm, color="k", ls=":", label=f"noise floor {noise_mm:.2f} mm")
-    axes[0].set_xlabel("held-out point error, rms [mm]")
+    axes[0].barh(c["model"], c[col], color=colours)
+    axes[0].axvline(noise, color="k", ls=":", label=f"noise floor {noise:.2f} {unit}")
+    axes[0].set_xlabel(f"held-out {what} error, rms [{unit}]")
     axes[0].set_title("shorter is better; green: named", fontsize=10)
     axes[0].legend(fontsize=8, loc="lower right")
     if len(axes) > 1:
         x = np.arange(len(regimes))
         axes[1].bar(x - 0.2, regimes["baseline"], 0.4, color=SERIES["baseline"], label="baseline")
         axes[1].bar(x + 0.2, regimes["extended"], 0.4, color=SERIES["extended"], label="extended")
-        axes[1].axhline(noise_mm, color="k", ls=":")
+        axes[1].axhline(noise, color="k", ls=":")
         axes[1].set_xticks(x, [f"regime {r}" for r in regimes["regime"]])
-        axes[1].set_ylabel("held-out point error, rms [mm]")
+        axes[1].set_ylabel(f"held-out {what} error, rms [{unit}]")
         axes[1].set_title("by regime (I loading, II holding, III releasing)", fontsize=10)
         axes[1].legend(fontsize=8)
     return fig

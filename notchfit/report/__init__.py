@@ -41,7 +41,7 @@ from .._version import __version__
 from ..cables import pulled_side
 from .page import CSS, esc, na, num, rel
 from .sections import (causes_of, detection_section, diagnosis_section, files_section, fit_section,
-                              fit_summary, glance_section, simulation_section, study_section)
+                              fit_summary, glance_section, simulation_section, study_section, unit_of)
 
 __all__ = ["SECTIONS", "Inputs", "build_report", "find_study", "summary_lines"]
 
@@ -149,10 +149,10 @@ def summary_lines(out_dir) -> list[str]:
         d = nio.read_diagnosis(path)
     except ValueError as exc:
         return lines + [f"cause: not available ({exc})", "gain: not available"]
-    b, g = d.get("baseline") or {}, d.get("gain") or {}
+    b, g, u = d.get("baseline") or {}, d.get("gain") or {}, unit_of(d)
     lines.append(f"cause: {', '.join(causes_of(d))} (calibrated baseline held-out rms "
-                 f"{num(b.get('heldout_rms_mm'))} mm)")
-    lines.append(f"gain: held-out rms {num(g.get('baseline'))} -> {num(g.get('extended'))} mm "
+                 f"{num(b.get(f'heldout_rms_{u}'))} {u})")
+    lines.append(f"gain: held-out rms {num(g.get('baseline'))} -> {num(g.get('extended'))} {u} "
                  f"({num(g.get('reduction_pct'), 3)} % lower)")
     return lines
 

@@ -17,11 +17,11 @@ from .. import io as nio
 from ..figures.summary import (candidates_figure, fit_errors_figure, loops_figure, residual_map_figure,
                                simulation_figure, thumbnails_figure)
 from ..friction import FrictionParams
-from .page import esc, figure_html, link, na, num, pct, table
+from .page import esc, figure_html, image_html, link, na, num, pct, table
 from .tables import (b_at_peak_rows, detection_rows, diagnosis_loops, fit_tables, simulation_table,
                             thumbnail_panels)
 
-__all__ = ["CAUSE_TEXT", "causes_of", "detection_section", "diagnosis_section", "files_section",
+__all__ = ["CAUSE_TEXT", "causes_of", "unit_of", "detection_section", "diagnosis_section", "files_section",
            "fit_section", "fit_summary", "glance_section", "simulation_section", "study_section"]
 
 #: What each cause means for the robot, in a phrase (the ids of docs/data-formats.md).
@@ -30,7 +30,8 @@ CAUSE_TEXT = {
                          "that reaches the tube lags the measured one",
     "static_friction": "the cables stick in their channels longer than the paper's static friction allows",
     "joint_hysteresis": "the superelastic flexures are hysteretic: a joint keeps its angle until the torque "
-                        "on it changes by a play width",
+                        "on it changes by a threshold (a play, or loops confined to large bends, or "
+                        "elastic-plastic loops)",
     "external_load": "a steady external load (payload, gravity, contact) bends both pull directions the "
                      "same way",
     "stiffness_gradient": "the joint stiffness changes along the backbone",
@@ -43,12 +44,23 @@ CAUSE_TEXT = {
 PARAM_TEXT = {"k_lin": ("k_lin", "N m/rad"), "k_mid": ("k_mid", "N m/rad"), "k_stop": ("k_stop", "N m/rad"),
               "theta_mid": ("θ_mid", "rad"), "theta_stop": ("θ_stop", "rad"), "mu_d": ("μ_d", ""),
               "mu_s": ("μ_s", ""), "b": ("damping b", "N m s/rad"), "v_thr": ("v_thr", "m/s"),
-              "proximal_beta": ("β", ""), "hysteresis_torque": ("play torque", "N m"),
+              "proximal_beta": ("β", ""), "hysteresis_torque": ("hysteresis torque", "N m"),
+              "hysteresis_onset": ("hysteresis onset", "rad"), "hysteresis_yield": ("yield angle", "rad"),
+              "E_lin": ("E_lin", "GPa", 1e-9), "E_se": ("E_se", "GPa", 1e-9),
               "tip_force_x": ("F_x", "N"), "tip_force_z": ("F_z", "N"), "stiffness_gradient": ("gradient", ""),
               "mu_s_minus_mu_d": ("μ_s − μ_d", ""), "mu_s_excess": ("μ_s − μ_d", ""),
               "scale_error": ("scale error", ""), "k_radial": ("radial k", ""),
               "warp_center_x": ("warp centre x", "mm", 1e3), "warp_center_y": ("warp centre y", "mm", 1e3)}
 _PAPER = FrictionParams()
+
+
+def unit_of(d: dict) -> str:
+    """The file unit of a diagnosis's errors: ``"mm"`` (notch points) or ``"deg"`` (joint angles)."""
+    return "deg" if d.get("metric") == "angles" else "mm"
+
+
+def _what(d: dict) -> str:
+    return "joint-angle" if unit_of(d) == "deg" else "notch-point"
 
 
 def causes_of(d: dict) -> list[str]:
@@ -122,10 +134,11 @@ def _answer_text(inp) -> tuple[str, str]:
     causes = causes_of(d)
     ans = "; ".join(f"<b>{esc(c.replace('_', ' '))}</b>: {esc(CAUSE_TEXT.get(c, ''))}" for c in causes) + "."
     g = d.get("gain") or {}
-    noise = d.get("noise_rms_mm")
-    gain = (f"held-out notch-point error {num(g.get('baseline'))} mm → {num(g.get('extended'))} mm rms "
+    u = unit_of(d)
+    noise = d.get(f"noise_rms_{u}")
+    gain = (f"held-out {_what(d)} error {num(g.get('baseline'))} {u} → {num(g.get('extended'))} {u} rms "
             f"(<b>{pct(g.get('reduction_pct'))} lower</b>) on experiments left out of every fit"
-            + (f"; measurement noise floor {num(noise)} mm" if noise is not None else "") + ".")
+            + (f"; measurement noise floor {num(noise)} {u}" if noise is not None else "") + ".")
     return ans, gain
 
 
@@ -344,42 +357,66 @@ def simulation_section(inp) -> str:
 def _diag_params_text(d: dict) -> str:
     b = d.get("baseline") or {}
     ext = d.get("extended_model") or {}
-    txt = (f"<b>Parameters:</b> baseline = the paper's model calibrated on this study: "
+    model = b.get("model", "moses2015")
+    which = "the paper's model" if model == "moses2015" else f"the tube's default model ({model})"
+    txt = (f"<b>Parameters:</b> baseline = {esc(which)} calibrated on this study: "
            f"{esc(_params(b.get('params') or {}, b.get('se')))}"
            + (f"; fixed {esc(_params(b.get('fixed')))}" if b.get("fixed") else "")
            + "; the rest at the paper's values.")
     if ext.get("params"):
-        txt += (f" Extended ({esc(str(ext.get('cause', '')).replace('_', ' '))}, "
+        named = ", ".join(ext.get("causes") or [ext.get("cause", "")])
+        txt += (f" Extended ({esc(str(named).replace('_', ' '))}, "
                 f"<code>{esc(d.get('extended_model_file', 'extended_model.toml'))}</code>, refitted on all "
                 f"experiments): {esc(_params(ext['params'], ext.get('se')))}.")
     return f'<p class="params">{txt}</p>'
 
 
-def _cause_html(d: dict, cause: str, k: int) -> str:
-    cands = {c.get("cause"): c for c in d.get("candidates") or []}
+def _cause_html(inp, d: dict, cause: str, k: int) -> str:
+    """A named cause: what it means, what it removes on held-out data, and its figure."""
+    u = unit_of(d)
     head = f"<h3>Cause {k}: {esc(cause.replace('_', ' '))}</h3><p>{esc(CAUSE_TEXT.get(cause, ''))}.</p>"
-    c = cands.get(cause)
-    if c is None:
+    contrib = {c.get("cause"): c for c in d.get("contributions") or []}.get(cause)
+    c = {c.get("cause"): c for c in d.get("candidates") or []}.get(cause)
+    if contrib is None and c is None:
         b = d.get("baseline") or {}
-        return head + (f"<p>Baseline held-out error {num(b.get('heldout_rms_mm'))} mm, noise floor "
-                       f"{num(d.get('noise_rms_mm'))} mm.</p>")
-    base = (d.get("baseline") or {}).get("heldout_rms_mm")
-    return head + (f"<p>Fitted with its parameter(s) {esc(_params(c.get('params') or {}))} on the training "
-                   f"experiments, it lowers the held-out error from {num(base)} mm to "
-                   f"{num(c.get('heldout_rms_mm'))} mm (z = {num(c.get('z'), 3)}: the per-sample improvement "
-                   "in units of its standard error, serial correlation accounted for; 3 or more counts) and "
-                   f"removes {pct(100 * c.get('excess_removed', np.nan))} of the baseline's error above "
-                   "the noise floor (in mean squares: (baseline² − extended²) / (baseline² − noise²); "
-                   "above 100 % when it ends below the estimated noise).</p>")
+        return head + (f"<p>Baseline held-out error {num(b.get(f'heldout_rms_{u}'))} {u}, noise floor "
+                       f"{num(d.get(f'noise_rms_{u}'))} {u}.</p>")
+    if contrib is not None:
+        body = (f"<p>Fitted with its parameter(s) {esc(_params(contrib.get('params') or {}))}, it lowers the "
+                f"held-out error from {num(contrib.get(f'heldout_rms_without_{u}'))} {u} (the model without "
+                f"it) to {num(contrib.get(f'heldout_rms_with_{u}'))} {u} ({pct(contrib.get('gain_pct'))} "
+                f"lower; z = {num(contrib.get('z'), 3)}, the per-sample improvement in units of its standard "
+                "error, serial correlation accounted for; 3 or more counts) and accounts for "
+                f"{pct(contrib.get('share_pct'))} of the discrepancy the extended model removes; alone it "
+                f"reaches {num(contrib.get(f'heldout_rms_alone_{u}'))} {u}.</p>")
+    else:
+        base = (d.get("baseline") or {}).get(f"heldout_rms_{u}")
+        body = (f"<p>Fitted with its parameter(s) {esc(_params(c.get('params') or {}))} on the training "
+                f"experiments, it lowers the held-out error from {num(base)} {u} to "
+                f"{num(c.get(f'heldout_rms_{u}'))} {u} (z = {num(c.get('z'), 3)}: the per-sample improvement "
+                "in units of its standard error, serial correlation accounted for; 3 or more counts) and "
+                f"removes {pct(100 * c.get('excess_removed', np.nan))} of the baseline's error above "
+                "the noise floor (in mean squares: (baseline² − extended²) / (baseline² − noise²); "
+                "above 100 % when it ends below the estimated noise).</p>")
+    png = inp.out / f"diagnosis_cause_{cause}.png"
+    if png.is_file():
+        body += image_html(png.read_bytes(), "image/png",
+                           f"What {esc(cause.replace('_', ' '))} changes: the held-out prediction without it "
+                           "against the extended model and the measurement, in the view that shows its effect.",
+                           f"figure of the cause {cause}")
+    return head + body
 
 
 def _candidates_table(d: dict) -> str:
     named = set(causes_of(d))
+    if len(named) > 1:
+        named.add("+".join(causes_of(d)))
+    u = unit_of(d)
     rows = [{"cause": c.get("cause"), "parameters": _params(c.get("params") or {}),
-             "held-out rms [mm]": num(c.get("heldout_rms_mm")), "z": num(c.get("z"), 2),
+             f"held-out rms [{u}]": num(c.get(f"heldout_rms_{u}")), "z": num(c.get("z"), 2),
              "excess removed": pct(100 * c.get("excess_removed", np.nan)),
-             "significant": "yes" if c.get("significant") else "no", "_rms": c.get("heldout_rms_mm", np.inf)}
-            for c in d.get("candidates") or []]
+             "significant": "yes" if c.get("significant") else "no", "_rms": c.get(f"heldout_rms_{u}", np.inf)}
+            for c in list(d.get("candidates") or []) + list(d.get("pair_candidates") or [])]
     rows.sort(key=lambda r: r["_rms"] if r["_rms"] is not None else np.inf)
     rows = [{k: v for k, v in r.items() if k != "_rms"} for r in rows]
     return table(rows, row_cls=lambda r: "named" if r["cause"] in named else "", text_cols=("parameters",))
@@ -387,13 +424,15 @@ def _candidates_table(d: dict) -> str:
 
 def _diagnosis_figures(inp, d: dict) -> list[str]:
     out, parts = inp.out, []
+    u = unit_of(d)
     cand = out / "diagnosis_candidates.csv"
     if cand.is_file():
         reg = pd.DataFrame([{"regime": r, "baseline": v.get("baseline"), "extended": v.get("extended")}
-                            for r, v in (d.get("per_regime_rms_mm") or {}).items()])
-        parts.append(figure_html(candidates_figure(pd.read_csv(cand), float(d.get("noise_rms_mm") or np.nan),
-                                                   named=causes_of(d), regimes=reg if len(reg) else None),
-                                 "Held-out point error of the calibrated baseline (red) and of each candidate "
+                            for r, v in (d.get(f"per_regime_rms_{u}") or {}).items()])
+        named = [*causes_of(d), "+".join(causes_of(d))]
+        parts.append(figure_html(candidates_figure(pd.read_csv(cand), float(d.get(f"noise_rms_{u}") or np.nan),
+                                                   named=named, regimes=reg if len(reg) else None, unit=u),
+                                 f"Held-out {_what(d)} error of the calibrated baseline (red) and of each candidate "
                                  "extension (green: named), and by regime: the named cause must beat the "
                                  "baseline clearly and come close to the noise floor (dotted).",
                                  "held-out error of the candidates"))
@@ -416,6 +455,10 @@ def _diagnosis_figures(inp, d: dict) -> list[str]:
                                  "and the error of each point (columns) of each sample (rows, in test order "
                                  "per experiment); bright bands mark the samples and points a model misses.",
                                  "held-out error by point and sample"))
+    elif (out / "diagnosis_joint_errors.csv").is_file() and (out / "diagnosis_residuals.png").is_file():
+        parts.append(image_html((out / "diagnosis_residuals.png").read_bytes(), "image/png",
+                                "Held-out joint-angle error by joint, base to tip: baseline and extended model "
+                                "against the noise floor (dotted).", "held-out error by joint"))
     return parts
 
 
@@ -425,7 +468,7 @@ def diagnosis_section(inp) -> str:
         return na(inp.diagnosis_error or "no diagnosis.json in the output folder "
                                          "(run `notchfit diagnose STUDY --out DIR`)")
     parts = [_diag_params_text(d)]
-    parts += [_cause_html(d, c, k) for k, c in enumerate(causes_of(d), 1)]
+    parts += [_cause_html(inp, d, c, k) for k, c in enumerate(causes_of(d), 1)]
     parts.append("<h3>Every candidate</h3>" + _candidates_table(d))
     parts += _diagnosis_figures(inp, d)
     b_rows = b_at_peak_rows(inp)
