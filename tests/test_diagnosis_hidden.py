@@ -108,10 +108,12 @@ def test_null_study_gives_none_and_never_reads_truth(tmp_path, monkeypatch):
     assert d["causes"] == []
 
 
-def test_flag_shaped_superelastic_hysteresis_is_named(tmp_path):
-    """Flag-shaped loops confined to the plateau, from the generator's two-branch superelastic law
-    (not the candidate's stop): named joint_hysteresis with >= 30% held-out gain, alone."""
-    d = _diagnose(tmp_path, "joint_hysteresis_flag", seed=1)
+@pytest.mark.parametrize("law", ["joint_hysteresis_flag", "joint_hysteresis_masing"])
+def test_other_hysteresis_laws_are_named(tmp_path, law):
+    """Flag-shaped loops confined to the plateau (the generator's two-branch superelastic law) and
+    Masing loops (its Bouc-Wen law), not the candidate's stop: named joint_hysteresis with >= 30%
+    held-out gain, alone."""
+    d = _diagnose(tmp_path, law, seed=1)
     assert d["causes"] == ["joint_hysteresis"], d["explanation"]
     assert d["gain"]["reduction_pct"] >= 30.0
 
@@ -134,6 +136,12 @@ def test_two_hidden_causes_are_both_named_with_their_figures(tmp_path):
         assert f"diagnosis_cause_{c}.png" in d["figures"] and (out / f"diagnosis_cause_{c}.csv").is_file()
     p = load_params(out / d["extended_model_file"])
     assert p.tip_force_x != 0.0 and p.stiffness_gradient != 0.0
+    # the report shows each cause with its figure (issue 19, item 5)
+    assert main(["report", str(out), "--study", str(tmp_path / "study")]) == 0
+    page = (out / "report.html").read_text()
+    for k, c in enumerate(d["causes"], 1):
+        assert f"Cause {k}: {c.replace('_', ' ')}" in page
+        assert f'alt="figure of the cause {c}"' in page
 
 
 def test_angle_data_of_a_one_tendon_wrist(tmp_path):
@@ -147,6 +155,11 @@ def test_angle_data_of_a_one_tendon_wrist(tmp_path):
     assert set(d["skipped"]["candidates"]) == {"calibration_error", "external_load"}
     assert set(d["skipped"]["signatures"]) == {"spatial_pattern", "direction_asymmetry"}
     assert "heldout_rms_deg" in d["candidates"][0] and "heldout_rms_mm" not in d["candidates"][0]
+    # the report speaks degrees and names the wrist's data and model
+    assert main(["report", str(tmp_path / "out"), "--study", str(tmp_path / "study")]) == 0
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert "held-out joint-angle error" in page and "joint angles per sample given in angles.csv" in page
+    assert "the tube&#x27;s default model" in page or "the tube's default model" in page
 
 
 def test_static_friction_is_not_misattributed(tmp_path):

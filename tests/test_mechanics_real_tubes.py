@@ -158,7 +158,7 @@ def test_capstan_full_sliding_tension_ratio(wrist):
         TL, TR, F, thd = (np.zeros(n) for _ in range(4))
         v, vL = np.zeros(n - 1), np.zeros(n - 1)
         slide = np.ones(n - 1, np.int8)
-        K._forces(TL, TR, slide * 0, slide, 0.0, 2.0, par, J, 1.0 / J[K.J_B], G, F, thd, v, vL)
+        K._forces(TL, TR, slide * 0, slide, 0.0, 2.0, par, J, 1.0 / J[K.J_B], G, F, thd, v, vL, th, np.zeros(n))
         for prof in (np.array(T), TR):
             anchor_over_base = prof[-1] / prof[0] * np.exp(-mu * 0.5 * (a[0] + a[-1]))
             assert anchor_over_base == pytest.approx(np.exp(-mu * a.sum()), abs=1e-9)

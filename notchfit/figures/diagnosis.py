@@ -128,6 +128,7 @@ def _joint_errors(diag, out_dir: Path) -> list[Path]:
         errs[tag] = np.sqrt(np.nanmean(e**2, axis=0)) / f
         ax.plot(np.arange(1, n + 1), errs[tag], marker="o", label=label)
     ax.axhline(diag.noise_rms / f, color="0.5", ls=":", label="noise floor")
+    ax.set_xticks(np.arange(1, n + 1))
     ax.set_xlabel("joint (base to tip)")
     ax.set_ylabel("held-out rms joint-angle error [deg]")
     ax.legend(fontsize=7)
