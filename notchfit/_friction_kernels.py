@@ -23,7 +23,7 @@ from numba import njit
 from ._hysteresis_kernels import (bouc_wen_step, hyst_direction, hyst_rate_torque, hyst_relax, hyst_relax_target,
                                   hyst_rest, hyst_state, hyst_stiffness, hyst_threshold, superelastic_torque,
                                   superelastic_update)
-from ._spring_kernels import spring_angle, spring_mag, spring_torque  # noqa: F401 (re-exported)
+from ._spring_kernels import spring_angle, spring_mag, spring_piece, spring_torque  # noqa: F401 (re-exported)
 
 # ---- packed parameter vector (the spring and damping entries hold joint 1's values; the
 # kernels read every joint's own from the per-joint table ``J``)
@@ -587,18 +587,6 @@ def _state_machine(TL, TR, sL, sR, sinabs, v, vLs, mus, vthr, law, lastL, lastR,
     flags[2] = corrected
 
 
-@njit(cache=True, inline="always")
-def _segment(x, tm, ts):
-    """Piece of the spring law holding ``x``: 0 linear, ±1 mid range, ±2 beyond the stop."""
-    a = abs(x)
-    if a < tm:
-        return 0
-    s = 1 if x > 0.0 else -1
-    if a < ts:
-        return s
-    return 2 * s
-
-
 @njit(cache=True)
 def _advance(th, F, tau, h, par, J, out, hS, hS_out):
     """Every joint by the exact relaxation over ``h`` with its drive ``F`` held.
@@ -632,8 +620,8 @@ def _advance(th, F, tau, h, par, J, out, hS, hS_out):
         x = spring_angle(y, k1, k2, k3, tm, ts, s)
         target = th0 + x
         dev = th[i] - th0
-        seg = _segment(dev, tm, ts)
-        if seg == _segment(x, tm, ts):
+        seg = spring_piece(dev, tm, ts)
+        if seg == spring_piece(x, tm, ts):
             a = abs(seg)
             kk = k1 if a == 0 else (k2 if a == 1 else k3)
             e = math.exp(-kk * s * h / bd)
@@ -692,8 +680,8 @@ def _advance_uniform(th, F, tau, h, hyst, J, out):
             continue
         x = spring_angle(y, k1, k2, k3, tm, ts, s)
         dev = th[i] - th0
-        seg = _segment(dev, tm, ts)
-        if seg == _segment(x, tm, ts):
+        seg = spring_piece(dev, tm, ts)
+        if seg == spring_piece(x, tm, ts):
             a = abs(seg)
             if s == 1.0:
                 e = e1 if a == 0 else (e2 if a == 1 else e3)

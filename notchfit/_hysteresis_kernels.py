@@ -58,7 +58,7 @@ import math
 
 from numba import njit
 
-from ._spring_kernels import spring_torque
+from ._spring_kernels import spring_piece, spring_torque
 
 #: Fraction of the onset over which the threshold of the stop grows (ρ).
 HYST_RAMP = 0.5
@@ -215,16 +215,6 @@ def hyst_relax(x0, S0, F, bd, t, d, ke, h, on, k1, k2, k3, tm, ts, s):
 
 
 @njit(cache=True, inline="always")
-def _spring_piece(x, tm, ts):
-    """Piece of the spring law holding ``x``: 0 linear, ±1 mid range, ±2 beyond the stop."""
-    a = abs(x)
-    if a < tm:
-        return 0
-    sg = 1 if x > 0.0 else -1
-    return sg if a < ts else 2 * sg
-
-
-@njit(cache=True, inline="always")
 def _threshold_piece(x, on):
     """Piece of the threshold holding ``x``: 0 where it is 0 (inside ``(1 - ρ) θ_h``), ±1 on the ramp,
     ±2 where it is ``h`` (beyond ``θ_h``; sign of ``x``); always 2 without an onset."""
@@ -247,7 +237,7 @@ def hyst_relax_target(x0, S0, F, d, ke, h, on, k1, k2, k3, tm, ts, s):
     r0 = hyst_threshold(abs(x0), h, on)
     if ke < math.inf and S0 * d < r0:
         return math.nan, 0.0, -1                     # the stop is elastic: several pieces
-    sp = _spring_piece(x0, tm, ts)
+    sp = spring_piece(x0, tm, ts)
     tp = _threshold_piece(x0, on)
     a = abs(sp)
     K = s * (k1 if a == 0 else (k2 if a == 1 else k3))
@@ -257,7 +247,7 @@ def hyst_relax_target(x0, S0, F, d, ke, h, on, k1, k2, k3, tm, ts, s):
     if K <= 0.0:
         return math.nan, 0.0, -1
     xs = x0 + (F - spring_torque(x0, k1, k2, k3, tm, ts, s) - d * r0) / K
-    if _spring_piece(xs, tm, ts) != sp or _threshold_piece(xs, on) != tp:
+    if spring_piece(xs, tm, ts) != sp or _threshold_piece(xs, on) != tp:
         return math.nan, 0.0, -1
     return xs, K, (-1 if ramp else a)
 

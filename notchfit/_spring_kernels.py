@@ -40,3 +40,13 @@ def spring_angle(tq, k1, k2, k3, tm, ts, s):
     else:
         x = ts + (y - y2) / k3
     return x if tq >= 0.0 else -x
+
+
+@njit(cache=True, inline="always")
+def spring_piece(x, tm, ts):
+    """Piece of the spring law holding ``x``: 0 linear, ±1 mid range, ±2 beyond the stop."""
+    a = abs(x)
+    if a < tm:
+        return 0
+    sg = 1 if x > 0.0 else -1
+    return sg if a < ts else 2 * sg

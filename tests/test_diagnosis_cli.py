@@ -19,3 +19,43 @@ def test_parallel_and_seed_options():
     assert (a.jobs, a.scheduler, a.seed) == (2, "tcp://127.0.0.1:8786", 4)
     a = _args()
     assert (a.jobs, a.scheduler, a.seed) == (1, None, 0)
+
+
+# ----------------------------------------------------------------------------- options through the CLI
+def _small_study(tmp_path, recipe="null", seed=1):
+    from notchfit.synth import generate_study, load_recipe
+
+    study = tmp_path / "study"
+    generate_study(load_recipe(recipe).scaled(n_experiments=4, n_up=8, n_down=10), study, seed=seed)
+    return study
+
+
+def test_metric_angles_without_angles_is_one_line_error(tmp_path, capsys):
+    """--metric angles on a study measured as notch points only: exit 2, one line naming the
+    experiments and the missing file, nothing written."""
+    from notchfit.cli import main
+
+    study = _small_study(tmp_path)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(study), "--out", str(out), "--metric", "angles", "--no-figures"]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "error" in ln]
+    assert len(err) == 1 and "angles.csv" in err[0] and "L045" in err[0]
+    assert not (out / "diagnosis.json").exists()
+
+
+def test_assume_step_and_one_cause(tmp_path):
+    """--assume-step takes a step where experiment.toml gives no [protocol] (said as "assumed",
+    no estimate); --one-cause writes at most one cause."""
+    import json
+
+    from notchfit.cli import main
+
+    study = _small_study(tmp_path)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(study), "--out", str(out), "--assume-step", "--one-cause", "--no-figures",
+                 "--max-folds", "2", "--causes", "proximal_friction,external_load"]) == 0
+    d = json.loads((out / "diagnosis.json").read_text())
+    assert set(d["protocol"]["source"].values()) == {"assumed"}
+    assert set(d["protocol"]["ramp_time_s"].values()) == {0.0}
+    assert "a step was assumed" in d["protocol"]["text"]
+    assert len(d["causes"]) <= 1
