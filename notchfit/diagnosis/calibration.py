@@ -146,9 +146,6 @@ class Calibration:
     registration : tuple
         Per training experiment, the fitted registration correction
         (dtx [m], dty [m], dphi [rad]) (calibration_error only; else empty).
-    start_label : str
-        Which start the kept fit ran from: ``"given"`` (``start``, probes from
-        there) or ``"paper"`` (the base model's values, probes from there).
     """
 
     cause: tuple
@@ -161,7 +158,6 @@ class Calibration:
     message: str
     nfev: int
     registration: tuple = ()
-    start_label: str = "given"
 
 
 @dataclass(frozen=True)
@@ -225,10 +221,9 @@ def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base)
     return _Problem(tuple(preps), specs, sc, x0, lo, hi, n_reg, cache, base)
 
 
-def _probe_starts(pb: _Problem, start: dict, paper_start: bool = True,
-                  keep: float = math.inf) -> list[tuple[str, np.ndarray]]:
-    """Start points of the least-squares runs, labelled ``"given"`` or ``"paper"``: ``x0``, or the
-    best probe from ``x0`` and from the base model's values.
+def _probe_starts(pb: _Problem, start: dict, paper_start: bool = True, keep: float = math.inf) -> list[np.ndarray]:
+    """Start points of the least-squares runs: ``x0``, or the best probe from ``x0`` and from the
+    base model's values.
 
     The baseline optimum may have compensated the missing effect (e.g. a soft
     mid-range rate standing in for a stiffness gradient): the extension's
@@ -239,24 +234,23 @@ def _probe_starts(pb: _Problem, start: dict, paper_start: bool = True,
     """
     probe_idx = [i for i, s in enumerate(pb.specs) if s.probes and s.name not in start]
     if not probe_idx:
-        return [("given", pb.x0)]
+        return [pb.x0]
     paper = pb.x0.copy()
     for i, s in enumerate(baseline_specs(pb.base)):
         paper[i] = s.x_of_spec_value(s.start)
     found = []
-    for label, base_x in ((("given", pb.x0), ("paper", paper)) if paper_start else (("given", pb.x0),)):
-        best = (np.inf, base_x, label)
+    for base_x in ((pb.x0, paper) if paper_start else (pb.x0,)):
+        best = (np.inf, base_x)
         for combo in itertools.product(*(pb.specs[i].probes for i in probe_idx)):
             x = base_x.copy()
             for i, v in zip(probe_idx, combo):
                 x[i] = pb.specs[i].x_of_spec_value(v)
             cost = float(np.sum(pb.residuals(x) ** 2))
             if cost < best[0]:
-                best = (cost, x, label)
+                best = (cost, x)
         found.append(best)
-    low = min(c for c, _, _ in found)
-    return [(label, np.clip(x, pb.lo, pb.hi)) for c, x, label in sorted(found, key=lambda t: t[0])
-            if c <= keep * low]
+    low = min(c for c, _ in found)
+    return [np.clip(x, pb.lo, pb.hi) for c, x in sorted(found, key=lambda t: t[0]) if c <= keep * low]
 
 
 def _standard_errors(pb: _Problem, res, vals: dict, n_res: int) -> dict:
@@ -330,12 +324,12 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
     model = as_model(cause)
     base = base or FrictionParams()
     pb = _problem(preps, model, start, cache or SimulationCache(), scales or StudyScales.of(preps, base), base)
-    res, label = None, "given"
-    for lab, xs in _probe_starts(pb, start, paper_start, keep_start):
+    res = None
+    for xs in _probe_starts(pb, start, paper_start, keep_start):
         r = least_squares(pb.residuals, xs, bounds=(pb.lo, pb.hi), method="trf", diff_step=diff_step,
                           max_nfev=max_nfev, ftol=ftol, xtol=xtol, x_scale="jac")
         if res is None or r.cost < res.cost:
-            res, label = r, lab
+            res = r
     vals = pb.values_of(res.x)
     reg = tuple(tuple(pb.registration(res.x, i)) for i in range(len(preps))) if pb.n_reg else ()
     per = [p.valid.size * (2 if p.metric == "points" else 1) for p in preps]
@@ -346,4 +340,4 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
     train_rms = math.sqrt(float(np.sum(r**2)) / max(n_val, 1))
     return Calibration(cause=model, values=vals, se=se, train_rms=train_rms, cost=float(res.cost),
                        n_residuals=n_res, success=bool(res.success), message=str(res.message),
-                       nfev=int(res.nfev), registration=reg, start_label=label)
+                       nfev=int(res.nfev), registration=reg)

@@ -64,7 +64,6 @@ class FoldTask:
     seed: int = 0
     scales: StudyScales = field(default_factory=StudyScales)
     base: object = None
-    paper_start: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -85,7 +84,6 @@ def run_fold(task: FoldTask) -> FoldResult:
         # the candidates whose fit may end in another basin from the baseline's (or, for a pair, the
         # first cause's) optimum are also fitted from the paper's values (specs.PAPER_START)
         paper = task.cause[-1] in PAPER_START if task.cause else False
-        paper = paper if task.paper_start is None else task.paper_start
         cal = calibrate(train, task.cause, task.start, cache=cache, scales=task.scales, base=task.base,
                         paper_start=paper, **task.calibrate_kw)
         preds = {}
@@ -142,8 +140,7 @@ class HeldOut:
 
 
 def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = None, seed: int = 0,
-              jobs: int = 1, scheduler=None, scales: StudyScales | None = None, base=None,
-              paper_starts: dict | None = None) -> dict:
+              jobs: int = 1, scheduler=None, scales: StudyScales | None = None, base=None) -> dict:
     """Calibrate every model of ``causes`` on every fold and collect the held-out predictions.
 
     Parameters
@@ -168,9 +165,6 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
         Default: the scales of ``preps``.
     base : FrictionParams, optional
         The base model (default: the paper's).
-    paper_starts : dict, optional
-        ``{model key: bool}``: whether that model's fold fits also start from the
-        paper's values, in place of the rule of :data:`specs.PAPER_START`.
 
     Returns
     -------
@@ -193,8 +187,7 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
         st = st if st is not None else [None] * len(folds)
         for k, f in enumerate(folds):
             train = tuple(int(i) for i in np.setdiff1d(all_idx, f))
-            tasks.append(FoldTask(preps, train, tuple(int(i) for i in f), model, st[k], kw, seed, scales, base,
-                                  (paper_starts or {}).get(model_key(model))))
+            tasks.append(FoldTask(preps, train, tuple(int(i) for i in f), model, st[k], kw, seed, scales, base))
             keys.append(f"{model_key(model)}/fold{k + 1}")
     # the platform's default start method (fork on Linux), whatever threads this process
     # runs: spawn would re-import notchfit in every worker (seconds per pool) and re-run

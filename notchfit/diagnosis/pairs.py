@@ -90,18 +90,6 @@ def union_start(first: dict, c1: str, second: dict) -> dict:
     return {**second, **{s.name: first[s.name] for s in CANDIDATES[c1]}}
 
 
-def _fold_start(first: dict, c1: str, second: dict, variant: str, label: str | None) -> dict:
-    """A pair's start on one fold: the first cause's fold optimum (``first``), or the union start
-    (:func:`union_start`) when the screen's fit was best from it; when the screen's best fit ran
-    from the base model's values (``label == "paper"``), only the first cause's parameters (the
-    baseline's then start at the base model's values, as that start's)."""
-    if variant == "union":
-        return union_start(first, c1, second)
-    if label == "paper":
-        return {s.name: first[s.name] for s in CANDIDATES[c1]}
-    return first
-
-
 def screen_pairs(c1: str, second, preps, start: dict, *, others: dict | None = None, scales, base,
                  calibrate_kw=None, jobs: int = 1) -> dict:
     """``c1`` alone and with each second candidate, fitted on every experiment.
@@ -160,8 +148,7 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
         ``{model key: HeldOut}`` of the single candidates.
     preps : sequence of Prepared
     run : callable
-        ``run(models, starts, paper_starts=...) -> {model key: HeldOut}``
-        (:func:`notchfit.diagnosis.crossval.run_folds`).
+        ``run(models, starts) -> {model key: HeldOut}`` (:func:`notchfit.diagnosis.crossval.run_folds`).
     noise : float
         The noise floor [m² or rad²].
     second : sequence of str
@@ -175,9 +162,8 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
     screen : callable, optional
         ``screen(second) -> {model key: (Calibration, in-sample mse, start)}``
         (:func:`screen_pairs`); without it every second candidate is
-        cross-validated. Each fold of a screened pair is fitted once, from
-        the start whose fit was best in the screen (:func:`_fold_start`): the
-        union start, the first cause's fold optimum, or the base model's values.
+        cross-validated. A pair whose screen fit was best from the union
+        start is cross-validated from each fold's union start.
     screen_tol, max_cv : float, int
         Cross-validate the best screened pair and those within ``screen_tol``
         of its in-sample error, at most ``max_cv``.
@@ -203,16 +189,12 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
         if not second:
             return None, {}, (), screened
     models = [(c1, c2) for c2 in second]
-    starts, paper = {}, {}
+    starts = {}
     for m in models:
-        key = model_key(m)
-        cal, _, variant = screened.get(key, (None, None, "first"))
-        starts[key] = [_fold_start(c.values, c1, held[m[1]].calibrations[k].values, variant,
-                                   None if cal is None else cal.start_label)
-                       for k, c in enumerate(m1.calibrations)]
-        if cal is not None:
-            paper[key] = False          # each fold from the start that won the screen, once
-    hp = run(models, starts, paper_starts=paper)
+        union = screened.get(model_key(m), (None, None, "first"))[2] == "union"
+        starts[model_key(m)] = [union_start(c.values, c1, held[m[1]].calibrations[k].values) if union
+                                else c.values for k, c in enumerate(m1.calibrations)]
+    hp = run(models, starts)
     res = tuple(score_candidate(m, hp[model_key(m)], preps, mse1, ms1, ms1 - noise, z_crit=z_crit,
                                 min_excess_removed=min_excess_removed, new=(m[1],)) for m in models)
     best = min(res, key=lambda r: r.heldout_rms)
