@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["DEG", "MM"]
+__all__ = ["DEG", "MM", "UNIT_SIZE"]
 
 #: One millimetre in metres.
 MM = 1e-3
 #: One degree in radians.
 DEG = math.pi / 180.0
+#: The units of measurement errors in files, by their suffix: their size in SI [m or rad].
+UNIT_SIZE = {"mm": MM, "deg": DEG}

@@ -17,16 +17,14 @@ import numpy as np
 
 from ..cables import RIGHT, pulled_side
 from ..fitting import fit_experiment
+from ..fitting.angles import DEFAULT_ANGLE_SIGMA
 from ..notches import notch_points
-from ..units import DEG
 
-__all__ = ["ANGLE_SIGMA_DEFAULT", "METRICS", "Prepared", "choose_metric", "peak_regimes", "prepare_experiment",
+__all__ = ["METRICS", "Prepared", "choose_metric", "peak_regimes", "prepare_experiment",
            "sample_mse"]
 
 #: The comparison metrics: what is compared, and the unit of its errors in files.
 METRICS = {"points": "mm", "angles": "deg"}
-#: Joint-angle uncertainty assumed when experiment.toml gives none [rad] (real-tubes data: 0.5°).
-ANGLE_SIGMA_DEFAULT = 0.5 * DEG
 
 
 @dataclass(frozen=True)
@@ -235,7 +233,7 @@ def _register_points(exp, sigma_default: float):
 
 
 def prepare_experiment(exp, *, metric: str = "points", sigma_default: float = 2e-5,
-                       angle_sigma_default: float = ANGLE_SIGMA_DEFAULT,
+                       angle_sigma_default: float = DEFAULT_ANGLE_SIGMA,
                        ramp_time: float | None = None) -> Prepared:
     """Register one experiment's measurements and fit the measured shapes.
 

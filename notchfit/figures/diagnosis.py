@@ -73,9 +73,7 @@ def residual_tables(diag) -> tuple[pd.DataFrame, pd.DataFrame]:
     floor) and the error of every point of every sample (baseline, extension)."""
     preps = diag.prepared
     m = preps[0].geom.n_points
-    series = {"baseline": diag.heldout["baseline"]}
-    if diag.extended_key != "baseline" and diag.extended_key in diag.heldout:
-        series["extended"] = diag.heldout[diag.extended_key]
+    series = {tag: diag.heldout[key] for tag, (key, _) in zip(("baseline", "extended"), _models(diag))}
     cells, by_point = [], {"point": np.arange(1, m + 1)}
     for key, src in series.items():
         errs = [np.linalg.norm(src.predicted[i] - p.measured, axis=-1) / MM for i, p in enumerate(preps)]

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..diagnosis import prepare_experiment
 from ..fitting.angles import DEFAULT_ANGLE_SIGMA
-from ..units import DEG, MM
+from ..units import UNIT_SIZE
 
 __all__ = ["METRICS", "Observed", "metric_unit", "observe_study", "study_metric", "tube_labels",
            "zero_tension_samples"]
@@ -153,4 +153,4 @@ def zero_tension_samples(obs: Observed, *, n_sigma: float = 3.0) -> np.ndarray:
 
 def metric_unit(metric: str) -> float:
     """SI value of the metric's unit: :data:`~notchfit.units.DEG` [rad] or :data:`~notchfit.units.MM` [m]."""
-    return DEG if metric == "deg" else MM
+    return UNIT_SIZE["deg" if metric == "deg" else "mm"]

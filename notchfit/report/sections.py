@@ -63,6 +63,12 @@ def _what(d: dict) -> str:
     return "joint-angle" if unit_of(d) == "deg" else "notch-point"
 
 
+def _named_models(d: dict) -> set[str]:
+    """The candidate rows of the named model: each named cause, and their pair (``a+b``) when two."""
+    causes = causes_of(d)
+    return {*causes, "+".join(causes)}
+
+
 def causes_of(d: dict) -> list[str]:
     """The named causes: ``causes`` when the diagnosis lists them (first removes most), else ``[cause]``."""
     causes = d.get("causes")
@@ -438,9 +444,7 @@ def _cause_html(inp, d: dict, cause: str, k: int) -> str:
 
 
 def _candidates_table(d: dict) -> str:
-    named = set(causes_of(d))
-    if len(named) > 1:
-        named.add("+".join(causes_of(d)))
+    named = _named_models(d)
     u = unit_of(d)
     rows = [{"cause": c.get("cause"), "parameters": _params(c.get("params") or {}),
              f"held-out rms [{u}]": num(c.get(f"heldout_rms_{u}")), "z": num(c.get("z"), 2),
@@ -459,9 +463,8 @@ def _diagnosis_figures(inp, d: dict) -> list[str]:
     if cand.is_file():
         reg = pd.DataFrame([{"regime": r, "baseline": v.get("baseline"), "extended": v.get("extended")}
                             for r, v in (d.get(f"per_regime_rms_{u}") or {}).items()])
-        named = [*causes_of(d), "+".join(causes_of(d))]
         parts.append(figure_html(candidates_figure(pd.read_csv(cand), float(d.get(f"noise_rms_{u}") or np.nan),
-                                                   named=named, regimes=reg if len(reg) else None, unit=u),
+                                                   named=_named_models(d), regimes=reg if len(reg) else None, unit=u),
                                  f"Held-out {_what(d)} error of the calibrated baseline (red) and of each candidate "
                                  "extension (green: named), and by regime: the named cause must beat the "
                                  "baseline clearly and come close to the noise floor (dotted).",
