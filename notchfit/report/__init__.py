@@ -114,6 +114,15 @@ class Inputs:
                 self.diagnosis = nio.read_diagnosis(out_dir / "diagnosis.json")
             except ValueError as exc:
                 self.diagnosis_error = str(exc)
+        self._once: dict = {}
+
+    def once(self, fn, *args):
+        """``fn(self, *args)``, computed on the first call only: the output tables that several
+        sections use (detections, fit errors, the diagnosis's loops) are read once per report."""
+        key = (fn, args)
+        if key not in self._once:
+            self._once[key] = fn(self, *args)
+        return self._once[key]
 
     @staticmethod
     def _json(path: Path):

@@ -87,6 +87,10 @@ def _params(values: dict, se: dict | None = None) -> str:
     return ", ".join(_param(k, v, se.get(k)) for k, v in values.items() if isinstance(v, (int, float)))
 
 
+def _fit_summary(inp) -> pd.DataFrame | None:
+    return fit_summary(inp.out)
+
+
 def fit_summary(out_dir) -> pd.DataFrame | None:
     """Per model over every experiment: samples, failed fits, rms of all points [mm], max error [mm]."""
     frames = []
@@ -119,7 +123,7 @@ def _measured_text(inp) -> str:
     left = [e.name for e in exps if inp.pulled[e.name] < 0]
     peak = [max(np.max(e.tension_left), np.max(e.tension_right)) for e in exps]
     counter = [float(np.median(e.tension_right if inp.pulled[e.name] < 0 else e.tension_left)) for e in exps]
-    det = detection_rows(inp)
+    det = inp.once(detection_rows)
     if det:
         sig = np.nanmedian([r["_sigma"] for r in det])
         src = (f"{exps[0].geometry.n_points} notch corners per sample found by <code>detect</code> in "
@@ -234,7 +238,7 @@ CONVENTIONS = ("<p class=\"conv\"><b>Units and signs in every section.</b> Lengt
 
 def glance_section(inp) -> str:
     ans, gain = _answer_text(inp)
-    st = fit_summary(inp.out)
+    st = inp.once(_fit_summary)
     shape = na("no fits.csv (run `notchfit fit`)") if st is None else "; ".join(
         f"{esc(r.model)} {num(r.rms_mm)} mm rms (max {num(r.max_mm, 2)} mm)" for r in st.itertuples()) + \
         " — the paper reports max 0.35 mm linear, 3.36 mm constant curvature (Sec. IV-A)."
@@ -292,7 +296,7 @@ def _camera_text(inp) -> str:
 
 
 def detection_section(inp) -> str:
-    rows = detection_rows(inp)
+    rows = inp.once(detection_rows)
     if not rows:
         if inp.exps is not None and not any(e.has_images for e in inp.exps):
             given = "joint angles were given in angles.csv" if _angles_only(inp.exps) else \
@@ -317,7 +321,7 @@ def detection_section(inp) -> str:
 
 # ----------------------------------------------------------------------------- fit
 def fit_section(inp) -> str:
-    st = fit_summary(inp.out)
+    st = inp.once(_fit_summary)
     if st is None:
         return na("no fits.csv in the output folder (run `notchfit fit STUDY --out DIR`)")
     models = table([{"model": r.model, "samples": r.samples, "failed": r.failed, "rms [mm]": num(r.rms_mm),
@@ -469,7 +473,7 @@ def _diagnosis_figures(inp, d: dict) -> list[str]:
                                  "extension (green: named), and by regime: the named cause must beat the "
                                  "baseline clearly and come close to the noise floor (dotted).",
                                  "held-out error of the candidates"))
-    loops = diagnosis_loops(inp)
+    loops = inp.once(diagnosis_loops)
     if loops is not None:
         parts.append(figure_html(loops_figure(loops),
                                  "Tip angle against the pulled tension for each held-out experiment: measured "

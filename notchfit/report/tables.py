@@ -193,7 +193,7 @@ def diagnosis_loops(inp) -> pd.DataFrame | None:
 
 def b_at_peak_rows(inp) -> list[dict]:
     """Per experiment, ``b`` at the peak of the pulled tension: measured and the held-out predictions."""
-    loops = diagnosis_loops(inp)
+    loops = inp.once(diagnosis_loops)
     if loops is None or "b_rad" not in loops:
         return []
     rows = []
