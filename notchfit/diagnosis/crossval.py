@@ -133,6 +133,11 @@ class HeldOut:
         """Mean noise floor over every held-out sample [m²] (:func:`notchfit.diagnosis.noise.noise_floor`)."""
         return float(np.nanmean(np.concatenate([self.floor[i] for i in sorted(self.floor)])))
 
+    def mean_values(self) -> dict:
+        """The mean of the fold optima by parameter name [SI] (a start for a fit on every experiment)."""
+        cals = self.calibrations
+        return {k: float(np.mean([c.values[k] for c in cals])) for k in cals[0].values}
+
     def sample_mse(self, preps) -> list[np.ndarray]:
         """Per experiment, the mean squared error of each sample [m² or rad²] (S,)
         (:func:`notchfit.diagnosis.prepare.sample_mse`)."""

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from .crossval import HeldOut
-from .noise import paired_z
+from .noise import paired_z, pooled_mse
 from .results import CandidateResult, Signature, metric_unit
 from .specs import CANDIDATES, as_model, model_key, specs_for
 
@@ -106,11 +106,11 @@ def score_candidate(cause, held: HeldOut, preps, base_mse, base_ms: float, exces
     """
     model = as_model(cause)
     mse = held.sample_mse(preps)
-    ms = float(np.nanmean(np.concatenate(mse)))
+    ms = pooled_mse(mse)
     z = paired_z(base_mse, mse)
     removed = (base_ms - ms) / excess if excess > 0 else 0.0
     cals = held.calibrations
-    vals = {k: float(np.mean([c.values[k] for c in cals])) for k in cals[0].values}
+    vals = held.mean_values()
     n_par = len(specs_for(model))
     n_res = sum(c.n_residuals for c in cals)
     cost = sum(c.cost for c in cals)

@@ -20,7 +20,7 @@ from .calibration import SimulationCache
 from .prepare import Prepared
 from .specs import model_params
 
-__all__ = ["noise_floor", "paired_z", "pooled_rms"]
+__all__ = ["noise_floor", "paired_z", "pooled_mse", "pooled_rms"]
 
 
 def _frame_free(prep: Prepared, theta) -> np.ndarray:
@@ -129,6 +129,16 @@ def paired_z(base_mse: list[np.ndarray], cand_mse: list[np.ndarray]) -> float:
     if sd == 0:
         return math.inf if allv.mean() > 0 else 0.0
     return float(allv.mean() / (sd / math.sqrt(max(n_eff, 1.0))))
+
+
+def pooled_mse(mse_list) -> float:
+    """Mean of per-sample squared errors pooled over experiments [m² or rad²] (NaN samples left out).
+
+    Parameters
+    ----------
+    mse_list : list of ndarray, shape (S_i,)
+    """
+    return float(np.nanmean(np.concatenate(mse_list)))
 
 
 def pooled_rms(mse_list, mask_list=None) -> float:

@@ -30,7 +30,7 @@ from ..batch import run_batch
 from .calibration import SimulationCache, calibrate, predict_points
 from .crossval import HeldOut
 from .decision import fmt_err, score_candidate
-from .noise import paired_z, pooled_rms
+from .noise import paired_z, pooled_mse, pooled_rms
 from .prepare import sample_mse
 from .results import Contribution
 from .signatures import signatures
@@ -55,10 +55,6 @@ TARGETS = {
 }
 
 
-def _ms(held: HeldOut, preps) -> float:
-    return float(np.nanmean(np.concatenate(held.sample_mse(preps))))
-
-
 def second_candidates(c1: str, cands, *, max_second: int = 4) -> list[str]:
     """Second causes worth fitting with ``c1``: the other single candidates, best held-out first, at
     most ``max_second``; static friction only when it was significant alone (its break-away
@@ -78,7 +74,7 @@ def _fit_all(args):
                         paper_start=model[-1] in PAPER_START, **kw)
         reg = cal.registration or (None,) * len(preps)
         pred = [predict_points(p, cal.values, registration=r, cache=cache, base=base)[0] for p, r in zip(preps, reg)]
-        ms = float(np.nanmean(np.concatenate([sample_mse(p, q) for p, q in zip(preps, pred)])))
+        ms = pooled_mse([sample_mse(p, q) for p, q in zip(preps, pred)])
     return model_key(model), cal, ms, variant
 
 
@@ -180,7 +176,7 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
     """
     m1 = held[c1]
     mse1 = m1.sample_mse(preps)
-    ms1 = float(np.nanmean(np.concatenate(mse1)))
+    ms1 = pooled_mse(mse1)
     if ms1 <= noise * (1.0 + none_tol) or not second:
         return None, {}, (), {}
     screened = screen(second) if screen is not None else {}
@@ -250,7 +246,7 @@ def contributions(causes, held: dict, preps, noise: float, values: dict, *, metr
     tuple of Contribution
     """
     final = model_key(causes)
-    ms = {k: _ms(held[k], preps) for k in ("baseline", *causes, final)}
+    ms = {k: pooled_mse(held[k].sample_mse(preps)) for k in ("baseline", *causes, final)}
     if len(causes) == 1:
         share = {causes[0]: 1.0}
         without = {causes[0]: "baseline"}

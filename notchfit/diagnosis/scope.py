@@ -38,7 +38,7 @@ from threadpoolctl import threadpool_limits
 from ..batch import run_batch
 from ..friction import default_params
 from .calibration import SimulationCache, calibrate, predict_points
-from .noise import noise_floor
+from .noise import noise_floor, pooled_mse
 from .prepare import sample_mse
 
 __all__ = ["applicable_causes", "base_model", "resolve_protocol"]
@@ -85,9 +85,8 @@ def _fit_ramp(args):
         cache = SimulationCache()
         cal = calibrate(preps, None, None, scales=scales, base=base, cache=cache, **kw)
         pred = [predict_points(p, cal.values, cache=cache, base=base)[0] for p in preps]
-        ms = float(np.nanmean(np.concatenate([sample_mse(p, q) for p, q in zip(preps, pred)])))
-        floor = float(np.nanmean(np.concatenate([noise_floor(p, cal.values, cache, seed=seed, base=base)
-                                                 for p in preps])))
+        ms = pooled_mse([sample_mse(p, q) for p, q in zip(preps, pred)])
+        floor = pooled_mse([noise_floor(p, cal.values, cache, seed=seed, base=base) for p in preps])
     return ramp, cal, ms, floor
 
 

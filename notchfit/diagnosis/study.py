@@ -11,7 +11,7 @@ import numpy as np
 from .calibration import calibrate
 from .crossval import folds_by_experiment, run_folds
 from .decision import decide, explain, hysteresis_shape, rank_candidates, score_candidate
-from .noise import pooled_rms
+from .noise import pooled_mse, pooled_rms
 from .pairs import contributions, pair_sentence, screen_pairs, second_candidates, second_step
 from .prepare import choose_metric, prepare_experiment
 from .results import Diagnosis, Gain
@@ -22,11 +22,6 @@ from .specs import CANDIDATES, CAUSES, StudyScales, model_key
 __all__ = ["diagnose"]
 
 
-def _mean_mse(mse) -> float:
-    """Mean of per-sample squared errors pooled over experiments [m² or rad²]."""
-    return float(np.nanmean(np.concatenate(mse)))
-
-
 def _noise(base, held, preps) -> float:
     """The noise floor [m² or rad²]: the smaller of the baseline's and the best candidate's.
 
@@ -35,7 +30,7 @@ def _noise(base, held, preps) -> float:
     """
     floors = [base.mean_floor()]
     if held:
-        best = min(held, key=lambda c: _mean_mse(held[c].sample_mse(preps)))
+        best = min(held, key=lambda c: pooled_mse(held[c].sample_mse(preps)))
         floors.append(held[best].mean_floor())
     return min(floors)
 
@@ -102,8 +97,8 @@ def _masked_first(st: _Study, cands, held, kw, jobs, say):
     say(f"no single cause is significant: screening the {len(pool) * (len(pool) - 1) // 2} pairs of candidates")
     screened = {}
     for i, a in enumerate(pool[:-1]):
-        screened.update(screen_pairs(a, pool[i + 1:], st.preps, _fold_mean(held[a]), scales=st.scales,
-                                     others={c: _fold_mean(held[c]) for c in pool[i + 1:]}, base=st.base,
+        screened.update(screen_pairs(a, pool[i + 1:], st.preps, held[a].mean_values(), scales=st.scales,
+                                     others={c: held[c].mean_values() for c in pool[i + 1:]}, base=st.base,
                                      calibrate_kw=kw, jobs=jobs))
     best = min((k for k in screened if "+" in k), key=lambda k: screened[k][1])
     first, second = best.split("+")
@@ -116,7 +111,7 @@ def _second(st: _Study, cause, held, cands, run, noise, base_mse, *, second_caus
     first cause, screened fits). For ``unexplained`` (two strong effects can each keep the other's
     candidate from significance) every pair is screened and the best is cross-validated from the
     candidate better alone; it must be significant against the baseline too."""
-    base_ms = _mean_mse(base_mse)
+    base_ms = pooled_mse(base_mse)
     if not second_cause or (cause not in CANDIDATES and cause != "unexplained"):
         return ((cause,) if cause in CANDIDATES else ()), (), False, cause, {}
     if cause == "unexplained":
@@ -127,12 +122,12 @@ def _second(st: _Study, cause, held, cands, run, noise, base_mse, *, second_caus
     else:
         first, against = cause, None
         second = [c for c in second_candidates(first, cands, max_second=max_second) if c in st.order]
-        screen = partial(screen_pairs, first, preps=st.preps, start=_fold_mean(held[first]), scales=st.scales,
-                         others={c: _fold_mean(held[c]) for c in second}, base=st.base, calibrate_kw=kw,
+        screen = partial(screen_pairs, first, preps=st.preps, start=held[first].mean_values(), scales=st.scales,
+                         others={c: held[c].mean_values() for c in second}, base=st.base, calibrate_kw=kw,
                          jobs=jobs)
         if second:
             say(f"screening {len(second)} second causes with {first} on all experiments")
-    within = _mean_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + none_tol)
+    within = pooled_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + none_tol)
     c2, hp, res, screened = second_step(first, held, st.preps, run, noise, second, z_crit=z_crit,
                                         min_excess_removed=min_excess_removed, none_tol=none_tol,
                                         against_baseline=against, screen=screen)
@@ -140,12 +135,6 @@ def _second(st: _Study, cause, held, cands, run, noise, base_mse, *, second_caus
     if against is not None:
         return ((first, c2) if c2 else ()), res, within, first, screened
     return ((first, c2) if c2 else (first,)), res, within, first, screened
-
-
-def _fold_mean(held) -> dict:
-    """The mean of a model's fold optima (a start for its fit on every experiment)."""
-    cals = held.calibrations
-    return {k: float(np.mean([c.values[k] for c in cals])) for k in cals[0].values}
 
 
 def _extended(st: _Study, causes, held, screened, kw):
@@ -156,7 +145,7 @@ def _extended(st: _Study, causes, held, screened, kw):
     key = model_key(causes)
     if key in screened:
         return screened[key][0]
-    return calibrate(st.preps, causes, _fold_mean(held[key]), scales=st.scales, base=st.base, paper_start=False,
+    return calibrate(st.preps, causes, held[key].mean_values(), scales=st.scales, base=st.base, paper_start=False,
                      **kw)
 
 
@@ -240,7 +229,7 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     held.update(singles)
 
     base_mse = base.sample_mse(preps)
-    base_ms = _mean_mse(base_mse)
+    base_ms = pooled_mse(base_mse)
     noise = _noise(base, singles, preps)
     say("fitting the baseline on all experiments")
     full_base = st.protocol_fit or calibrate(preps, None, base_start[0], scales=st.scales, base=st.base, **kw)
@@ -262,7 +251,7 @@ def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_b
     """The :class:`Diagnosis`: contributions, explanation, gains."""
     preps = st.preps
     metric = preps[0].metric
-    base_rms, noise_rms = math.sqrt(_mean_mse(base_mse)), math.sqrt(noise)
+    base_rms, noise_rms = math.sqrt(pooled_mse(base_mse)), math.sqrt(noise)
     contribs = contributions(named, held, preps, noise, extended.values, metric=metric) if named else ()
     causes = tuple(c.cause for c in contribs)
     text = explain(cause, sigs, cands, base_rms, noise_rms, none_tol=none_tol, z_crit=z_crit,
@@ -279,7 +268,7 @@ def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_b
     return Diagnosis(experiments=tuple(p.name for p in preps), baseline=full_base,
                      baseline_heldout_rms=base_rms, discrepancies=tuple(sigs), candidates=tuple(cands),
                      cause=causes[0] if causes else cause, explanation=text,
-                     gain=Gain(base_rms, math.sqrt(_mean_mse(ext_mse))), extended=extended,
+                     gain=Gain(base_rms, math.sqrt(pooled_mse(ext_mse))), extended=extended,
                      per_regime=_per_regime(preps, base_mse, ext_mse), noise_rms=noise_rms, seed=seed,
                      heldout=held, prepared=preps, causes=causes, contributions=contribs,
                      pair_candidates=tuple(pair_res), metric=metric, protocol=st.protocol,
