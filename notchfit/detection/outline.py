@@ -208,8 +208,6 @@ def _hole_mouth(ol: Outline, s: int, gray, dark: bool, max_wall: float):
     best = hole_ends(ol, s, gray, dark, max_wall)
     if not best:
         return None
-    if gray is not None and len(best) == 2 and abs(best[0][0] - best[1][0]) < 1e-9:
-        best.sort(key=lambda b: b[1])
     return max(best)[2]
 
 

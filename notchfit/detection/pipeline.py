@@ -19,7 +19,7 @@ from .plane import finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
 
-__all__ = ["link_tolerance", "locate", "refine_and_finish", "refine_corners", "run_at_scale"]
+__all__ = ["link_tolerance", "locate", "refine_and_finish", "refine_corners"]
 
 
 def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
@@ -214,7 +214,7 @@ def _partners(pidx, geom) -> np.ndarray:
     return out
 
 
-def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opts, extra_px=None, geom=None):
+def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opts, geom, extra_px=None):
     """Stage 5 for all corners: first pass with long profiles, then passes sized by the measured blur.
 
     Returns
@@ -228,10 +228,8 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
                      unit(np.array([s[3] for s in specs])), np.array([s[4] for s in specs]) * px_per_m,
                      np.array([s[5] for s in specs]) * px_per_m,
                      np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool),
-                     None if geom is None else _curved_edges(pidx, geom, specs),
-                     None if geom is None else _partners(pidx, geom),
-                     None if geom is None else _holder_faces(pidx, geom))
-    radius_px = math.nan if geom is None else geom.outer_radius * px_per_m
+                     _curved_edges(pidx, geom, specs), _partners(pidx, geom), _holder_faces(pidx, geom))
+    radius_px = geom.outer_radius * px_per_m
     C0 = sp.C.copy()
     margin = 2 * max(opts.stage1_half_px, opts.stage1_face_px) * kf + 10
     extra = np.zeros((0, 2)) if extra_px is None else extra_px
@@ -285,17 +283,6 @@ def link_tolerance(geom, opts):
     if not math.isfinite(opts.scale_tol):
         return None
     return opts.link_rel_tol, opts.link_abs_w * float(slot_widths(geom).min())
-
-
-def run_at_scale(gray, seg, region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base,
-                 extra=None, stations=None):
-    """Stages 2-6 at a given scale. Returns (Detection, refinement dict or None)."""
-    specs, ctx = locate(region, box, small_shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base,
-                        small=seg.image, dark=seg.contrast < 0)
-    if specs is None:
-        return ctx, None
-    return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
-                             extra=extra, stations=stations)
 
 
 def refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, *, f, px_per_m, sgn, extra=None, stations=None):

@@ -125,12 +125,17 @@ def _otsu_background(sub):
     return bgm.ravel() if bgm.sum() >= 50 else None
 
 
+def _surface(A, vals, sel):
+    """Coefficients of the quadratic background surface fitted to the samples ``sel`` (lightly regularised)."""
+    return np.linalg.solve(A[sel].T @ A[sel] + 1e-9 * np.eye(6), A[sel].T @ vals[sel])
+
+
 def _trimmed_background(A, vals, keep: float = 0.5, rounds: int = 4):
     """Background samples from a trimmed fit: the half of the samples nearest a quadratic surface, refitted
     ``rounds`` times (an object covering a small part of an unevenly lit image)."""
     use = np.ones(len(vals), bool)
     for _ in range(rounds):
-        coef = np.linalg.solve(A[use].T @ A[use] + 1e-9 * np.eye(6), A[use].T @ vals[use])
+        coef = _surface(A, vals, use)
         r = np.abs(vals - A @ coef)
         use = r <= np.quantile(r, keep)
     return use if use.sum() >= 50 else None
@@ -140,7 +145,7 @@ def _refit(A, vals, inl, small, step, shape, rounds):
     """The background surface refitted to the samples within a quarter of the contrast; the object is the
     far side, dark or bright by the sign of most far samples. Returns (coefficients, contrast, noise)."""
     for it in range(rounds + 1):
-        coef = np.linalg.solve(A[inl].T @ A[inl] + 1e-9 * np.eye(6), A[inl].T @ vals[inl])
+        coef = _surface(A, vals, inl)
         res = vals - A @ coef
         if it in (0, rounds):
             noise = _noise(small, step, inl.reshape(shape))

@@ -31,6 +31,11 @@ def _close_disk(region, r: int, border=cv2.BORDER_REPLICATE):
     return (cv2.distanceTransform(dil, cv2.DIST_L2, 5) > r).astype(np.uint8) | big, pad
 
 
+def _ridge(dt):
+    """Ridge of a distance transform: pixels no lower than their 8 neighbours (the medial axis)."""
+    return dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6
+
+
 def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3) -> list:
     """Band radii [px] of a downsampled silhouette: the peaks of its distance-transform ridge values.
 
@@ -43,7 +48,7 @@ def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fract
     r = max(int(close_px), 1)
     closed, pad = _close_disk(region, r)
     dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)[pad:-pad, pad:-pad]
-    ridge = (dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6) & (dt >= min_radius_px)
+    ridge = _ridge(dt) & (dt >= min_radius_px)
     v = dt[ridge]
     if len(v) < 10:
         return []
@@ -159,7 +164,7 @@ def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: floa
         return 0
     s = radius_px / radius
     dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)
-    ridge = (dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6) & (np.abs(dt - radius_px) <= 0.25 * radius_px)
+    ridge = _ridge(dt) & (np.abs(dt - radius_px) <= 0.25 * radius_px)
     if ridge.sum() < 0.3 * length * s:
         return 0
     near = cv2.distanceTransform((~ridge).astype(np.uint8), cv2.DIST_L2, 5) <= 1.05 * radius_px + 1
@@ -315,7 +320,7 @@ def band_centreline(region, radius_px: float, *, slot_width: float, slot_depth: 
         return np.zeros((0, 2))
     dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)
     near = cv2.distanceTransform((~slots).astype(np.uint8), cv2.DIST_L2, 5) <= reach * radius_px
-    ridge = (dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6) & near & (np.abs(dt - radius_px) <= 0.3 * radius_px)
+    ridge = _ridge(dt) & near & (np.abs(dt - radius_px) <= 0.3 * radius_px)
     if not ridge.any():
         return np.zeros((0, 2))
     mode = float(np.median(dt[ridge]))                   # the rough radius may be 20 % off: the tube's own
