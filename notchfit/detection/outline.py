@@ -17,7 +17,7 @@ from scipy.ndimage import maximum_filter1d
 from scipy.spatial import cKDTree
 
 from ..polygon import polygon_area
-from .segment import fill_holes
+from .segment import close_disk, fill_holes
 
 __all__ = ["Outline", "bridge_slots", "hole_ends", "crop_region", "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
 
@@ -117,11 +117,8 @@ def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, sl
     """
     hs, ws = image_shape
     X0, Y0 = offset
-    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_close + 1, 2 * r_close + 1))
-    pz = r_close + 2                         # zero padding: the closing never reaches the image border
     src = roi if holder is None else (roi & (1 - cv2.dilate(holder, np.ones((3, 3), np.uint8))))
-    closed = cv2.morphologyEx(cv2.copyMakeBorder(src, pz, pz, pz, pz, cv2.BORDER_CONSTANT, value=0),
-                              cv2.MORPH_CLOSE, ker)[pz:-pz, pz:-pz] | roi
+    closed = close_disk(src, r_close) | roi
     gaps = (closed & (1 - roi)).astype(np.uint8)
     ng, glab, gst, gcen = cv2.connectedComponentsWithStats(gaps, connectivity=8)
     lo, hi = slot_area_range

@@ -18,7 +18,8 @@ import numpy as np
 
 from .lines import otsu, poly2
 
-__all__ = ["Segmentation", "band_directions", "downsample", "fill_holes", "fill_thin_lines", "largest_region", "segment"]
+__all__ = ["Segmentation", "band_directions", "close_disk", "downsample", "fill_holes", "fill_thin_lines",
+           "largest_region", "segment"]
 
 
 @dataclass(frozen=True)
@@ -203,6 +204,15 @@ def fill_holes(region, *, keep_area=(0.0, 0.0)) -> np.ndarray:
     return out
 
 
+def close_disk(mask, r: int):
+    """Morphological closing of a 0/1 uint8 mask by a disk of radius ``r`` [px], with zero padding so
+    that the closing never reaches the image border."""
+    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    pad = r + 2
+    big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+    return cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)[pad:-pad, pad:-pad]
+
+
 def band_directions(mask, bridge_px: float, radius_px: float, min_coherence: float = 0.8) -> np.ndarray:
     """The direction across the band at every pixel of a silhouette [rad, 0..π) (h, w) float32; where
     the edges nearby do not agree on one (coherence below ``min_coherence``: the tube's ends), that of
@@ -214,11 +224,7 @@ def band_directions(mask, bridge_px: float, radius_px: float, min_coherence: flo
     the band's half width), gives the dominant gradient orientation: across
     the band inside it, whatever its bend.
     """
-    r = max(int(round(bridge_px)), 1)
-    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-    pad = r + 2
-    big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
-    band = fill_holes(cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)[pad:-pad, pad:-pad]).astype(np.float32)
+    band = fill_holes(close_disk(mask, max(int(round(bridge_px)), 1))).astype(np.float32)
     # the tensor varies on the scale of the radius: computed on a copy reduced to about 4 px per radius
     k = max(1, int(radius_px // 4))
     h, w = band.shape
