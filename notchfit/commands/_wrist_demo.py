@@ -14,10 +14,10 @@ and the identified material is printed beside the hidden truth (read from
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
+from .. import io
 from ..synth import generate_study, load_recipe
 from . import fit, simulate
 from . import identify as identify_cmd
@@ -38,8 +38,8 @@ def _step(name: str, t0: float) -> None:
 def _truth_line(study_dir: Path, results: Path) -> list[str]:
     """Identified material beside the hidden truth (read only to print it)."""
     try:
-        truth = json.loads((study_dir / "truth.json").read_text())["params"]
-        found = json.loads((results / "identify.json").read_text())
+        truth = io.read_json(study_dir / "truth.json")["params"]
+        found = io.read_json(results / "identify.json")
     except (OSError, ValueError, KeyError):
         return []
     keys = {"E_lin_Pa": "E_lin", "E_se_Pa": "E_se", "strain_lower": "strain_lower", "mu_d": "mu_d"}

@@ -94,9 +94,10 @@ def demo_study(study_dir, *, cause: str = "proximal_friction", small: bool = Fal
     """
     n_exp, n_up, n_down = SIZES["small" if small else "full"]
     images = (not small) if images is None else bool(images)
-    if images and load_recipe(cause).cause == "calibration_error":
+    recipe = load_recipe(cause)
+    if images and recipe.cause == "calibration_error":
         images = False          # its warp acts on points (notchfit.synth.write_study)
-    recipe = load_recipe(cause).scaled(n_experiments=n_exp, n_up=n_up, n_down=n_down)
+    recipe = recipe.scaled(n_experiments=n_exp, n_up=n_up, n_down=n_down)
     recipe = recipe.replace(image_options={"mm_per_px": IMAGE_MM_PER_PX, **recipe.image_options})
     generate_study(recipe, study_dir, seed=seed, force=True, jobs=jobs, images=images)
     return recipe, images

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from .. import io
 from ..diagnosis import CAUSES, Diagnosis, choose_metric, diagnose
+from ..diagnosis.results import metric_unit
 from ..figures.diagnosis import write_diagnosis_figures
 from ..friction import save_params
 from ..progress import Steps
@@ -124,8 +125,6 @@ def run(args) -> int:
     bad = [c for c in causes if c not in CAUSES]
     if bad:
         raise InputError(f"unknown cause(s) {', '.join(bad)}; known: {', '.join(CAUSES)}")
-    if args.jobs < 0:
-        raise InputError("--jobs must be at least 0 (0: one per CPU)")
     check_out_dir(args.out, args.study)
     check_points_dir(args.points)
     exps, unread = _experiments(args)
@@ -138,7 +137,7 @@ def run(args) -> int:
         steps("writing diagnosis.json and the figures")
         data = write_diagnosis(diag, run_.stage, figures=not args.no_figures)
     g = data["gain"]
-    unit = "mm" if diag.metric == "points" else "deg"
+    unit, _ = metric_unit(diag.metric)
     print(f"cause: {data['cause']}" + (f" (causes: {', '.join(data['causes'])})" if len(data["causes"]) > 1 else ""))
     print(f"held-out rms: baseline {g['baseline']:.3f} {unit}, extended {g['extended']:.3f} {unit} "
           f"({g['reduction_pct']:.1f}% lower)")

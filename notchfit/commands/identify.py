@@ -113,8 +113,6 @@ def _experiments(args) -> tuple[list, dict]:
 
 
 def run(args) -> int:
-    if args.jobs < 0:
-        raise InputError("--jobs must be at least 0 (0: one per CPU)")
     if args.starts < 1:
         raise InputError("--starts must be at least 1")
     check_out_dir(args.out, args.study)

@@ -36,12 +36,9 @@ def _lines(diag, i):
     frame (θ > 0 bends toward +x) [rad, rad per joint]."""
     p = diag.prepared[i]
     out = {"measured": (p.pulled * p.tip_angle, p.b)}       # Prepared.tip_angle is toward the pulled side
-    base = diag.heldout["baseline"]
-    out["baseline"] = (base.theta[i].sum(1), line_fit(base.theta[i])[1])
-    key = diag.extended_key
-    if key != "baseline" and key in diag.heldout:
+    for key, label in _models(diag):
         th = diag.heldout[key].theta[i]
-        out[f"extended ({key})"] = (th.sum(1), line_fit(th)[1])
+        out[label] = (th.sum(1), line_fit(th)[1])
     return out
 
 
