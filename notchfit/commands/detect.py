@@ -96,14 +96,17 @@ def detect_one(item: dict) -> dict:
             "assumption": det.assumption or None, "image_gamma": item.get("tone_gamma", 1.0)}
 
 
-def _say_assumed_gamma(exps) -> None:
-    """One line per experiment whose JPEG images are taken as a camera's tone curve (assumed, not stated)."""
+def _say_assumed_gamma(exps) -> list[str]:
+    """One line per experiment whose JPEG images are taken as a camera's tone curve (assumed, not
+    stated); returns their names, sorted (``image_gamma_assumed`` of detect_run.json)."""
+    names = []
     for e in exps:
-        jpeg = [p for p in e.image_paths or () if p is not None and image_gamma(e, p) == (JPEG_GAMMA, True)]
-        if jpeg:
+        if any(p is not None and image_gamma(e, p) == (JPEG_GAMMA, True) for p in e.image_paths or ()):
+            names.append(e.name)
             print(f"  {e.name}: JPEG images and no image_gamma in experiment.toml: assumed a camera's tone "
                   f"curve (gamma {JPEG_GAMMA:g}), undone before the edges are found (image_gamma = 1 if "
                   "the files hold linear light)")
+    return sorted(names)
 
 
 def run(args) -> int:
@@ -131,7 +134,7 @@ def run(args) -> int:
             failed[e.name] = str(exc)
             continue
         plan.append(e)
-    _say_assumed_gamma(plan)
+    assumed = _say_assumed_gamma(plan)
     if not plan:
         raise InputError("nothing to detect: " + "; ".join(f"{k}: {v}" for k, v in failed.items()))
     outputs = ["detect_run.json"] + [str(io.experiment_output_dir("", e.name, study) / "detections.csv")
@@ -164,8 +167,6 @@ def run(args) -> int:
             n_ok_images += sum(1 for r in rows if r.ok and r.value["image_status"] == "ok")
         for r in res.failures:
             failed[r.key] = r.error
-        assumed = sorted({e.name for e in plan for p in e.image_paths or () if p is not None
-                          and image_gamma(e, p)[1] and image_gamma(e, p)[0] != 1.0})
         io.write_json_atomic(io.provenance("detect", args.input, experiments=[e.name for e in plan],
                                            samples=summary, image_gamma_assumed=assumed, failures=failed),
                              run_.path("detect_run.json"))

@@ -280,22 +280,18 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
 
 def _tube_fits(obs, pb, sol, fitted) -> dict:
     """Tube -> :class:`TubeFit` of the full fit."""
-    se_of = {}
-    i = pb.k
-    for name, tube, n in pb.blocks:
-        se_of[(name, tube)] = sol.se[i:i + n]
-        i += n
+    se_of = pb.tube_values(sol.se)
     out = {}
     for t in dict.fromkeys(o.tube for o in obs):
         geom = next(o.geom for o in obs if o.tube == t)
         p, n = fitted[t], geom.n_joints
         nan = np.full(n, math.nan)
         out[t] = TubeFit(name=t, experiments=tuple(o.name for o in obs if o.tube == t),
-                         rest_angles=p.rest_angles(geom), rest_se=se_of.get(("rest_angle", t), nan),
+                         rest_angles=p.rest_angles(geom), rest_se=se_of.get(t, {}).get("rest_angle", nan),
                          slot_depths=p.depth_geometry(geom).slot_depths,
                          depth_offsets=np.zeros(n) if p.slot_depth_offset is None
                          else np.broadcast_to(np.asarray(p.slot_depth_offset, float), (n,)).copy(),
-                         depth_se=se_of.get(("slot_depth_offset", t), nan), model=p)
+                         depth_se=se_of.get(t, {}).get("slot_depth_offset", nan), model=p)
     return out
 
 
