@@ -45,8 +45,6 @@ def source_lines(lookup, command: str) -> list[str]:
     ``fit: points of L045, L150 from detections.csv in out (--out)``."""
     groups: dict = {}
     for name, (where, path) in lookup.sources.items():
-        if where == "own" and path.name == "angles.csv":
-            where = "own angles"
         folder = None if where.startswith("own") else (path.parent.parent if path.parent.name == name
                                                         else path.parent)
         key = (where, folder)

@@ -808,8 +808,9 @@ class PointsLookup:
         Those with points, in input order.
     sources : dict
         ``{name: (where, path)}``: ``where`` is ``"own"`` (the experiment's
-        own files) or the label of the folder they were found in (e.g.
-        ``"--points"``, ``"--out"``); ``path`` the file read.
+        own notch_points.csv), ``"own angles"`` (its own angles.csv) or the
+        label of the folder they were found in (e.g. ``"--points"``,
+        ``"--out"``); ``path`` the file read.
     problems : dict
         ``{name: reason}`` for the experiments without points.
     """
@@ -845,7 +846,7 @@ def find_points(exps, folders=()) -> PointsLookup:
     -------
     PointsLookup
         ``sources[name]`` is ``("own", notch_points.csv)``, ``(label,
-        detections.csv)`` or ``("own", angles.csv)``.
+        detections.csv)`` or ``("own angles", angles.csv)``.
     """
     exps = list(exps)
     searched = [(label, Path(f)) for label, f in folders if f is not None]
@@ -860,7 +861,7 @@ def find_points(exps, folders=()) -> PointsLookup:
                     if (p := _detections_for(e, found[label], len(exps))) is not None), None)
         if hit is None and e.angles is not None:
             out.append(e)
-            sources[e.name] = ("own", Path(e.path) / "angles.csv")
+            sources[e.name] = ("own angles", Path(e.path) / "angles.csv")
             continue
         if hit is None:
             where = " nor ".join(f"{f} ({label})" for label, f in searched)
