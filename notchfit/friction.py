@@ -127,6 +127,7 @@ __all__ = [
     "FrictionParams",
     "SimulationResult",
     "cable_displacement",
+    "LOAD_CELL_SIGMA",
     "clip_load_cell",
     "default_params",
     "params_from_mapping",
@@ -327,7 +328,11 @@ def stepwise_regimes(tension_left, tension_right, shape, *, tension_tol: float =
 # =============================================================================
 # the simulator
 # =============================================================================
-def clip_load_cell(tension, sigma: float = 0.05, name: str = "tension") -> tuple[np.ndarray, int]:
+#: Load-cell uncertainty σ_T when an experiment gives none [N] (docs/data-formats.md).
+LOAD_CELL_SIGMA = 0.05
+
+
+def clip_load_cell(tension, sigma: float = LOAD_CELL_SIGMA, name: str = "tension") -> tuple[np.ndarray, int]:
     """Load-cell readings clipped at zero (docs/models.md, real tubes: load cells).
 
     A load cell reads slightly below zero at rest (offset and noise). A reading

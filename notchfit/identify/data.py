@@ -18,7 +18,7 @@ import numpy as np
 
 from ..diagnosis import prepare_experiment
 from ..fitting.angles import DEFAULT_ANGLE_SIGMA
-from ..io.experiments import DEFAULT_TENSION_SIGMA
+from ..friction import LOAD_CELL_SIGMA
 from ..units import UNIT_SIZE
 
 __all__ = ["METRICS", "Observed", "metric_unit", "observe_study", "study_metric", "tube_labels",
@@ -118,7 +118,7 @@ def _observed(exp, tube: str, metric: str) -> Observed:
     kw = dict(name=exp.name, tube=tube, geom=exp.geometry, time=np.asarray(exp.time, float),
               tension_left=np.asarray(exp.tension_left, float), tension_right=np.asarray(exp.tension_right, float),
               ramp_time=float(exp.ramp_time or 0.0),
-              tension_sigma=float(exp.tension_sigma) if exp.tension_sigma else DEFAULT_TENSION_SIGMA, metric=metric)
+              tension_sigma=float(exp.tension_sigma) if exp.tension_sigma else LOAD_CELL_SIGMA, metric=metric)
     if metric == "deg":
         ang = np.asarray(exp.angles, dtype=float)
         if not np.isfinite(ang).any():

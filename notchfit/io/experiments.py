@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..friction import LOAD_CELL_SIGMA
 from ..geometry import Geometry
 from ..units import DEG, MM
 from .errors import InputFileError, InputFileNotFoundError
@@ -64,7 +65,7 @@ ANGLE_COLUMNS = ("sample", "joint", "theta_deg", "theta_rad")
 #: Largest standard uncertainty accepted, in the key's unit (mm, N, deg): beyond it, a typo or a unit mistake.
 MAX_UNCERTAINTY = 1e3
 #: Load-cell uncertainty when experiment.toml gives none [N] (docs/data-formats.md).
-DEFAULT_TENSION_SIGMA = 0.05
+DEFAULT_TENSION_SIGMA = LOAD_CELL_SIGMA
 
 
 @dataclass(frozen=True)
