@@ -13,6 +13,7 @@ module                 files
 :mod:`.models`         geometry files, friction-model parameters, FEA reference
 :mod:`.outputs`        atomic writers, the output-run transaction, output files
 :mod:`.resources`      where the shipped ``datasets/`` and ``calibration/`` are
+:mod:`.review`         ``review.csv``: a person's corrections of a detect run
 =====================  ========================================================
 
 Readers validate everything and raise an :class:`InputFileError` (a
@@ -43,6 +44,8 @@ _HOME = {
                 "read_diagnosis", "read_fits", "read_json", "read_pointwise", "read_simulation",
                 "write_json_atomic", "write_table_atomic", "write_text_atomic"),
     "resources": ("calibration_dir", "datasets_dir"),
+    "review": ("REVIEW_COLUMNS", "REVIEW_NAME", "REVIEW_STATUSES", "apply_review", "read_review", "review_path",
+               "write_review"),
     "tables": ("DETECTION_COLUMNS", "FITS_COLUMNS", "POINT_COLUMNS", "POINTWISE_COLUMNS", "SAMPLE_COLUMNS",
                "SIMULATION_COLUMNS", "read_csv_table"),
     "toml": ("TomlError", "TomlFileNotFoundError", "load_toml", "toml_dumps"),
