@@ -208,7 +208,8 @@ function paint() {
   drawOverlay();
   if (complete && !S.ready && S.switchStart !== null) {
     S.ready = true;
-    S.timings.push({ sample: S.sample, ms: performance.now() - S.switchStart });
+    // ms: from asking for the sample to its image and corners drawn; at: since the page was opened
+    S.timings.push({ sample: S.sample, ms: performance.now() - S.switchStart, at: performance.now() });
     S.switchStart = null;
   }
 }
@@ -441,7 +442,6 @@ canvas.addEventListener("mousedown", (ev) => {
   const [x, y] = local(ev);
   const p = hit(x, y);
   S.drag = { x, y, point: p, moved: false, ox: S.view.ox, oy: S.view.oy };
-  if (p !== null) select(p);
 });
 window.addEventListener("mousemove", (ev) => {
   const d = S.drag;
@@ -462,12 +462,14 @@ window.addEventListener("mouseup", (ev) => {
   S.drag = null;
   if (!d || !S.data) return;
   const [x, y] = local(ev);
+  const [u, v] = toImage(x, y);
   if (d.point !== null && d.moved) {
-    const [u, v] = toImage(x, y);
+    select(d.point);
     edit(d.point, "move", { u, v });
-  } else if (d.point === null && !d.moved && S.selected !== null && corner(S.selected).u === null) {
-    const [u, v] = toImage(x, y);
-    edit(S.selected, "place", { u, v });
+  } else if (!d.moved && S.selected !== null && corner(S.selected).u === null) {
+    edit(S.selected, "place", { u, v });           // a click places the selected missing corner
+  } else if (!d.moved && d.point !== null) {
+    select(d.point);
   }
 });
 canvas.addEventListener("wheel", (ev) => {
