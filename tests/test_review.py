@@ -11,6 +11,7 @@ import threading
 import time
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from notchfit import io
@@ -137,8 +138,14 @@ def test_edits_are_saved_and_fit_uses_them(study, tmp_path, capsys):
     lookup = io.find_points([io.read_experiment(folder)], [("--points", work)])
     assert lookup.sources["exp"] == ("--points, reviewed", work / "review.csv")
     assert np.isnan(lookup.experiments[0].points[0, 29]).all()
-    assert source_lines(lookup, "fit") == [f"fit: points of exp from detections.csv corrected by review.csv in "
-                                           f"{work} (--points, reviewed)"]
+    assert source_lines(lookup, "fit") == [f"fit: points of exp from detections.csv corrected by review.csv "
+                                           f"(each corner's σ from them) in {work} (--points, reviewed)"]
+    # each corner's σ: the detector's, and one image pixel (0.03 mm) where corrected by hand
+    sig = lookup.experiments[0].point_sigmas / MM
+    assert np.isnan(sig[0, 29]) and sig[0, BLANKED - 1] == pytest.approx(placed.sigma_mm)
+    d = pd.read_csv(work / "detections.csv").query("sample == 2").set_index("point")["sigma_mm"]
+    np.testing.assert_allclose(sig[1], d.sort_index().to_numpy())
+    assert io.find_points([io.read_experiment(folder)], [("--points", det)]).experiments[0].point_sigmas is None
 
 
 def test_two_tabs_last_write_wins_with_a_message(study, tmp_path):
@@ -163,7 +170,7 @@ def test_two_tabs_last_write_wins_with_a_message(study, tmp_path):
     assert rev.set_index("point").loc[7, "u_px"] == pytest.approx(u - 3)
 
 
-def test_detect_force_keeps_the_review(study, tmp_path):
+def test_detect_force_keeps_the_review_unless_asked(study, tmp_path, capsys):
     folder, det, _ = study
     out = tmp_path / "det"
     assert main(["detect", str(folder), "--out", str(out), "--no-overlays"]) == 0
@@ -171,6 +178,9 @@ def test_detect_force_keeps_the_review(study, tmp_path):
     before = (out / "review.csv").read_bytes()
     assert main(["detect", str(folder), "--out", str(out), "--no-overlays", "--force"]) == 0
     assert (out / "review.csv").read_bytes() == before
+    assert "kept the corrections" in capsys.readouterr().out
+    assert main(["detect", str(folder), "--out", str(out), "--no-overlays", "--force", "--drop-review"]) == 0
+    assert not (out / "review.csv").exists() and "removed the corrections" in capsys.readouterr().out
 
 
 # ----------------------------------------------------------------------------- the server is local only

@@ -110,6 +110,11 @@ class Experiment:
         ``(v / full) ** image_gamma`` (1: linear light, a camera's JPEG about
         2.2); None when experiment.toml does not say (``detect`` then assumes
         2.2 for JPEG files and 1 for others, and says so).
+    point_sigmas : ndarray, shape (S, m) [m], or None
+        The uncertainty of each point where a person reviewed the points
+        (``notchfit review``): a detected corner's ``sigma_mm`` of
+        detections.csv, a corrected corner's of review.csv; None otherwise
+        (the fits then use ``point_sigma`` or estimate σ).
     """
 
     name: str
@@ -128,6 +133,7 @@ class Experiment:
     angles: np.ndarray | None = None
     angle_sigma: float | None = None
     image_gamma: float | None = None
+    point_sigmas: np.ndarray | None = None
 
     @property
     def sample_ids(self) -> np.ndarray:
@@ -784,15 +790,26 @@ def write_experiment(folder, *, name: str, samples: pd.DataFrame, points=None, m
 
 # ----------------------------------------------------------------------------- detections
 def load_detected_points(exp: Experiment, detections, *, ok_status=("ok",), review=None) -> Experiment:
-    """``exp`` with its points taken from a ``detections.csv`` (rows whose status is not ok are missing),
-    with the corrections of ``review`` (a ``review.csv``, :func:`notchfit.io.apply_review`) when given."""
+    """``exp`` with its points taken from a ``detections.csv`` (rows whose status is not ok are missing).
+
+    With ``review`` (a ``review.csv``, :func:`notchfit.io.apply_review`) its
+    corrections are applied and the experiment carries every point's σ
+    (``point_sigmas``: ``sigma_mm`` of the detections and of the corrections).
+    """
     df = read_detections(detections, n_points=exp.geometry.n_points, sample_ids=exp.sample_ids)
     df = df[df["status"].str.lower().isin([s.lower() for s in ok_status])]
     pts = points_from_table(df, exp.sample_ids, exp.geometry.n_points)
-    if review is not None:
-        rows = read_review(review, n_points=exp.geometry.n_points, sample_ids=exp.sample_ids)
-        pts, _ = apply_review(pts, np.full(pts.shape[:2], np.nan), rows, exp.sample_ids)
-    return with_points(exp, pts)
+    if review is None:
+        return with_points(exp, pts)
+    sig = points_from_table(df.assign(x_mm=df["sigma_mm"], y_mm=df["sigma_mm"]), exp.sample_ids,
+                            exp.geometry.n_points)[..., 0]
+    rows = read_review(review, n_points=exp.geometry.n_points, sample_ids=exp.sample_ids)
+    pts, sig = apply_review(pts, sig, rows, exp.sample_ids)
+    has = np.isfinite(pts).all(-1)
+    if not np.isfinite(sig[has]).all():         # a detected point without sigma_mm: the run's median
+        fill = np.nanmedian(sig[has]) if np.isfinite(sig[has]).any() else np.nan
+        sig = np.where(has & ~np.isfinite(sig), fill, sig)
+    return dataclasses.replace(with_points(exp, pts), point_sigmas=np.where(has, sig, np.nan))
 
 
 def has_own_points(exp: Experiment) -> bool:
