@@ -170,6 +170,29 @@ def test_two_tabs_last_write_wins_with_a_message(study, tmp_path):
     assert rev.set_index("point").loc[7, "u_px"] == pytest.approx(u - 3)
 
 
+def test_accept_an_ambiguous_corner(study, tmp_path):
+    """detections.csv keeps an ambiguous corner's pixel only: accepting it maps the pixel to the plane."""
+    folder, det, _ = study
+    work = tmp_path / "det"
+    work.mkdir()
+    d = pd.read_csv(det / "detections.csv")
+    amb = (d["sample"] == 3) & (d["point"] == 15)
+    x_true = d.loc[amb, ["x_mm", "y_mm"]].to_numpy()[0]
+    d.loc[amb, ["x_mm", "y_mm", "sigma_mm"]] = np.nan
+    d.loc[amb, "status"] = "ambiguous"
+    io.write_table_atomic(d, work / "detections.csv")
+    with running_server(folder, work) as server:
+        s = server.session
+        assert s.sample(0, 3)["counts"] == {"ok": 57, "ambiguous": 1, "missing": 0, "manual": 0}
+        assert not s.fit(0, 3)["used"][14]                   # shown, not fitted
+        out = s.edit(0, 3, 15, "accept")
+        assert out["counts"] == {"ok": 58, "ambiguous": 0, "missing": 0, "manual": 1}
+        assert s.fit(0, 3)["used"][14]
+    row = io.read_review(work / "review.csv").iloc[0]
+    np.testing.assert_allclose([row.x_mm, row.y_mm], x_true, atol=1e-9)
+    assert row.prev_status == "ambiguous" and row.sigma_mm == pytest.approx(0.03, rel=0.05)
+
+
 def test_detect_force_keeps_the_review_unless_asked(study, tmp_path, capsys):
     folder, det, _ = study
     out = tmp_path / "det"

@@ -149,6 +149,8 @@ class ReviewHandler(BaseHTTPRequestHandler):
         session = self.server.session
         if path in ("/", "/index.html"):
             return self._static("index.html")
+        if path == "/favicon.ico":
+            return self._send(HTTPStatus.NO_CONTENT, b"", "image/x-icon")
         if path.startswith("/static/"):
             return self._static(path[len("/static/"):])
         if path == "/api/study":

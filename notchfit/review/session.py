@@ -290,19 +290,24 @@ class ReviewSession:
             r.rows[key] = {**base, "u_px": np.nan, "v_px": np.nan, "x_mm": np.nan, "y_mm": np.nan,
                            "sigma_mm": np.nan, "status": "deleted" if action == "delete" else "occluded"}
         elif action == "accept":
+            # an ambiguous detection keeps its pixel (detections.csv leaves its plane point empty): the
+            # person confirms it, with the detector's sigma where it gave one, else one pixel's
             if not np.isfinite(r.uv[i, q]).all():
                 raise ValueError(f"corner {key[1]} of sample {key[0]} has no detected position to accept")
-            sig = r.sigma_mm[i, q] if np.isfinite(r.sigma_mm[i, q]) else self._pixel_sigma_mm(r, i, r.uv[i, q])
-            r.rows[key] = {**base, "u_px": r.uv[i, q, 0], "v_px": r.uv[i, q, 1], "x_mm": r.xy_mm[i, q, 0],
-                           "y_mm": r.xy_mm[i, q, 1], "sigma_mm": sig, "status": "manual"}
+            r.rows[key] = {**base, **self._manual(r, i, r.uv[i, q]), "status": "manual"}
+            if np.isfinite(r.sigma_mm[i, q]):
+                r.rows[key]["sigma_mm"] = r.sigma_mm[i, q]
         else:
             uv = np.array([float(u), float(v)])
             if not np.isfinite(uv).all():
                 raise ValueError("a corner's position needs finite u and v")
-            view = self._view(r, i)
-            xy = view.pixel_to_plane(uv) / MM
-            r.rows[key] = {**base, "u_px": uv[0], "v_px": uv[1], "x_mm": xy[0], "y_mm": xy[1],
-                           "sigma_mm": self._pixel_sigma_mm(r, i, uv), "status": "manual"}
+            r.rows[key] = {**base, **self._manual(r, i, uv), "status": "manual"}
+
+    def _manual(self, r: ExperimentReview, i: int, uv) -> dict:
+        """The columns of a corner put at pixel ``uv`` by hand: the pixel, its plane point [mm], its sigma."""
+        uv = np.asarray(uv, float)
+        xy = self._view(r, i).pixel_to_plane(uv) / MM
+        return {"u_px": uv[0], "v_px": uv[1], "x_mm": xy[0], "y_mm": xy[1], "sigma_mm": self._pixel_sigma_mm(r, i, uv)}
 
     @staticmethod
     def _view(r: ExperimentReview, i: int):

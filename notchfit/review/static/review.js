@@ -276,8 +276,15 @@ function drawFaces() {
     }
     const th = a.theta_deg[j];
     if (th !== null) {
-      const [x, y] = toScreen((pair[0][1][0] + pair[1][1][0]) / 2, (pair[0][1][1] + pair[1][1][1]) / 2);
-      ctx.fillText(`${j + 1}: ${th.toFixed(2)}°`, x + 4, y);
+      // the label beyond the faces' inner ends, outlined so that it reads on any background
+      const mid = (k) => (pair[0][k][0] + pair[1][k][0]) / 2, midv = (k) => (pair[0][k][1] + pair[1][k][1]) / 2;
+      const [x0, y0] = toScreen(mid(0), midv(0)), [x1, y1] = toScreen(mid(1), midv(1));
+      const len = Math.hypot(x1 - x0, y1 - y0) || 1;
+      const x = x1 + (x1 - x0) / len * 14, y = y1 + (y1 - y0) / len * 14;
+      const text = `${j + 1}: ${th.toFixed(2)}°`;
+      ctx.textAlign = "center"; ctx.textBaseline = "middle";
+      ctx.lineWidth = 3; ctx.strokeStyle = "#000"; ctx.strokeText(text, x, y); ctx.fillText(text, x, y);
+      ctx.textAlign = "start"; ctx.textBaseline = "alphabetic"; ctx.lineWidth = 2; ctx.strokeStyle = "#ff4fd8";
     }
   });
 }
@@ -315,9 +322,11 @@ function renderFit() {
   $("fit-summary").innerHTML = `rms ${(f.rms_mm * 1000).toFixed(1)} µm, χ²/dof ${f.chi2_dof.toFixed(2)}` +
     ` (${f.used.filter(Boolean).length} corners fitted)<br><small>${f.message}</small>`;
   const max = Math.max(...f.residual_mm.filter((e) => e !== null));
-  S.data.corners.forEach((c, i) => {
-    const e = f.residual_mm[i];
-    if (e === null) return;
+  // worst first: the corner the fit disagrees with most heads the table
+  const order = S.data.corners.map((c, i) => i).filter((i) => f.residual_mm[i] !== null)
+    .sort((i, j) => f.residual_mm[j] - f.residual_mm[i]);
+  order.forEach((i) => {
+    const c = S.data.corners[i], e = f.residual_mm[i];
     const tr = document.createElement("tr");
     tr.className = (c.point === S.selected ? "sel " : "") + (residualBad(c.point) ? "bad" : "");
     tr.dataset.point = c.point;
