@@ -56,6 +56,14 @@ def rendered_study(root: Path, *, n_samples: int = 3, seed: int = 3) -> tuple[Pa
     return folder, out, np.stack(truth)
 
 
+def work_copy(det: Path, tmp_path: Path) -> Path:
+    """A fresh detect-run folder holding a copy of ``det``'s detections.csv (and no review yet)."""
+    work = Path(tmp_path) / "det"
+    work.mkdir()
+    (work / "detections.csv").write_bytes((Path(det) / "detections.csv").read_bytes())
+    return work
+
+
 @contextlib.contextmanager
 def running_server(study, points, **kw):
     """A review server on a free port of 127.0.0.1, serving in a thread; yields it."""

@@ -3,12 +3,15 @@ the corrections model with two tabs, the local-only server, Ctrl-C (issue 26).""
 
 import http.client
 import json
+import re
 import signal
 import socket
 import subprocess
 import sys
 import threading
 import time
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -23,7 +26,7 @@ from notchfit.review.measure import hand_angles, live_fit
 from notchfit.review.server import ReviewHandler
 from notchfit.units import MM
 from reliability_helpers import cli_env
-from review_helpers import BLANKED, rendered_study, running_server
+from review_helpers import BLANKED, rendered_study, running_server, work_copy
 
 
 @pytest.fixture(scope="module")
@@ -106,9 +109,7 @@ def test_live_fit_points_at_the_misplaced_corner():
 # ----------------------------------------------------------------------------- the session and the fits
 def test_edits_are_saved_and_fit_uses_them(study, tmp_path, capsys):
     folder, det, truth = study
-    work = tmp_path / "det"
-    work.mkdir()
-    (work / "detections.csv").write_bytes((det / "detections.csv").read_bytes())
+    work = work_copy(det, tmp_path)
     with running_server(folder, work) as server:
         s = server.session
         r = s.experiments[0]
@@ -150,9 +151,7 @@ def test_edits_are_saved_and_fit_uses_them(study, tmp_path, capsys):
 
 def test_two_tabs_last_write_wins_with_a_message(study, tmp_path):
     folder, det, _ = study
-    work = tmp_path / "det"
-    work.mkdir()
-    (work / "detections.csv").write_bytes((det / "detections.csv").read_bytes())
+    work = work_copy(det, tmp_path)
     with running_server(folder, work) as server:
         s = server.session
         u, v = s.experiments[0].uv[1, 6]
@@ -298,3 +297,18 @@ def test_cli_review_usage_errors(study, tmp_path, capsys):
         assert "in use" in capsys.readouterr().err
     finally:
         held.close()
+
+
+def test_the_page_ships_in_the_wheel_and_needs_no_internet():
+    """Every file of the page is package data, and none of them loads anything from another site."""
+    root = Path(__file__).resolve().parents[1]
+    patterns = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
+    static = sorted((root / "notchfit" / "review" / "static").iterdir())
+    assert {p.name for p in static} >= {"index.html", "review.js", "review.css"}
+    for p in static:
+        rel = p.relative_to(root / "notchfit" / "review").as_posix()
+        assert any(Path(rel).match(pat) for pat in patterns["notchfit.review"]), f"{rel} is not package data"
+        text = p.read_text(encoding="utf-8")
+        assert not re.search(r"(src|href)\s*=\s*[\"'](https?:)?//", text), p.name
+        assert not re.search(r"(fetch|import)\s*\(\s*[\"'`]https?:", text), p.name
+        assert "@import" not in text and "url(http" not in text, p.name

@@ -14,7 +14,9 @@ import pytest
 
 from notchfit import io
 from notchfit.cli import main
-from review_helpers import BLANKED, rendered_study, running_server
+from notchfit.commands.demo import demo_study
+from notchfit.commands.review import study_and_points
+from review_helpers import BLANKED, rendered_study, running_server, work_copy
 
 sync_api = pytest.importorskip("playwright.sync_api", reason="Playwright is not installed (pip install playwright); "
                                "the browser tests of notchfit review are skipped")
@@ -49,13 +51,6 @@ def browser():
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     return rendered_study(tmp_path_factory.mktemp("review_browser"))
-
-
-def _work_copy(det, tmp_path):
-    work = tmp_path / "det"
-    work.mkdir()
-    (work / "detections.csv").write_bytes((det / "detections.csv").read_bytes())
-    return work
 
 
 def _open(browser, url):
@@ -103,7 +98,7 @@ def _click_corner(page, point):
 
 def test_correct_a_sample_then_fit_uses_it(browser, study, tmp_path, capsys):
     folder, det, truth = study
-    work = _work_copy(det, tmp_path)
+    work = work_copy(det, tmp_path)
     with running_server(folder, work) as server:
         page, errors = _open(browser, server.url)
         assert page.locator(".thumb").count() == 3
@@ -158,25 +153,42 @@ def test_correct_a_sample_then_fit_uses_it(browser, study, tmp_path, capsys):
 
 def test_two_tabs_keep_each_others_edits(browser, study, tmp_path):
     folder, det, _ = study
-    work = _work_copy(det, tmp_path)
+    work = work_copy(det, tmp_path)
     with running_server(folder, work) as server:
         a, errs_a = _open(browser, server.url)
         b, errs_b = _open(browser, server.url)
+        b.evaluate("window.review.pollPaused = true")   # tab b does not hear of a's change in time
         _drag(a, 7, 12, 0)                              # tab a moves corner 7
         _wait_message(a, "corner 7: move")
         _drag(b, 7, -12, 0)                             # tab b, which had not seen it, moves it too
         _wait_message(b, "changed in another tab; your change replaced it")
+        b.evaluate("window.review.pollPaused = false")
         _wait_message(a, "corner 7 of sample 1 was changed in another tab")
         _drag(a, 12, 0, 12)                             # a different corner: both kept
         _wait_message(a, "corner 12: move")
         _wait_message(b, "corner 12 of sample 1 was changed in another tab")
         ua, ub = (p.evaluate("window.review.data.corners[6].u") for p in (a, b))
         assert ua == pytest.approx(ub)
+        # worst first: sample 3 with two corners gone heads the strip
+        a.keyboard.press("n")
+        a.wait_for_function("window.review.ready && window.review.sample === 2")
+        a.keyboard.press("ArrowRight")
+        a.wait_for_function("window.review.ready && window.review.sample === 3")
+        for q, key in ((5, "Delete"), (6, "o")):
+            _click_corner(a, q)
+            a.keyboard.press(key)
+            _wait_message(a, f"corner {q}: {'delete' if q == 5 else 'occlude'}")
+        assert a.locator(".thumb").first.get_attribute("data-sample") == "1"
+        a.check("#worst")
+        assert a.locator(".thumb").first.get_attribute("data-sample") == "3"
+        assert a.locator(".thumb.current .c-miss").inner_text() == "2"
         assert not errs_a and not errs_b
         a.close()
         b.close()
-    rev = io.read_review(work / "review.csv").set_index("point")
-    assert sorted(rev.index) == [7, 12] and rev.loc[7, "u_px"] == pytest.approx(ua)
+    rev = io.read_review(work / "review.csv")
+    assert list(zip(rev["sample"], rev["point"], rev["status"])) == [
+        (1, 7, "manual"), (1, 12, "manual"), (3, 5, "deleted"), (3, 6, "occluded")]
+    assert rev.iloc[0]["u_px"] == pytest.approx(ua)
 
 
 def _big_study(root, study, size=(4928, 3264)):
@@ -228,3 +240,37 @@ def test_page_load_and_image_switch_on_16_mp_photographs(browser, study, tmp_pat
           f"(image and corners drawn {first['ms']:.0f} ms after the first request); image switch "
           + ", ".join(f"{s:.0f}" for s in switches) + f" ms; {tiles} tiles fetched in all")
     assert first["at"] < 10000 and max(switches) < 10000          # generous: the figures are the result
+
+
+@pytest.mark.slow
+def test_review_the_demo_study(browser, tmp_path, capsys):
+    """The demo's study of photographs (small: 4 experiments, 76 images), reviewed from its detect folder
+    alone (detect_run.json names the study): every experiment listed, a corner moved, fit uses it."""
+    demo_study(tmp_path / "study", small=True, images=True)
+    assert main(["detect", str(tmp_path / "study"), "--out", str(tmp_path / "results"), "--no-overlays"]) in (0, 1)
+    study, points = study_and_points(tmp_path / "results")
+    assert study == (tmp_path / "study").resolve() and points == tmp_path / "results"
+    with running_server(study, points) as server:
+        names = [r.exp.name for r in server.session.experiments]
+        page, errors = _open(browser, server.url)
+        assert page.locator("#exp option").count() == len(names) == 4
+        page.select_option("#exp", "1")
+        page.wait_for_function("window.review.ready && window.review.exp === 1 && window.review.fit")
+        n = page.evaluate("window.review.study.experiments[1].samples.length")
+        assert page.locator(".thumb").count() == n
+        sample = page.evaluate("window.review.sample")
+        _drag(page, 40, 20, 0)
+        _wait_message(page, "corner 40: move")
+        page.reload()
+        page.wait_for_function(READY, timeout=30000)
+        page.select_option("#exp", "1")
+        page.wait_for_function("window.review.ready && window.review.exp === 1")
+        assert _corner(page, 40)["status"] == "manual"
+        assert not errors, errors
+        page.close()
+    capsys.readouterr()
+    assert main(["fit", str(study / names[1]), "--points", str(points), "--out", str(tmp_path / "fit"),
+                 "--no-figures", "--models", "free"]) == 0
+    assert f"points of {names[1]} from detections.csv corrected by review.csv" in capsys.readouterr().out
+    err = io.read_pointwise(tmp_path / "fit" / "pointwise.csv").query(f"sample == {sample}").set_index("point")
+    assert err.loc[40, "err_mm"] > 0.3

@@ -49,18 +49,19 @@ def add_arguments(parser) -> None:
                         help="uncertainty of a corner placed by hand, in image pixels (default 1)")
 
 
-def _inputs(args) -> tuple[Path, Path]:
-    """The study and the detect run: from the arguments, or the study named by a detect run's record."""
-    if args.points is not None:
-        return Path(args.input), check_points_dir(args.points)
-    record = Path(args.input) / "detect_run.json"
+def study_and_points(path, points=None) -> tuple[Path, Path]:
+    """The study and the detect run to review: ``path`` and ``points`` as given, or, without ``points``,
+    ``path`` as the detect run and the study its ``detect_run.json`` names."""
+    if points is not None:
+        return Path(path), check_points_dir(points)
+    record = Path(path) / "detect_run.json"
     if record.is_file():
         study = Path(io.read_json(record).get("input") or "")
         if not study.is_dir():
             raise InputError(f"{record}: the study it names ({study}) is not a folder: give the study and "
-                             f"--points {args.input}")
-        return study, check_points_dir(args.input)
-    raise InputError(f"{args.input}: give --points DIR (the --out folder of `notchfit detect`) or the detect "
+                             f"--points {path}")
+        return study, check_points_dir(path)
+    raise InputError(f"{path}: give --points DIR (the --out folder of `notchfit detect`) or the detect "
                      "folder itself")
 
 
@@ -90,7 +91,7 @@ def run(args) -> int:
         raise InputError(f"--manual-sigma-px must be positive, got {args.manual_sigma_px}")
     if not 0 <= args.port <= 65535:
         raise InputError(f"--port must be in 0..65535, got {args.port}")
-    study, points = _inputs(args)
+    study, points = study_and_points(args.input, args.points)
     session, failed = load_session(study, points, manual_sigma_px=args.manual_sigma_px)
     try:
         server = make_server(session, args.port)

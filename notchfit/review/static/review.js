@@ -13,7 +13,7 @@ const S = {
   client: Math.random().toString(36).slice(2) + Date.now().toString(36),
   study: null, exp: 0, sample: null, data: null, fit: null, angles: null, selected: null,
   mode: "corners", undo: [], seq: 0, view: { scale: 1, ox: 0, oy: 0 }, tiles: new Map(),
-  drag: null, ready: false, timings: [], switchStart: null,
+  drag: null, ready: false, timings: [], switchStart: null, pollPaused: false,
 };
 window.review = S;          // for the browser tests: state, timings, coordinate helpers
 
@@ -385,6 +385,8 @@ async function edit(point, action, extra, noUndo) {
     const out = await api("/api/edit", body);
     if (!noUndo) S.undo.push(before);
     if (before.exp === S.exp && before.sample === S.sample) S.data.corners[point - 1] = out.corner;
+    // a corner just deleted or marked occluded is let go: the next click must not place it again
+    if ((action === "delete" || action === "occlude") && S.selected === point) S.selected = null;
     S.seq = Math.max(S.seq, out.seq);
     setCounts(before.sample, out.counts);
     say(out.conflict || `corner ${point}: ${action} (saved to review.csv)`, !!out.conflict);
@@ -412,6 +414,8 @@ function nextMissing() {
 
 // ------------------------------------------------------------------------------ other tabs
 async function poll() {
+  // pollPaused: a tab that has not heard of the others yet (a background tab the browser throttles; the tests)
+  if (S.pollPaused) { setTimeout(poll, POLL_MS); return; }
   try {
     const out = await api(`/api/changes?since=${S.seq}&client=${encodeURIComponent(S.client)}`);
     S.seq = out.seq;
