@@ -133,8 +133,17 @@ def test_correct_a_sample_then_fit_uses_it(browser, study, tmp_path, capsys):
         assert page.locator(".thumb.current .c-miss").inner_text() == "1"      # 30 missing, BLANKED placed
         resid = page.evaluate("window.review.fit.residual_mm")
         assert int(np.nanargmax(np.array(resid, dtype=float))) == 20         # the fit points at corner 21
+        page.keyboard.press("g")                                          # angles by hand
+        page.wait_for_function("window.review.angles && window.review.angles.theta_deg.length === 27")
+        assert page.locator("#angles-table tbody tr").count() == 27
+        page.click("#b-write-angles")
+        page.wait_for_function("document.getElementById('angles-note').textContent.includes('written')")
         assert not errors, errors
         page.close()
+    angles = io.read_angles_table(work / "angles.csv", n_joints=27, sample_ids=[1, 2, 3])
+    theta = angles.pivot(index="sample", columns="joint", values="theta")
+    np.testing.assert_allclose(theta.loc[3], 0.04, atol=5e-4)      # sample 3 was rendered at θ = 0.04 rad
+    assert theta.loc[1].notna().all()                  # every link keeps two corners (30 deleted, 10 placed)
     rev = io.read_review(work / "review.csv")
     assert sorted(rev["point"]) == sorted([21, BLANKED, 30])
     # fit uses the corrections: corner 21's residual grows, 30 is gone, the placed corner is fitted

@@ -13,7 +13,7 @@ const S = {
   client: Math.random().toString(36).slice(2) + Date.now().toString(36),
   study: null, exp: 0, sample: null, data: null, fit: null, angles: null, selected: null,
   mode: "corners", undo: [], seq: 0, view: { scale: 1, ox: 0, oy: 0 }, tiles: new Map(),
-  drag: null, ready: false, timings: [], switchStart: null, pollPaused: false,
+  drag: null, ready: false, timings: [], switchStart: null, pollPaused: false, thumbsOn: false,
 };
 window.review = S;          // for the browser tests: state, timings, coordinate helpers
 
@@ -72,7 +72,9 @@ function renderStrip() {
     const d = document.createElement("div");
     d.className = "thumb" + (s.sample === S.sample ? " current" : "");
     d.dataset.sample = s.sample;
-    const img = s.image ? `<img loading="lazy" alt="" src="/api/thumb/${S.exp}/${s.sample}.jpg">` : "<img alt=''>";
+    // thumbnails are asked for once the photograph is drawn: they never delay it
+    const src = `/api/thumb/${S.exp}/${s.sample}.jpg`;
+    const img = s.image ? `<img loading="lazy" alt="" ${S.thumbsOn ? "src" : "data-src"}="${src}">` : "<img alt=''>";
     d.innerHTML = `${img}<div class="name">sample ${s.sample}</div><div class="counts">${countsHtml(s.counts)}</div>`;
     d.onclick = () => openSample(s.sample);
     strip.appendChild(d);
@@ -211,6 +213,10 @@ function paint() {
     // ms: from asking for the sample to its image and corners drawn; at: since the page was opened
     S.timings.push({ sample: S.sample, ms: performance.now() - S.switchStart, at: performance.now() });
     S.switchStart = null;
+    if (!S.thumbsOn) {
+      S.thumbsOn = true;
+      document.querySelectorAll("#strip img[data-src]").forEach((im) => { im.src = im.dataset.src; });
+    }
   }
 }
 
