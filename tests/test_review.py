@@ -139,8 +139,8 @@ def test_edits_are_saved_and_fit_uses_them(study, tmp_path, capsys):
     lookup = io.find_points([io.read_experiment(folder)], [("--points", work)])
     assert lookup.sources["exp"] == ("--points, reviewed", work / "review.csv")
     assert np.isnan(lookup.experiments[0].points[0, 29]).all()
-    assert source_lines(lookup, "fit") == [f"fit: points of exp from detections.csv corrected by review.csv "
-                                           f"(each corner's σ from them) in {work} (--points, reviewed)"]
+    assert source_lines(lookup, "fit") == [f"fit: points of exp from detections.csv corrected by review.csv in "
+                                           f"{work} (--points, reviewed)"]
     # each corner's σ: the detector's, and one image pixel (0.03 mm) where corrected by hand
     sig = lookup.experiments[0].point_sigmas / MM
     assert np.isnan(sig[0, 29]) and sig[0, BLANKED - 1] == pytest.approx(placed.sigma_mm)

@@ -125,11 +125,21 @@ function resize() {
 }
 
 function fitToWindow() {
-  const im = S.data && S.data.image;
+  // the whole photograph, or without one the box around the corners
   const r = canvas.getBoundingClientRect();
-  if (!im) { S.view = { scale: 1, ox: 0, oy: 0 }; return; }
-  const scale = Math.min(r.width / im.width, r.height / im.height) * 0.98;
-  S.view = { scale, ox: (im.width - 1) / 2 - r.width / 2 / scale, oy: (im.height - 1) / 2 - r.height / 2 / scale };
+  let box = null;
+  if (S.data && S.data.image) box = [-0.5, -0.5, S.data.image.width - 0.5, S.data.image.height - 0.5];
+  else if (S.data) {
+    const cs = S.data.corners.filter((c) => c.u !== null);
+    if (cs.length) {
+      const us = cs.map((c) => c.u), vs = cs.map((c) => c.v);
+      box = [Math.min(...us) - 20, Math.min(...vs) - 20, Math.max(...us) + 20, Math.max(...vs) + 20];
+    }
+  }
+  if (!box) { S.view = { scale: 1, ox: 0, oy: 0 }; return; }
+  const w = box[2] - box[0], h = box[3] - box[1];
+  const scale = Math.min(r.width / w, r.height / h) * 0.98;
+  S.view = { scale, ox: (box[0] + box[2]) / 2 - r.width / 2 / scale, oy: (box[1] + box[3]) / 2 - r.height / 2 / scale };
 }
 
 function toScreen(u, v) { return [(u - S.view.ox) * S.view.scale, (v - S.view.oy) * S.view.scale]; }
@@ -399,6 +409,7 @@ async function edit(point, action, extra, noUndo) {
     renderPanel(); draw(); refreshMeasures();
   } catch (err) {
     say(`not saved: ${err.message}`, true);
+    if (before.exp === S.exp && before.sample === S.sample) openSample(S.sample, true);   // show what is saved
   }
 }
 
