@@ -165,6 +165,13 @@ def test_two_tabs_last_write_wins_with_a_message(study, tmp_path):
         assert s.changes_since(0, "tab-b")["changes"][0]["client"] == "tab-a"
         c = s.edit(0, 2, 8, "occlude", version=0, client="tab-a")                  # another corner: no conflict
         assert c["conflict"] is None
+        # undo puts back the row the tab saw before; a row that review.csv could not hold is refused
+        saved = a["corner"]["review"]
+        s.edit(0, 2, 7, "restore", row=saved, client="tab-a")
+        assert s.sample(0, 2)["corners"][6]["u"] == pytest.approx(u + 2)
+        with pytest.raises(ValueError, match="not a review row"):
+            s.edit(0, 2, 7, "restore", row={**saved, "sigma_mm": None})
+        s.edit(0, 2, 7, "restore", row=b["corner"]["review"], client="tab-b")
     rev = io.read_review(work / "review.csv")
     assert rev.set_index("point").loc[7, "u_px"] == pytest.approx(u - 3)
 

@@ -268,11 +268,20 @@ class ReviewSession:
                 if last is not None and last["client"] != client:
                     conflict = (f"corner {point} of sample {sample} had been changed in another tab; "
                                 "your change replaced it (the last change wins)")
+            old = r.rows.get(key)
             self._apply(r, i, key, action, u, v, row)
+            try:
+                r.save()
+            except BaseException:
+                # not saved: the corner stays as the file has it
+                if old is None:
+                    r.rows.pop(key, None)
+                else:
+                    r.rows[key] = old
+                raise
             r.versions[key] = now + 1
             self.log.append({"seq": len(self.log) + 1, "exp": int(exp), "sample": key[0], "point": key[1],
                              "client": client})
-            r.save()
             return {"corner": r.corner(*key), "conflict": conflict, "seq": len(self.log),
                     "counts": corner_counts(r.corners(sample))}
 
@@ -284,8 +293,13 @@ class ReviewSession:
         if action == "revert" or (action == "restore" and not row):
             r.rows.pop(key, None)
         elif action == "restore":
-            keep = {k: row.get(k) for k in ("u_px", "v_px", "x_mm", "y_mm", "sigma_mm", "status")}
-            r.rows[key] = {**base, **{k: (np.nan if x is None else x) for k, x in keep.items()}}
+            keep = {k: row.get(k) for k in ("u_px", "v_px", "x_mm", "y_mm", "sigma_mm")}
+            keep = {k: (np.nan if x is None else float(x)) for k, x in keep.items()}
+            status = row.get("status")
+            if status not in io.REVIEW_STATUSES or (status == "manual" and not (
+                    np.isfinite(list(keep.values())).all() and keep["sigma_mm"] > 0)):
+                raise ValueError(f"cannot restore corner {key[1]} of sample {key[0]}: not a review row ({row})")
+            r.rows[key] = {**base, **keep, "status": status}
         elif action in ("delete", "occlude"):
             r.rows[key] = {**base, "u_px": np.nan, "v_px": np.nan, "x_mm": np.nan, "y_mm": np.nan,
                            "sigma_mm": np.nan, "status": "deleted" if action == "delete" else "occluded"}
