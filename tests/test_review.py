@@ -263,6 +263,9 @@ def test_server_refuses_other_addresses(study, tmp_path):
         if other is not None:
             with pytest.raises(OSError):
                 socket.create_connection((other, port), timeout=2).close()
+        status, data = _request(server, "/api/edit", method="POST",
+                                body={"exp": 0, "sample": 1, "point": 3, "action": "teleport"})
+        assert status == 400 and b"unknown action 'teleport'" in data
         assert _request(server, "/static/../session.py")[0] == 404
         assert _request(server, "/api/sample/0/99")[0] == 404
 

@@ -134,10 +134,14 @@ class ReviewHandler(BaseHTTPRequestHandler):
             return
         try:
             fn()
+        except (BrokenPipeError, ConnectionResetError):
+            return                                  # the tab went away (a tile no longer in view)
         except KeyError as exc:
             self._error(HTTPStatus.NOT_FOUND, str(exc.args[0]) if exc.args else "not found")
         except (ValueError, OSError) as exc:
             self._error(HTTPStatus.BAD_REQUEST, str(exc))
+        except Exception as exc:  # noqa: BLE001 - the page gets the reason; the server keeps serving
+            self._error(HTTPStatus.INTERNAL_SERVER_ERROR, f"{type(exc).__name__}: {exc}")
 
     # ------------------------------------------------------------------ GET
     def do_GET(self):  # noqa: N802 - http.server's name
