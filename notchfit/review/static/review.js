@@ -234,7 +234,8 @@ function residualBad(q) {
   const f = S.fit;
   if (!f || !f.ok) return false;
   const e = f.residual_mm[q - 1], c = corner(q);
-  return e !== null && c.sigma_mm && e > 3 * Math.max(c.sigma_mm, 1e-6) && e > 3 * f.rms_mm;
+  // 4 σ: a correct corner's distance (Rayleigh) passes it once in 3000, i.e. in one sample of 50
+  return e !== null && c.sigma_mm && e > 4 * Math.max(c.sigma_mm, 1e-6) && e > 3 * f.rms_mm;
 }
 
 function drawOverlay() {
