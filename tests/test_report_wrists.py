@@ -9,6 +9,8 @@ and report; the tests read what each step wrote.
 from __future__ import annotations
 
 import re
+import shutil
+import subprocess
 
 import pytest
 
@@ -85,3 +87,44 @@ def test_first_section_numbers_have_units_and_one_noise_floor(wrist_run):
     assert text.index("Model misses") < text.index("Cause")
     assert numbers_without_unit(text) == []
     assert len(noise_floors(html)) == 1
+
+
+# ----------------------------------------------------------------------------- in a real browser
+CHROMIUM = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome") if shutil.which(n)), None)
+needs_chromium = pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on PATH: the report is not checked in a "
+                                                             "real browser (apt-get install chromium)")
+
+
+def load_in_chromium(page, workdir):
+    """The report as headless Chromium lays it out: its DOM text and a screenshot (PNG bytes)."""
+    args = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-sync",
+            "--disable-background-networking", "--disable-component-update", f"--user-data-dir={workdir / 'profile'}",
+            "--window-size=1400,3000"]
+    url = page.resolve().as_uri()
+    dom = subprocess.run([*args, "--dump-dom", url], capture_output=True, text=True, timeout=120).stdout
+    shot = workdir / "shot.png"
+    subprocess.run([*args, f"--screenshot={shot}", url], capture_output=True, timeout=120)
+    return dom, shot.read_bytes() if shot.is_file() else b""
+
+
+def check_in_browser(page, workdir):
+    dom, png = load_in_chromium(page, workdir)
+    assert "<section id=\"summary\">" in dom and "Model misses" in dom
+    assert error_text(dom) == []
+    assert png.startswith(b"\x89PNG") and len(png) > 50_000          # a laid-out page, not a blank one
+
+
+@needs_chromium
+def test_angle_and_two_tube_report_in_a_browser(wrist_run, tmp_path):
+    """The report of a two-tube study measured as joint angles, loaded in headless Chromium: no error text."""
+    _, out, _, _ = wrist_run
+    check_in_browser(out / "report.html", tmp_path)
+
+
+@needs_chromium
+@pytest.mark.slow
+def test_demo_report_in_a_browser(tmp_path):
+    """The small demo's report (notch points, a hidden effect), loaded in headless Chromium: no error text."""
+    out = tmp_path / "demo"
+    assert main(["demo", "--small", "--out", str(out)]) == 0
+    check_in_browser(out / "results" / "report.html", tmp_path)

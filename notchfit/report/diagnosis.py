@@ -80,12 +80,12 @@ def _where(inp, d) -> str:
     tube = f" of `{r['tube']}`" if "tube" in t else ""
     if d.unit == "deg":
         n = int((t["tube"] == r["tube"]).sum()) if "tube" in t else len(t)
-        return f" and at joint {int(r['joint'])} of {n}{tube} ({quantity(r[col], 'deg')}; joint 1 at the base)"
+        return f"joint {int(r['joint'])} of {n}{tube} ({quantity(r[col], 'deg')}; joint 1 at the base)"
     m = int((t["tube"] == r["tube"]).sum()) if "tube" in t else len(t)
     k = int(r["point"])
     along = min(k, m + 1 - k) / (m / 2)
     near = "near the tip" if along > 2 / 3 else ("near the base" if along < 1 / 3 else "mid-way along the tube")
-    return f" and at notch point {k} of {m}{tube}, {near} ({quantity(r[col], 'mm')})"
+    return f"notch point {k} of {m}{tube}, {near} ({quantity(r[col], 'mm')})"
 
 
 def _misses_from_diagnosis(inp, d) -> str:
@@ -100,12 +100,16 @@ def _misses_from_diagnosis(inp, d) -> str:
                 f"{quantity(b.heldout_rms, u)} rms, {num(ratio, 2)}× the noise floor; {noise}.")
     worst = max(d.per_regime.items(), key=lambda kv: kv[1].baseline if math.isfinite(kv[1].baseline) else -1,
                 default=None)
-    when = (f"; most {REGIMES.get(worst[0], 'in regime ' + worst[0])} (regime {worst[0]}: "
-            f"{quantity(worst[1].baseline, u)})" if worst and len(d.per_regime) > 1 else "")
+    regime = (f"{REGIMES.get(worst[0], 'in regime ' + worst[0])} (regime {worst[0]}: {quantity(worst[1].baseline, u)})"
+              if worst and len(d.per_regime) > 1 else "")
+    where = _where(inp, d)
+    most = [p for p in (regime, f"at {where}" if where else "") if p]
     text = (f"{which[0].upper()}{which[1:]}, calibrated, misses the held-out {_measured_of(u)} by "
-            f"**{quantity(b.heldout_rms, u)} rms**, {num(ratio, 2)}× the noise floor{when}{_where(inp, d)}; {noise}.")
+            f"**{quantity(b.heldout_rms, u)} rms**, {num(ratio, 2)}× the noise floor"
+            + (f"; most {' and '.join(most)}" if most else "") + f"; {noise}.")
     if inp.identify is not None:
-        text += " Identify: " + _misses_from_identify(inp, inp.identify, noise=False)
+        ident = _misses_from_identify(inp, inp.identify, noise=False)
+        text += f" {ident[0].upper()}{ident[1:]}"
     return text
 
 

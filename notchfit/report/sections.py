@@ -17,7 +17,7 @@ from .. import io as nio
 from ..figures.summary import thumbnails_figure
 from ..units import DEG
 from .causes import cause_text
-from .diagnosis import misses_text, params_text, what_of
+from .diagnosis import misses_text, params_text, quantity, what_of
 from .forms import Glance, NotAvailable, Para, Table
 from .page import figure, link, newton, num, pct
 from .steps import fit_summary_text
@@ -83,7 +83,8 @@ def _cause_row(inp) -> tuple[str, str]:
         gain = (f"held-out {what_of(d)} error {num(g.baseline)} {u} → {num(g.extended)} {u} rms "
                 f"(**{pct(g.reduction_pct)} lower**) on experiments left out of every fit.")
     else:
-        gain = f"none: no extension lowers the held-out error significantly (it stays {num(g.baseline)} {u} rms)."
+        gain = (f"none: no extension lowers the held-out error significantly (it stays {quantity(g.baseline, u)} "
+                "rms).")
     return ans, gain
 
 
