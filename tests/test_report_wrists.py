@@ -119,12 +119,3 @@ def test_angle_and_two_tube_report_in_a_browser(wrist_run, tmp_path):
     """The report of a two-tube study measured as joint angles, loaded in headless Chromium: no error text."""
     _, out, _, _ = wrist_run
     check_in_browser(out / "report.html", tmp_path)
-
-
-@needs_chromium
-@pytest.mark.slow
-def test_demo_report_in_a_browser(tmp_path):
-    """The small demo's report (notch points, a hidden effect), loaded in headless Chromium: no error text."""
-    out = tmp_path / "demo"
-    assert main(["demo", "--small", "--out", str(out)]) == 0
-    check_in_browser(out / "results" / "report.html", tmp_path)
