@@ -64,6 +64,7 @@ def test_angle_study_report_reads_right(wrist_run):
     headers = [c for body in secs.values() for t in tables(body) for c in t.columns]
     assert not [c for c in headers if re.search(r"\brad\b", c)], headers         # degrees throughout an angle study
     assert "degrees per joint" in secs["summary"]
+    assert not re.search(r"\d rad\b", re.sub(r"<[^>]+>", "", html)), "a value in rad on an angle study's page"
     for sig in ("unloading_hold", "b_unloading_error", "residual_bend", "loop_area_ratio"):
         assert sig not in secs["diagnosis"]
 

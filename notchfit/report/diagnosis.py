@@ -190,12 +190,12 @@ def _cause_blocks(inp, d, cause: str, k: int) -> list:
     return blocks
 
 
-def _candidates_table(d) -> Table | None:
+def _candidates_table(d, angles: bool) -> Table | None:
     named = {*d.causes, "+".join(d.causes)}
     u = d.unit
     cands = sorted(d.candidates + d.pair_candidates,
                    key=lambda c: c.heldout_rms if math.isfinite(c.heldout_rms) else math.inf)
-    rows = [{"cause": c.cause, "parameters": ", ".join(params_text(c.params)),
+    rows = [{"cause": c.cause, "parameters": ", ".join(params_text(c.params, angles=angles)),
              f"held-out rms [{u}]": num(c.heldout_rms), "z": num(c.z, 2),
              "excess removed": pct(100 * c.excess_removed), "significant": "yes" if c.significant else "no"}
             for c in cands]
@@ -284,7 +284,7 @@ def diagnosis_section(inp) -> list:
     parts = [_diag_params(d, inp.angles)]
     for k, c in enumerate(d.named, 1):
         parts += _cause_blocks(inp, d, c, k)
-    parts += [Heading("Every candidate"), _candidates_table(d)]
+    parts += [Heading("Every candidate"), _candidates_table(d, inp.angles)]
     parts += _diagnosis_figures(inp, d)
     b_rows = b_at_peak_rows(inp)
     if b_rows:
