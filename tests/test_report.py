@@ -204,7 +204,8 @@ def test_full_report_reads_at_a_glance(full_run):
     d = secs["diagnosis"]
     assert "Cause 1: proximal friction" in d and "&lt;while&gt;" in d and 'href="diagnosis.json"' in d
     assert "joint_hysteresis" in d and "The band explains the hold" in d
-    assert "extra tension the measured shape holds while unloading" in d and "6.10 N" in d     # the 0.01 N the tensions resolve
+    # the signature's value with the 0.01 N the tensions resolve, its meaning in words
+    assert "extra tension the measured shape holds while unloading" in d and "6.10 N" in d
     assert check_self_standing(html) >= 2
     lines = report.summary_lines(out)
     assert lines[0].startswith("fit errors over 3 samples: cc") and "linear 0.0337 mm rms" in lines[0]

@@ -120,7 +120,8 @@ def _misses_from_identify(inp, r, *, noise: bool = True) -> str:
         [e.point_sigma * 1e3 for e in inp.exps or [] if e.point_sigma]
     noise = (f", against a measurement noise of {quantity(max(sig), u, 2)} per "
              f"{'angle' if u == 'deg' else 'point coordinate'} (experiment.toml)") if sig and noise else ""
-    text = (f"the identified model (its per-tube unknowns fitted too) misses held-out {what} by **{quantity(r.heldout_rms, u)} rms** (each experiment "
+    text = (f"the identified model (its per-tube unknowns fitted too) misses held-out {what} by "
+            f"**{quantity(r.heldout_rms, u)} rms** (each experiment "
             f"predicted by a model fitted without it; {quantity(r.train_rms, u)} on the experiments it was fitted "
             f"to){noise}")
     far = [t for t in r.tubes if math.isfinite(t.heldout_by_geometry)]
@@ -186,7 +187,8 @@ def _cause_blocks(inp, d, cause: str, k: int) -> list:
     if png.is_file():
         blocks.append(image(png.read_bytes(), "image/png",
                             f"What {words.label} changes: the held-out prediction without it against the extended "
-                            "model and the measurement, in the view that shows its effect.", f"figure of the cause {cause}"))
+                            "model and the measurement, in the view that shows its effect.",
+                            f"figure of the cause {cause}"))
     return blocks
 
 
@@ -219,7 +221,8 @@ def _diagnosis_figures(inp, d) -> list:
                  "loading only: these trials are never released, so there is no loop to compare")
         parts.append(figure(loops_figure(loops, degrees=inp.angles),
                             "Tip angle against the pulled tension for each held-out experiment: measured (dots), "
-                            f"calibrated baseline (red dashed) and extended model (blue); {shape}.", "hysteresis loops"))
+                            f"calibrated baseline (red dashed) and extended model (blue); {shape}.",
+                            "hysteresis loops"))
     pe = out / "diagnosis_point_errors.csv"
     if pe.is_file():
         by_point = nio.read_diagnosis_csv(pe)

@@ -98,7 +98,8 @@ def _protocol_text(inp) -> str:
     how = ("a step" if not any(ramps) else "a ramp over " + ", ".join(f"{num(r, 2)} s" for r in ramps)
            + " of each interval, then rest")
     if "estimated" in src:
-        return f"each sample's tensions applied as {how} (experiment.toml gives no [protocol]: estimated by the diagnosis)"
+        return (f"each sample's tensions applied as {how} (experiment.toml gives no [protocol]: estimated by the "
+                "diagnosis)")
     if d is not None or any(e.ramp_time is None for e in inp.exps or []):
         return ("each sample's tensions applied as a step, the tube at rest when measured (experiment.toml gives "
                 "no [protocol]: assumed)")
