@@ -12,6 +12,7 @@ module                 files
 :mod:`.images`         image files
 :mod:`.models`         geometry files, friction-model parameters, FEA reference
 :mod:`.outputs`        atomic writers, the output-run transaction, output files
+:mod:`.results`        typed readers of result files (diagnosis.json, identify.json, run records, tables)
 :mod:`.resources`      where the shipped ``datasets/`` and ``calibration/`` are
 =====================  ========================================================
 
@@ -44,6 +45,8 @@ _HOME = {
                 "read_diagnosis", "read_fits", "read_json", "read_pointwise", "read_simulation",
                 "write_json_atomic", "write_table_atomic", "write_text_atomic"),
     "resources": ("calibration_dir", "datasets_dir"),
+    "results": ("DiagnosisRecord", "IdentifyRecord", "RunRecord", "read_angle_fits", "read_diagnosis_csv",
+                "read_diagnosis_record", "read_identify", "read_run_records", "read_simulation_vs_measured"),
     "tables": ("DETECTION_COLUMNS", "FITS_COLUMNS", "POINT_COLUMNS", "POINTWISE_COLUMNS", "SAMPLE_COLUMNS",
                "SIMULATION_COLUMNS", "read_csv_table"),
     "toml": ("TomlError", "TomlFileNotFoundError", "load_toml", "toml_dumps"),
