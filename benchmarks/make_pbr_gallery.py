@@ -9,12 +9,14 @@ slow test and `bench_detection.py --pbr --render` re-render.
 
 Scene kinds (from what lab photographs of wrists show):
   polished-chuck  a polished nitinol wrist (rough conductor, the softbox's stripe along it) hanging from a
-                  knurled steel chuck, a softbox and a fill light, its shadow on a warm-grey card
+                  knurled steel chuck, a softbox and a fill light, its shadow on a warm-grey card (one scene at
+                  the lab photograph's 130 px/mm in a dark room: a dark tube with a bright stripe)
   closed-grid     a nine-slot wrist bent until its slot mouths almost close, grid paper, a tendon leaving
                   the tip in a loop towards the border, a droplet at the tip
   tendon-loop     the five-slot wrist with the tendon loop and the droplet on the grey card
-  printed-paper   the seed tube printed in matte white plastic lying on blue paper, seen by a phone-like
-                  wide lens (barrel distortion) up close, its base coming in from the image border, JPEG 85
+  printed-paper   a printed tube (OD 6 mm, 12 slots from alternating sides) in matte white plastic lying on
+                  blue paper, seen by a phone-like lens (barrel distortion) from 55 mm (a cropped photo) or
+                  29 mm (an ultrawide close-up), its base coming in from the image border, JPEG 85
   defocus         the polished wrist with a thin lens focused 0.8-1.2 mm behind it (edges spread a few px)
 
 Run:  python benchmarks/make_pbr_gallery.py [--only NAME ...] [--out tests/data/pbr] [--list]
@@ -42,7 +44,7 @@ ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "tests" / "data" / "pbr"
 WRIST = "datasets/geometry/wrist_asymmetric.toml"
 NINE = "tests/data/pbr/wrist_nine.toml"
-SEED_TUBE = "datasets/geometry/default.toml"
+PRINTED = "tests/data/pbr/printed_tube.toml"
 
 
 def _closing(geom_file, fractions):
@@ -60,6 +62,9 @@ def gallery() -> list[tuple[PbrScene, str]]:
                   roughness=0.05, key_light=(60.0, 30.0), seed=2, **dslr), WRIST),
         (PbrScene("chuck_c", "polished-chuck", (0.3, 0.32, 0.35, 0.3, 0.3), base_at=0.2, angle_deg=84.0,
                   roughness=0.12, tilt_deg=2.0, seed=3, **dslr), WRIST),
+        (PbrScene("chuck_full", "polished-chuck", (0.25, 0.3, 0.35, 0.35, 0.3), base_at=0.18, room=0.008, seed=11,
+                  **{**dslr, "image_size": (800, 1000), "px_per_mm": 130.0, "focal_px": 60.0 * 130.0, "spp": 20}),
+         WRIST),
         (PbrScene("closed_a", "closed-grid", _closing(NINE, [0.5, 0.6, 0.8, 0.9, 0.95, 0.97, 0.97, 0.9, 0.8]),
                   backdrop="grid", tendon=True, droplet=True, base_at=0.18, seed=4,
                   **{**dslr, "px_per_mm": 60.0, "focal_px": 3600.0, "image_size": (640, 800)}), NINE),
@@ -81,13 +86,14 @@ def gallery() -> list[tuple[PbrScene, str]]:
                   base_at=0.2, angle_deg=92.0, seed=10, **dslr), WRIST),
     ]
     phone = dict(tube="printed", backdrop="blue", holder="none", backdrop_gap=3.0e-3, image_size=(540, 660),
-                 px_per_mm=18.0, focal_px=520.0, dist=(-0.06, 0.01, 0.0, 0.0, 0.0), base_at=-0.08,
+                 px_per_mm=20.0, focal_px=580.0, dist=(-0.06, 0.01, 0.0, 0.0, 0.0), base_at=-0.08,
                  key_light=(100.0, 25.0), spp=20, jpeg_quality=85, noise_dn=1.5)
-    for k, (amp, ang) in enumerate(((0.04, 90.0), (-0.05, 70.0), (0.06, 180.0))):
+    for k, (amp, ang) in enumerate(((0.06, 90.0), (-0.08, 70.0), (0.1, 180.0))):
         rng = np.random.default_rng(20 + k)
-        th = tuple(float(t) for t in np.clip(amp + rng.normal(0, 0.01, 27), -0.135, 0.135))
-        out.append((PbrScene(f"printed_{'abc'[k]}", "printed-paper", th, angle_deg=ang, seed=20 + k, **phone),
-                    SEED_TUBE))
+        th = tuple(float(t) for t in np.clip(amp + rng.normal(0, 0.02, 12), -0.3, 0.3))
+        lens = {"focal_px": 1100.0} if k < 2 else {}      # a cropped phone photo at 55 mm; an ultrawide at 29 mm
+        out.append((PbrScene(f"printed_{'abc'[k]}", "printed-paper", th, angle_deg=ang, seed=20 + k,
+                             **{**phone, **lens}), PRINTED))
     return out
 
 

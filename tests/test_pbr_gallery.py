@@ -37,9 +37,9 @@ def _load(path):
 
 
 def test_gallery_is_small_and_covers_the_scene_kinds():
-    assert len(RECORDS) >= 4
+    assert len(RECORDS) >= 10
     kinds = {json.loads(p.read_text())["kind"] for p in RECORDS}
-    assert kinds <= KINDS
+    assert kinds == KINDS
     size = sum(p.stat().st_size for p in GALLERY.iterdir())
     assert size < 5e6, f"the gallery holds {size / 1e6:.1f} MB"
 
@@ -59,15 +59,16 @@ def test_truth_is_self_consistent(path):
     assert np.allclose(cam.plane_tvec, truth.camera.plane_tvec, atol=1e-12)
     again = pbr_truth(scene, geom, cam, pose)
     assert np.allclose(again.points_px, truth.points_px, atol=1e-6) and (again.visible == truth.visible).all()
-    # the planar notch points (geometry.md) are close to the solid's corners: the same tube, seen nearly
-    # fronto-parallel (the limb of a round tube seen in perspective moves them a little)
+    # the planar notch points (geometry.md) are the solid's corners moved along the face circle to the
+    # limb: by at most R times the widest angle of a view ray off the optical axis (plus the tilt)
     planar = truth.camera.plane_to_pixel(to_plane(notch_points(th, geom), *truth.pose.plane))
     near = np.linalg.norm(planar - truth.points_px, axis=1)[truth.visible]
-    assert near.max() < 0.06 * geom.outer_radius * 1e3 * scene.px_per_mm + 3.0
+    W, H = truth.camera.image_size
+    ray = np.arctan(0.5 * np.hypot(W, H) / truth.camera.camera_matrix[0, 0]) + np.radians(scene.tilt_deg)
+    assert near.max() < 1.2 * geom.outer_radius * 1e3 * scene.px_per_mm * ray + 1.0
     # base points are never scored (holder rim or no holder), every visible corner is inside the frame
     base = np.array(notch_layout(geom).kind) == "base"
     assert not truth.visible[base].any()
-    W, H = truth.camera.image_size
     vis = truth.points_px[truth.visible]
     assert ((vis >= 0) & (vis <= [W - 1, H - 1])).all()
 

@@ -102,9 +102,12 @@ class PbrScene:
         Lens aperture radius [m] (0: a pinhole, no depth of field).
     focus_offset : float
         Focus distance minus the plane's distance [m] (defocus of the tube).
-    key_light : (azimuth_deg, elevation_deg)
-        Direction of the softbox from the tube, about the camera axis
-        (azimuth 90: from the image top) and away from it.
+    key_light : (azimuth_deg, off_axis_deg)
+        Direction of the softbox from the tube: its azimuth about the camera
+        axis (90: from the image top) and its angle off that axis.
+    room : float
+        Radiance of the room around the set (what the polished metal
+        mirrors outside the softbox's stripe), relative to the softbox's 1.
     spp : int
         Samples per pixel.
     exposure_dn : float
@@ -138,6 +141,7 @@ class PbrScene:
     aperture: float = 0.0
     focus_offset: float = 0.0
     key_light: tuple = (120.0, 35.0)
+    room: float = 0.03
     spp: int = 16
     exposure_dn: float = 160.0
     noise_dn: float = 1.0
@@ -563,7 +567,7 @@ def scene_dict(mi, scene: PbrScene, geom: Geometry, camera: CameraModel, pose: S
     d = {"type": "scene", "integrator": {"type": "path", "max_depth": 4, "hide_emitters": True},
          "sensor": _sensor(mi, scene, camera, margin),
          "tube": _mesh(mi, "tube", *tube_mesh(th, geom, pose, base_z), mats["tube"]),
-         "room": {"type": "constant", "radiance": {"type": "rgb", "value": 0.03}}}
+         "room": {"type": "constant", "radiance": {"type": "rgb", "value": scene.room}}}
     tex = _backdrop_texture(scene, view, rng)
     T = mi.ScalarTransform4f()
     centre = [float(C[0]), float(C[1]), -scene.backdrop_gap / MM]
@@ -661,6 +665,9 @@ class PbrScore:
         (a wrong identity: the guarantee is that there are none).
     invented : int
         Points reported ``ok`` whose corner the image does not show.
+    located : int
+        Corners the image shows that were located within ``located_px`` of the truth but withheld
+        (a status other than ``ok``, the position kept).
     errors_px : ndarray (ok,)
         Distance of each ok corner from the truth [px].
     z : ndarray (2 ok,)
@@ -672,6 +679,7 @@ class PbrScore:
     present: int
     wrong: int
     invented: int
+    located: int
     errors_px: np.ndarray
     z: np.ndarray
     px_per_mm: float
@@ -684,10 +692,11 @@ class PbrScore:
         e = self.errors_mm
         rms = float(np.sqrt(np.mean(e ** 2))) if e.size else math.nan
         return (f"{self.ok}/{self.present} corners ok, {self.wrong} wrong identities, {self.invented} invented, "
-                f"rms {rms:.4f} mm")
+                f"{self.located} located but withheld, rms {rms:.4f} mm")
 
 
-def score_detection(det, truth: PbrTruth, px_per_mm: float, *, wrong_px: float = 3.0) -> PbrScore:
+def score_detection(det, truth: PbrTruth, px_per_mm: float, *, wrong_px: float = 3.0,
+                    located_px: float = 5.0) -> PbrScore:
     """Score a :class:`~notchfit.detection.Detection` against ``truth``.
 
     An ok point is a wrong identity when it is farther than ``wrong_px`` from
@@ -709,5 +718,6 @@ def score_detection(det, truth: PbrTruth, px_per_mm: float, *, wrong_px: float =
     err = d_own[good]
     sig_px = np.asarray(det.sigma, float)[good] / (det.scale_mm_per_px * MM)
     z = ((found[good] - true[good]) / sig_px[:, None]).ravel()
+    located = ~okm & truth.visible & (d_own <= located_px)
     return PbrScore(int(good.sum()), int(truth.visible.sum()), int(wrong.sum()),
-                    int((okm & ~wrong & ~truth.visible).sum()), err, z, float(px_per_mm))
+                    int((okm & ~wrong & ~truth.visible).sum()), int(located.sum()), err, z, float(px_per_mm))
