@@ -272,6 +272,25 @@ def _pbr_gallery(folder):
     return out
 
 
+def _pbr_row(kind, cal, sel):
+    """One table row from (kind, calibrated, PbrScore, seconds, px/mm) tuples."""
+    def stat(a, fn):
+        return f"{fn(a):.4f}" if a.size else "-"
+
+    def rms(a):
+        return np.sqrt(np.mean(a ** 2))
+
+    e_mm = np.concatenate([r[2].errors_mm for r in sel])
+    e_px = np.concatenate([r[2].errors_px for r in sel])
+    z = np.concatenate([r[2].z for r in sel])
+    ok, present = sum(r[2].ok for r in sel), sum(r[2].present for r in sel)
+    counts = [sum(getattr(r[2], k) for r in sel) for k in ("wrong", "invented", "located")]
+    return (f"| {kind} | {'yes' if cal else 'no'} | {len(sel)} | {ok}/{present} ({100 * ok / max(present, 1):.0f} %) | "
+            + " | ".join(str(c) for c in counts) + f" | {stat(e_mm, rms)} | {stat(e_mm, np.max)} | {stat(e_px, rms)} | "
+            f"{stat(z, rms)} | {stat(z, lambda a: 1.4826 * np.median(np.abs(a)))} | "
+            f"{1e3 * np.median([r[3] for r in sel]):.0f} |")
+
+
 def pbr(folder, repeat=1, render=False):
     """Per scene kind of the physically based gallery, with the camera file and without it: corners ok /
     present, wrong identities (target 0), invented points, rms and max error [mm] (target rms <= 0.01 mm),
@@ -315,17 +334,7 @@ def pbr(folder, repeat=1, render=False):
     for kind in sorted({r[0] for r in rows}) + ["all"]:
         for cal in (True, False):
             sel = [r for r in rows if (kind == "all" or r[0] == kind) and r[1] == cal]
-            e_mm = np.concatenate([r[2].errors_mm for r in sel])
-            e_px = np.concatenate([r[2].errors_px for r in sel])
-            z = np.concatenate([r[2].z for r in sel])
-            ok, present = sum(r[2].ok for r in sel), sum(r[2].present for r in sel)
-            f = (lambda a, fn: f"{fn(a):.4f}" if a.size else "-")
-            print(f"| {kind} | {'yes' if cal else 'no'} | {len(sel)} | {ok}/{present} ({100 * ok / max(present, 1):.0f} %)"
-                  f" | {sum(r[2].wrong for r in sel)} | {sum(r[2].invented for r in sel)} | {sum(r[2].located for r in sel)} | "
-                  f"{f(e_mm, lambda a: np.sqrt(np.mean(a ** 2)))} | {f(e_mm, np.max)} | "
-                  f"{f(e_px, lambda a: np.sqrt(np.mean(a ** 2)))} | {f(z, lambda a: np.sqrt(np.mean(a ** 2)))} | "
-                  f"{f(z, lambda a: 1.4826 * np.median(np.abs(a)))} | {1e3 * np.median([r[3] for r in sel]):.0f} |",
-                  flush=True)
+            print(_pbr_row(kind, cal, sel), flush=True)
     print("Same tubes, cameras and poses drawn by notchfit's own renderer (solid, blur 1 px), with the camera: "
           + ", ".join(f"{k} {v[0]}/{v[1]}" for k, v in sorted(own.items())))
 

@@ -107,3 +107,30 @@ def test_detector_on_the_gallery_never_numbers_a_corner_wrongly():
         lines.append(f"{kind:15s} {ok:3d}/{present:<3d} ok, {wrong} wrong, {invented} invented, rms {rms}")
     print("\n" + "\n".join(lines))
     assert sum(k[2] for k in per_kind.values()) == 0, "\n".join(lines)
+
+
+def test_score_counts_wrong_numbers_invented_points_and_z():
+    """The scorer on a made-up detection: found = truth + noise of the stated σ, two corners swapped,
+    a base point reported, a closed mouth's corners a pixel apart not counted as swapped."""
+    from notchfit.detection.result import Detection
+    from notchfit.units import MM
+
+    rec, scene, truth, geom = _load(GALLERY / "closed_b.json")
+    rng = np.random.default_rng(5)
+    m = geom.n_points
+    sigma_px = 0.3
+    scale = 1.0 / scene.px_per_mm                       # mm per px
+    pts = truth.points_px + rng.normal(0, sigma_px, (m, 2))
+    vis = np.nonzero(truth.visible)[0]
+    a, b = vis[0], vis[-1]                               # far apart: the base and the tip end
+    d = np.linalg.norm(truth.points_px[vis][:, None] - truth.points_px[vis][None], axis=2)
+    assert (d[np.triu_indices(len(vis), 1)] < 2.0).any()    # closed mouths: corners under 2 px apart
+    pts[[a, b]] = pts[[b, a]]
+    status = ["ok" if (v or i == 0) else "occluded" for i, v in enumerate(truth.visible)]
+    det = Detection(points=np.full((m, 2), np.nan), points_px=pts, sigma=np.full(m, sigma_px * scale * MM),
+                    status=tuple(status), image_status="partial", message="", contour_px=np.zeros((0, 2)),
+                    scale_mm_per_px=scale)
+    s = score_detection(det, truth, scene.px_per_mm)
+    assert s.wrong == 2 and s.invented == 1 and s.present == truth.visible.sum() and s.ok == s.present - 2
+    assert 0.8 < np.sqrt(np.mean(s.z ** 2)) < 1.2                 # errors of the stated size: z spread 1
+    assert s.errors_mm.max() < 5 * sigma_px / scene.px_per_mm

@@ -79,7 +79,8 @@ def test_mitsuba_sensor_projects_like_the_camera_model(camera_kind):
         m = (uu - u) ** 2 + (vv - v) ** 2 < 10 ** 2
         w = img * m
         err.append(np.hypot((w * uu).sum() / w.sum() - u, (w * vv).sum() / w.sum() - v))
-    print(camera_kind, f"marker centroid vs CameraModel: max {max(err):.3f} px, rms {np.sqrt(np.mean(np.square(err))):.3f} px")
+    print(f"{camera_kind}: marker centroid against CameraModel, max {max(err):.3f} px, "
+          f"rms {np.sqrt(np.mean(np.square(err))):.3f} px")
     assert max(err) < 0.5, err
 
 
