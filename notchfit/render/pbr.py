@@ -358,11 +358,13 @@ def chuck_mesh(theta, geom: Geometry, pose: SolidPose, *, half_width: float, len
     """A chuck: a cylinder of radius ``half_width`` on the tube's axis, its flat face at the base edge,
     a diamond knurl on its body from ``plain`` above the face on: (V [m], F), closed, faces outward.
 
+    The body is ``length`` long, rounded down to a whole number of knurl steps (``knurl_pitch / 10``).
+
     The knurl is two sets of V grooves along opposite helices ``pitch`` apart.
     """
     face = geom.base_edge_z
-    rows = np.concatenate([[0.0], plain + np.linspace(0.0, length - plain,
-                                                     int(math.ceil((length - plain) / (knurl_pitch / 10))) + 1)])
+    step = knurl_pitch / 10                   # the knurl's sampling along the axis; the body ends within a step
+    rows = np.concatenate([[0.0, plain], plain + np.arange(1, int((length - plain) / step) + 1) * step])
     z = face - rows
     psi = np.linspace(0, 2 * math.pi, n_around, endpoint=False)
     Z, PS = np.meshgrid(z, psi, indexing="ij")
