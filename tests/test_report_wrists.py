@@ -8,8 +8,8 @@ and report; the tests read what each step wrote.
 
 from __future__ import annotations
 
+import functools
 import re
-import shutil
 import subprocess
 
 import pytest
@@ -18,6 +18,7 @@ from notchfit import io, report
 from notchfit.cli import main
 from notchfit.synth import generate_study, load_recipe
 
+from browser_helpers import chromium_path, no_browser
 from test_report import glance_text, noise_floors, numbers_without_unit, sections, tables
 
 
@@ -91,9 +92,17 @@ def test_first_section_numbers_have_units_and_one_noise_floor(wrist_run):
 
 
 # ----------------------------------------------------------------------------- in a real browser
-CHROMIUM = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome") if shutil.which(n)), None)
-needs_chromium = pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on PATH: the report is not checked in a "
-                                                             "real browser (apt-get install chromium)")
+CHROMIUM = chromium_path()
+
+
+def needs_chromium(test):
+    """Run ``test`` in a real browser; without one, skip (or fail where one is required: CI)."""
+    @functools.wraps(test)
+    def wrapper(*args, **kwargs):
+        if CHROMIUM is None:
+            no_browser("no Chromium: the report is not checked in a real browser (apt-get install chromium)")
+        return test(*args, **kwargs)
+    return wrapper
 
 
 def load_in_chromium(page, workdir):

@@ -4,8 +4,6 @@ Skipped, with the reason, where Playwright or a Chromium cannot be had (CI insta
 The browser is Debian's ``chromium`` (/usr/bin/chromium) when present, else Playwright's own.
 """
 
-import os
-import shutil
 
 import cv2
 import numpy as np
@@ -16,33 +14,32 @@ from notchfit import io
 from notchfit.cli import main
 from notchfit.commands.demo import demo_study
 from notchfit.commands.review import study_and_points
+from browser_helpers import chromium_path, no_browser
 from review_helpers import BLANKED, rendered_study, running_server, work_copy
 
-sync_api = pytest.importorskip("playwright.sync_api", reason="Playwright is not installed (pip install playwright); "
-                               "the browser tests of notchfit review are skipped")
+try:
+    from playwright import sync_api
+except ImportError:
+    sync_api = None
 
 READY = "window.review && window.review.ready && window.review.fit"
 
 
-def _executable():
-    for path in (os.environ.get("NOTCHFIT_CHROMIUM"), "/usr/bin/chromium", shutil.which("chromium")):
-        if path and os.path.isfile(path):
-            return path
-    return None
-
-
 @pytest.fixture(scope="module")
 def browser():
+    if sync_api is None:
+        no_browser("Playwright is not installed (pip install playwright); the browser tests of notchfit review "
+                   "are skipped")
     try:
         pw = sync_api.sync_playwright().start()
     except Exception as exc:  # noqa: BLE001 - any start-up failure means: no browser here
-        pytest.skip(f"Playwright cannot start ({exc}); the browser tests of notchfit review are skipped")
+        no_browser(f"Playwright cannot start ({exc}); the browser tests of notchfit review are skipped")
     try:
-        b = pw.chromium.launch(executable_path=_executable(), args=["--no-sandbox"])
+        b = pw.chromium.launch(executable_path=chromium_path(), args=["--no-sandbox"])
     except Exception as exc:  # noqa: BLE001
         pw.stop()
-        pytest.skip(f"no Chromium to drive (apt-get install chromium, or playwright install chromium): "
-                    f"{str(exc).splitlines()[0]}")
+        no_browser(f"no Chromium to drive (apt-get install chromium, or playwright install chromium): "
+                   f"{str(exc).splitlines()[0]}")
     yield b
     b.close()
     pw.stop()
