@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import shutil
 import time
@@ -10,9 +11,11 @@ from pathlib import Path
 
 from .. import io
 from .. import diagnosis
+from ..io.interrupts import deferred_interrupts
 from ..progress import Steps, bar as progress_bar
 from ..report import SECTIONS, build_report, summary_lines
 from ..synth import generate_study, load_recipe
+from . import _common as common
 from . import detect, fit, simulate
 from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call, count_option, jobs_option
 from ._points import MISSING_HINT, source_lines
@@ -103,21 +106,68 @@ def demo_study(study_dir, *, cause: str = "proximal_friction", small: bool = Fal
     return recipe, images
 
 
+@contextlib.contextmanager
+def whole_or_nothing(out: Path):
+    """Run a demo into folder ``out`` as a whole: an error or Ctrl-C leaves ``out`` as it was.
+
+    An earlier demo in ``out`` (replaced with ``--force``) is renamed aside
+    while the new one runs, deleted once it has finished, and renamed back
+    after an error or an interruption; a new folder is removed again. So an
+    interrupted demo leaves the earlier one, or nothing, and a plain rerun
+    works.
+    """
+    new = common.new_folders(out)
+    aside = None
+    if out.is_dir() and any(out.iterdir()):
+        aside = out.with_name(f".{out.name}.previous-{os.getpid()}")
+        os.replace(out, aside)
+    try:
+        yield
+    except BaseException:
+        with deferred_interrupts():
+            if out.exists() and (new or aside is not None):
+                shutil.rmtree(out)
+            elif out.exists():
+                _empty(out)
+            if aside is not None:
+                os.replace(aside, out)
+            common.remove_empty(new)
+        raise
+    if aside is not None:
+        shutil.rmtree(aside, ignore_errors=True)
+
+
+def _empty(folder: Path) -> None:
+    """Remove what is inside ``folder`` (a folder the user made, left in place)."""
+    for p in folder.iterdir():
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        else:
+            p.unlink()
+
+
 def run(args) -> int:
-    if args.tube == "wrist":
-        return run_wrist_demo(args)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: is a file, not a folder")
+    if out.exists() and any(out.iterdir()) and not args.force:
+        raise FileExistsError(f"{out}: holds an earlier demo; use --force to replace it or --out elsewhere")
+    with whole_or_nothing(out):
+        if args.tube == "wrist":
+            return run_wrist_demo(args)
+        return _run_seed(args)
+
+
+def _run_seed(args) -> int:
+    """The default demo (the paper's tube, one hidden effect) into the empty ``args.out``."""
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
     out = Path(args.out)
     study_dir, res_dir = out / "study", out / "results"
-    if out.exists() and any(out.iterdir()) and not args.force:
-        raise FileExistsError(f"{out}: holds an earlier demo; use --force to replace it or --out elsewhere")
     t0 = time.perf_counter()
     _step(f"synth: recipe {args.cause}, the {'small' if args.small else 'full'} study, seed {args.seed} "
           f"-> {study_dir}", t0)
     recipe, images = demo_study(study_dir, cause=args.cause, small=args.small, images=args.images,
                                 seed=args.seed, jobs=jobs)
-    if res_dir.exists() and args.force:
-        shutil.rmtree(res_dir)
     common = ["--out", str(res_dir), "--jobs", str(jobs)]
     commands = []
     if images:
