@@ -37,11 +37,13 @@ extensions = [
     "numpydoc",
     "myst_parser",
     "sphinx_gallery.gen_gallery",
+    "sphinx_design",
     "notchfit_xref",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
+highlight_language = "text"         # a code block without a language is shown as written
 templates_path = ["_templates"]
 exclude_patterns = ["_build", "_templates", "auto_examples/*.ipynb", "auto_examples/*.py",
                     "auto_examples/*.zip", "auto_examples/*.md5", "auto_examples/*.codeobj.json",
@@ -75,7 +77,8 @@ nitpick_ignore_regex = [
 # --- HTML: the theme scientific Python projects use
 html_theme = "pydata_sphinx_theme"
 html_title = f"notchfit {release}"
-html_static_path: list[str] = []
+html_static_path = ["_static"]
+html_css_files = ["notchfit.css"]
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
