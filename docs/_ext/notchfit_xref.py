@@ -1,4 +1,6 @@
-"""Cross-references in the docstrings checked against the code (a small Sphinx extension).
+"""Cross-references in the docstrings checked against the code, and whole one-line summaries.
+
+A small Sphinx extension.
 
 With ``-n`` (nitpicky) every unresolved reference warns. A reference that the
 API pages document links there. Docstrings also name objects that are not in
@@ -16,6 +18,7 @@ import sys
 from pathlib import Path
 
 from sphinx import addnodes
+from sphinx.ext import autosummary
 from sphinx.transforms.post_transforms import SphinxPostTransform
 
 PACKAGE = "notchfit"
@@ -119,7 +122,43 @@ class RepositoryPageLinks(SphinxPostTransform):
                     node["reftarget"] = page
 
 
+#: Abbreviations the docstrings use before a number: their period ends no sentence.
+ABBREVIATIONS = ("Sec.", "Secs.", "Eq.", "Eqs.", "Fig.", "Figs.", "e.g.", "i.e.", "cf.", "vs.")
+
+
+def _first_sentence(lines) -> str:
+    """The first sentence of a docstring's first paragraph; a period inside parentheses
+    (``(Sec. IV-B)``) or after an abbreviation (``Sec. IV-B``) does not end it."""
+    para = []
+    for line in lines:
+        if not line.strip():
+            if para:
+                break
+            continue
+        para.append(line.strip())
+    text, depth = " ".join(para), 0
+    for i, ch in enumerate(text):
+        depth += (ch == "(") - (ch == ")")
+        if ch == "." and depth <= 0 and (i + 1 == len(text) or text[i + 1].isspace()) \
+                and not text[:i + 1].endswith(ABBREVIATIONS):
+            return text[:i + 1]
+    return text
+
+
+_autosummary_summary = autosummary.extract_summary
+
+
+def extract_summary(doc, settings) -> str:
+    """autosummary's one-line summary, unless it stops at a period inside parentheses
+    (``Backbone kinematics (Sec.``) or after an abbreviation: then the whole first sentence."""
+    summary = _autosummary_summary(doc, settings)
+    if summary.count("(") > summary.count(")") or summary.endswith(ABBREVIATIONS):
+        return _first_sentence(doc)
+    return summary
+
+
 def setup(app):
+    autosummary.extract_summary = extract_summary
     app.connect("missing-reference", missing_reference)
     app.add_post_transform(RepositoryPageLinks)
     return {"parallel_read_safe": True, "parallel_write_safe": True}
