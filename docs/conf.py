@@ -104,4 +104,5 @@ sphinx_gallery_conf = {
     "reset_modules": ("matplotlib",),
     "show_memory": False,
     "min_reported_time": 1,
+    "write_computation_times": False,   # its page loads scripts from the network; the build log has the times
 }
