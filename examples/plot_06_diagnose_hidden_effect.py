@@ -25,7 +25,11 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-CACHE = Path("data") / "diagnosis_small.json"
+try:
+    HERE = Path(__file__).resolve().parent
+except NameError:                                     # the site's build runs it from its folder
+    HERE = Path.cwd()
+CACHE = HERE / "data" / "diagnosis_small.json"
 MM = 1e3
 
 
