@@ -66,18 +66,37 @@ def test_ctrl_c_inside_a_demo_step_stops_the_whole_demo(step, tmp_path, capsys, 
     assert not (tmp_path / "new").exists()
 
 
-def test_ctrl_c_keeps_the_earlier_demo(tmp_path, capsys, monkeypatch):
-    """``demo --force`` over an earlier demo, interrupted: the earlier demo is byte-identical and no
-    folder of the run is left beside it."""
-    out = tmp_path / "demo"
+def _earlier_demo(out):
     (out / "results").mkdir(parents=True)
     (out / "results" / "report.html").write_text("<!DOCTYPE html> the earlier demo")
+    (out / "notes.txt").write_text("the user's own file, beside the demo")
+
+
+def test_ctrl_c_keeps_the_earlier_demo(tmp_path, capsys, monkeypatch):
+    """``demo --force`` over an earlier demo, interrupted: the earlier demo and the user's own file
+    are byte-identical and nothing of the run is left."""
+    out = tmp_path / "demo"
+    _earlier_demo(out)
     before = snapshot(out)
     _fast_demo(monkeypatch, interrupt_in="fit")
     rc, _, _ = run_main(["demo", "--small", "--out", out, "--force"], capsys)
     assert rc == 130
     assert snapshot(out) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["demo"]
+
+
+def test_force_replaces_only_the_demo(tmp_path, capsys, monkeypatch):
+    """``demo --force`` that finishes: the earlier demo's study and results are replaced, the user's
+    own file in the folder is kept, nothing of the earlier demo is left aside."""
+    out = tmp_path / "demo"
+    _earlier_demo(out)
+    _fast_demo(monkeypatch, interrupt_in=None)
+    monkeypatch.setattr(demo, "diagnose", lambda *a, **k: None)
+    monkeypatch.setattr(demo, "build_report", lambda *a, **k: out / "results" / "report.html")
+    monkeypatch.setattr(demo, "summary_lines", lambda *a: [])
+    rc, stdout, err = run_main(["demo", "--small", "--out", out, "--force"], capsys)
+    assert rc == 0, stdout + err
+    assert sorted(snapshot(out)) == ["notes.txt", "study/truth.json"]
 
 
 def test_call_raises_an_interruption_and_reports_an_error(tmp_path, capsys):

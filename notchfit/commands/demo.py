@@ -106,44 +106,48 @@ def demo_study(study_dir, *, cause: str = "proximal_friction", small: bool = Fal
     return recipe, images
 
 
+#: What a demo writes into its --out folder (all of it is replaced with --force, nothing else is touched).
+PARTS = ("study", "results")
+
+
 @contextlib.contextmanager
 def whole_or_nothing(out: Path):
     """Run a demo into folder ``out`` as a whole: an error or Ctrl-C leaves ``out`` as it was.
 
-    An earlier demo in ``out`` (replaced with ``--force``) is renamed aside
-    while the new one runs, deleted once it has finished, and renamed back
-    after an error or an interruption; a new folder is removed again. So an
-    interrupted demo leaves the earlier one, or nothing, and a plain rerun
-    works.
+    An earlier demo's ``study/`` and ``results/`` in ``out`` (replaced with
+    ``--force``) are renamed aside while the new one runs, deleted once it has
+    finished, and renamed back after an error or an interruption; what the
+    new run wrote is removed, and so are the folders it created. Nothing
+    else in ``out`` is touched. So an interrupted demo leaves the earlier
+    one, or nothing, and a plain rerun works.
     """
     new = common.new_folders(out)
-    aside = None
-    if out.is_dir() and any(out.iterdir()):
-        aside = out.with_name(f".{out.name}.previous-{os.getpid()}")
-        os.replace(out, aside)
+    asides = {}
+    for name in PARTS:
+        part = out / name
+        if part.exists() or part.is_symlink():
+            asides[part] = out / f".{name}.previous-{os.getpid()}"
+            os.replace(part, asides[part])
     try:
         yield
     except BaseException:
         with deferred_interrupts():
-            if out.exists() and (new or aside is not None):
-                shutil.rmtree(out)
-            elif out.exists():
-                _empty(out)
-            if aside is not None:
-                os.replace(aside, out)
+            for name in PARTS:
+                _remove(out / name)
+            for part, aside in asides.items():
+                os.replace(aside, part)
             common.remove_empty(new)
         raise
-    if aside is not None:
-        shutil.rmtree(aside, ignore_errors=True)
+    for aside in asides.values():
+        _remove(aside)
 
 
-def _empty(folder: Path) -> None:
-    """Remove what is inside ``folder`` (a folder the user made, left in place)."""
-    for p in folder.iterdir():
-        if p.is_dir() and not p.is_symlink():
-            shutil.rmtree(p)
-        else:
-            p.unlink()
+def _remove(path: Path) -> None:
+    """Remove a file or a folder tree (nothing when absent)."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()
 
 
 def run(args) -> int:
