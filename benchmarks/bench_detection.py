@@ -21,10 +21,17 @@ and vignetting, the lens's perspective and a tilt out of the plane up to 4 deg, 
 ISO noise, sharpening, JPEG 75-95, any angle, bends to 0.98 of each slot's closure, per-notch depths),
 tables per holder kind and per factor, with the camera and without it.
 
+Physically based gallery (--pbr): the Mitsuba 3 renders committed in tests/data/pbr (made by
+benchmarks/make_pbr_gallery.py: a polished wrist on a knurled chuck, closed slot mouths on grid paper, a
+tendon loop at the tip, a printed tube on blue paper through a phone-like lens, depth of field), per scene
+kind with the camera and without it: corners ok / present, wrong identities, invented points, rms and max
+error, the spread of (found - true) / sigma; --pbr-render re-renders the gallery first (needs Mitsuba).
+
 Run:  python benchmarks/bench_detection.py [--images 12] [--repeat 3]
       python benchmarks/bench_detection.py --robustness [--per-row 4]   (the table of docs/robustness.md)
       python benchmarks/bench_detection.py --scenes [--per-scene 2]     (the real-scene table)
       python benchmarks/bench_detection.py --variety 40 [--seed 1] [--size 4928x3264] [--px-per-mm 130]
+      python benchmarks/bench_detection.py --pbr [--pbr-dir tests/data/pbr] [--pbr-render]
 """
 
 from __future__ import annotations
@@ -248,6 +255,90 @@ def variety(n, seed, size=(4928, 3264), px_per_mm=130.0):
     _table("geometry", rows, lambda r: r["geometry"])
 
 
+def _pbr_gallery(folder):
+    """The gallery's scenes: (record, scene, truth, geometry, image) per JSON record in ``folder``."""
+    import json
+    from pathlib import Path
+
+    from notchfit.io import load_geometry, load_image
+    from notchfit.render.pbr import PbrScene, PbrTruth
+
+    root = Path(__file__).resolve().parent.parent
+    out = []
+    for p in sorted(Path(folder).glob("*.json")):
+        rec = json.loads(p.read_text())
+        out.append((rec, PbrScene.from_dict(rec["scene"]), PbrTruth.from_dict(rec),
+                    load_geometry(root / rec["geometry"]), load_image(Path(folder) / rec["image"])))
+    return out
+
+
+def _pbr_row(kind, cal, sel):
+    """One table row from (kind, calibrated, PbrScore, seconds, px/mm) tuples."""
+    def stat(a, fn):
+        return f"{fn(a):.4f}" if a.size else "-"
+
+    def rms(a):
+        return np.sqrt(np.mean(a ** 2))
+
+    e_mm = np.concatenate([r[2].errors_mm for r in sel])
+    e_px = np.concatenate([r[2].errors_px for r in sel])
+    z = np.concatenate([r[2].z for r in sel])
+    ok, present = sum(r[2].ok for r in sel), sum(r[2].present for r in sel)
+    counts = [sum(getattr(r[2], k) for r in sel) for k in ("wrong", "invented", "located")]
+    return (f"| {kind} | {'yes' if cal else 'no'} | {len(sel)} | {ok}/{present} ({100 * ok / max(present, 1):.0f} %) | "
+            + " | ".join(str(c) for c in counts) + f" | {stat(e_mm, rms)} | {stat(e_mm, np.max)} | {stat(e_px, rms)} | "
+            f"{stat(z, rms)} | {stat(z, lambda a: 1.4826 * np.median(np.abs(a)))} | "
+            f"{1e3 * np.median([r[3] for r in sel]):.0f} |")
+
+
+def pbr(folder, repeat=1, render=False):
+    """Per scene kind of the physically based gallery, with the camera file and without it: corners ok /
+    present, wrong identities (target 0), invented points, rms and max error [mm] (target rms <= 0.01 mm),
+    the spread of (found - true) / sigma (1 = honest), ms per image; the overall fraction (target >= 95 %)."""
+    import tempfile
+
+    from notchfit.render.pbr import score_detection
+    from notchfit.render.scenes import Scene, render_scene
+
+    if render:
+        import make_pbr_gallery
+
+        folder = tempfile.mkdtemp(prefix="pbr_gallery_")
+        make_pbr_gallery.main(["--out", folder])
+    scenes = _pbr_gallery(folder)
+    rows, own = [], {}
+    for rec, scene, truth, geom, img in scenes:
+        for cal in (True, False):
+            best = np.inf
+            for _ in range(max(repeat, 1)):
+                t0 = time.perf_counter()
+                det = detect_notches(img, truth.camera if cal else None, geom)
+                best = min(best, time.perf_counter() - t0)
+            rows.append((scene.kind, cal, score_detection(det, truth, scene.px_per_mm), best, scene.px_per_mm))
+        # the same tube, camera and pose drawn by notchfit's own renderer (a solid, flat shading, blur 1 px):
+        # what the view's geometry alone allows, apart from the physically based appearance
+        r = render_scene(np.asarray(scene.theta), geom, truth.camera, plane=truth.pose.plane,
+                         scene=Scene(holder="none" if scene.holder == "none" else "chuck", solid=True,
+                                     holder_half_width=scene.holder_half_width, tilt_deg=scene.tilt_deg,
+                                     tilt_axis_deg=scene.tilt_axis_deg, blur_sigma=1.0),
+                         rng=np.random.default_rng(scene.seed))
+        s = score_detection(detect_notches(r.image, truth.camera, geom), truth, scene.px_per_mm)
+        k = own.setdefault(scene.kind, [0, 0])
+        k[0] += s.ok
+        k[1] += s.present
+    print(f"{len(scenes)} physically based renders ({folder}), {min(r[4] for r in rows):g}-"
+          f"{max(r[4] for r in rows):g} px/mm")
+    print("| scene kind | camera | images | corners ok | wrong ids | invented | withheld within 5 px | rms [mm] | "
+          "max [mm] | rms [px] | z rms | z robust | ms / image |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for kind in sorted({r[0] for r in rows}) + ["all"]:
+        for cal in (True, False):
+            sel = [r for r in rows if (kind == "all" or r[0] == kind) and r[1] == cal]
+            print(_pbr_row(kind, cal, sel), flush=True)
+    print("Same tubes, cameras and poses drawn by notchfit's own renderer (solid, blur 1 px), with the camera: "
+          + ", ".join(f"{k} {v[0]}/{v[1]}" for k, v in sorted(own.items())))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--images", type=int, default=12)
@@ -260,7 +351,15 @@ def main(argv=None):
     ap.add_argument("--variety", type=int, default=0, help="detect this many seeded random lab scenes instead")
     ap.add_argument("--size", default="4928x3264", help="image size of --variety (WxH)")
     ap.add_argument("--px-per-mm", type=float, default=130.0, help="scale of --variety")
+    ap.add_argument("--pbr", action="store_true", help="score the physically based gallery instead")
+    ap.add_argument("--pbr-dir", default=None, help="gallery folder of --pbr (default tests/data/pbr)")
+    ap.add_argument("--pbr-render", action="store_true", help="re-render the gallery first (needs Mitsuba 3)")
     a = ap.parse_args(argv)
+    if a.pbr:
+        from pathlib import Path
+
+        pbr(a.pbr_dir or Path(__file__).resolve().parent.parent / "tests" / "data" / "pbr", 1, a.pbr_render)
+        return
     if a.variety:
         variety(a.variety, a.seed, tuple(int(v) for v in a.size.split("x")), a.px_per_mm)
         return

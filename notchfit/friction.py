@@ -111,8 +111,7 @@ from .notches import notch_points
 from .shapes import line_fit
 from .friction_params import (DEFAULT_DAMPING_TIME, FRICTION_LAWS, GENERATOR_LAWS, PARAM_KEYS,  # noqa: F401
                               PER_JOINT_FIELDS, QUASI_STATIC_DAMPING_TIME, SPRING_LAWS, FrictionParams,
-                              _kernel_inputs, check_fast_laws, default_params, params_from_mapping,
-                              params_to_mapping)
+                              _kernel_inputs, check_fast_laws, default_params)
 from .units import MM
 from .validation import readonly
 
@@ -130,8 +129,6 @@ __all__ = [
     "LOAD_CELL_SIGMA",
     "clip_load_cell",
     "default_params",
-    "params_from_mapping",
-    "params_to_mapping",
     "simulate",
     "simulate_angles",
     "simulation_table",
@@ -625,14 +622,14 @@ def simulation_table(result: SimulationResult, sample_ids=None):
 
 
 
+#: names that moved to notchfit.io (the model.toml reader and writer and its key mapping):
+#: physics imports no file I/O, so the friction module does not forward them.
+_MOVED_TO_IO = ("load_params", "save_params", "params_from_mapping", "params_to_mapping")
+
+
 def __getattr__(name):
-    """``load_params`` / ``save_params``: the model.toml reader and writer of docs/data-formats.md.
-
-    They live in :mod:`notchfit.io.models` (physics imports no file I/O);
-    these names are the documented aliases, resolved on first use.
-    """
-    if name in ("load_params", "save_params"):
-        from .io import models  # file I/O on demand: friction itself imports no notchfit.io
-
-        return getattr(models, name)
+    """A clear message for the model-file names that live in :mod:`notchfit.io`."""
+    if name in _MOVED_TO_IO:
+        raise AttributeError(f"notchfit.friction.{name} moved: use notchfit.io.{name} "
+                             "(the model.toml reader and writer live with the other file formats)")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,4 +1,4 @@
-"""Parameters of the friction model (Sec. IV-B and real tubes) and their model-file mapping.
+"""Parameters of the friction model (Sec. IV-B and real tubes).
 
 :class:`FrictionParams` holds the seed paper's parameters and extensions and
 the real-tube laws (per-joint rates, the material law, the capstan law,
@@ -37,8 +37,6 @@ __all__ = [
     "PER_JOINT_FIELDS",
     "SPRING_LAWS",
     "default_params",
-    "params_from_mapping",
-    "params_to_mapping",
 ]
 
 # TOML key (SI, with unit) for each parameter
@@ -81,7 +79,7 @@ _SEED_KEYS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop", "mu_d", "mu
 #: fields that may be one value per joint (a tuple, base to tip)
 PER_JOINT_FIELDS = ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop")
 #: per-joint properties of one tube that a model may hold in place of its geometry's (None: the geometry's)
-_TUBE_FIELDS = ("rest_angle", "slot_depth_offset")
+TUBE_FIELDS = ("rest_angle", "slot_depth_offset")
 SPRING_LAWS = ("rates", "material")
 #: the generator's hysteresis laws: the reference solver has them, the fast solver refuses them
 GENERATOR_LAWS = ("bouc_wen_torque", "superelastic_gap")
@@ -227,9 +225,9 @@ class FrictionParams:
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name in ("spring_law", "friction_law") or (f.name in _TUBE_FIELDS and v is None):
+            if f.name in ("spring_law", "friction_law") or (f.name in TUBE_FIELDS and v is None):
                 continue
-            if f.name in PER_JOINT_FIELDS + _TUBE_FIELDS and isinstance(v, (tuple, list, np.ndarray)):
+            if f.name in PER_JOINT_FIELDS + TUBE_FIELDS and isinstance(v, (tuple, list, np.ndarray)):
                 v = tuple(_number(f.name, x) for x in v)
                 if not v:
                     raise ValueError(f"friction parameter {f.name} needs at least one value")
@@ -489,72 +487,3 @@ def _number(name: str, v) -> float:
     if not math.isfinite(v):
         raise ValueError(f"friction parameter {name} must be finite, got {v}")
     return v
-
-
-
-
-# =============================================================================
-# parameter files (the mapping of model.toml; notchfit.io reads and writes the file)
-# =============================================================================
-def params_from_mapping(data: dict, origin: str = "<dict>") -> FrictionParams:
-    """Friction parameters from a parameter-file mapping (keys with units, :data:`PARAM_KEYS`).
-
-    Parameters
-    ----------
-    data : dict
-        Missing keys take the paper's values; a ``metadata`` table is ignored.
-        Plain field names (``k_lin``) are accepted too.
-    origin : str
-        Where the mapping came from, at the start of every message.
-
-    Returns
-    -------
-    FrictionParams
-
-    Raises
-    ------
-    ValueError
-        ``"<origin>: <problem>"`` for an unknown key, a key given twice, a
-        non-number or an invalid value.
-    """
-    by_key = {v: k for k, v in PARAM_KEYS.items()}
-    kw = {}
-    for key, val in data.items():
-        if key == "metadata" and isinstance(val, dict):
-            continue
-        field = by_key.get(key, key if key in PARAM_KEYS else None)
-        if field is None:
-            raise ValueError(f"{origin}: unknown friction parameter {key!r} "
-                             f"(known: {', '.join(PARAM_KEYS.values())})")
-        if field in kw:
-            raise ValueError(f"{origin}: parameter {field} given twice")
-        kw[field] = _mapping_value(field, key, val, origin)
-    try:
-        return FrictionParams(**kw)
-    except ValueError as exc:
-        raise ValueError(f"{origin}: {exc}") from None
-
-
-def _mapping_value(field: str, key: str, val, origin: str):
-    """One parameter-file value: a string law, a number, or a list for a per-joint field."""
-    if field in ("spring_law", "friction_law"):
-        if not isinstance(val, str):
-            raise ValueError(f"{origin}: {key} must be a string, got {val!r}")
-        return val
-    if field in PER_JOINT_FIELDS + _TUBE_FIELDS and isinstance(val, list):
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in val):
-            raise ValueError(f"{origin}: {key} must be a number or a list of numbers, got {val!r}")
-        return tuple(float(v) for v in val)
-    if isinstance(val, bool) or not isinstance(val, (int, float)):
-        raise ValueError(f"{origin}: {key} must be a number, got {val!r}")
-    return float(val)
-
-
-def params_to_mapping(params: FrictionParams) -> dict:
-    """``{file key: value}`` of ``params`` (SI keys with units, :data:`PARAM_KEYS`), in file order.
-
-    The seed model's keys always; the real-tube keys (laws, damping time,
-    material) only where they differ from their defaults, so a seed model file
-    is as before. Per-joint values are lists.
-    """
-    return {PARAM_KEYS[f]: v for f, v in params.to_dict().items()}

@@ -75,6 +75,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -491,10 +492,15 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
     names = [e.name for e in study.experiments] + ["truth.json"]
     if images:
         names.append("calibration")
+    geometry_files = _study_geometry_files(study)
+    if geometry_files:
+        names.append(GEOMETRY_DIR)
     with io.OutputRun(out, outputs=names, force=force, name="synth", whole_dirs=True) as run:
         calib_rel = None
         if images:
             calib_rel = _render_images(study, run, jobs=jobs)
+        for source, rel in geometry_files.items():
+            shutil.copyfile(source, run.path(rel))
         r = study.recipe
         for e in study.experiments:
             samples = e.samples
@@ -508,13 +514,37 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
                                                                          and r.angle_sigma_deg > 0) else None,
                                 mirror=e.plane["mirror"], description=e.description,
                                 geometry=("default" if e.geometry == "default"
-                                          else str(Path(_geometry_source(e.geometry)).resolve())),
+                                          else f"../{geometry_files[_geometry_source(e.geometry)]}"),
                                 calibration=calib_rel, point_sigma=r.point_sigma_mm * MM if
                                 (r.point_sigma_mm > 0 and not images) else None,
                                 tension_sigma=r.tension_sigma_N if r.tension_sigma_N > 0 else None,
                                 protocol={"ramp_time_s": r.ramp_time_s} if r.record_protocol else None,
                                 force=True)
         io.write_json_atomic(study.truth(), run.path("truth.json"))
+    return out
+
+
+#: The study's folder of geometry files (``synth`` copies every geometry an experiment names into it).
+GEOMETRY_DIR = "geometry"
+
+
+def _study_geometry_files(study: SynthStudy) -> dict[str, str]:
+    """``{geometry source: path in the study}`` of every experiment's geometry other than the default.
+
+    Each file is copied into the study's :data:`GEOMETRY_DIR` and the experiments name it relative to
+    their own folder (``../geometry/wrist_asymmetric.toml``), so a study can be moved or shared.
+    """
+    out: dict[str, str] = {}
+    for e in study.experiments:
+        if e.geometry == "default":
+            continue
+        source = _geometry_source(e.geometry)
+        if source not in out:
+            stem, k = Path(source).stem, 1
+            while f"{GEOMETRY_DIR}/{stem}.toml" in out.values():
+                k += 1
+                stem = f"{Path(source).stem}_{k}"
+            out[source] = f"{GEOMETRY_DIR}/{stem}.toml"
     return out
 
 

@@ -14,13 +14,30 @@ length ``p``, a radial term bends straight edges. The synthetic generator
 applies it to true points; the diagnosis fits it (the "point-warp calibration
 correction") on predicted points, and :func:`unwarp_points` corrects
 measured data.
+
+A **tilted bending plane** is the other camera-plane error: the tube bends in
+a plane turned by a small rotation ``ω = (ω_x, ω_y)`` (an in-plane axis times
+the angle ``|ω|``) about ``c`` against the calibrated plane, and a camera at
+distance ``D`` on the calibrated plane's normal through ``c`` sees it in
+perspective. Mapped back onto the calibrated plane the true point ``P``
+lands at the central projection of ``X = c + R(ω) (P − c, 0)``:
+
+``q = c + D / (D − X_z) · (X_xy − c)``
+
+a plane-to-plane homography (:func:`tilt_homography`): foreshortening by
+``cos |ω|`` across the axis and a perspective term ``∝ |ω| |P − c| / D``;
+neither is a joint configuration or an in-plane warp. An offset plane (a
+wrong ``D``) is a scale error. :func:`apply_camera_plane_warp` composes both
+in the order light takes: the tilted plane is projected, then the wrong
+image-to-plane mapping (scale and radial terms) warps the result.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["apply_point_warp", "point_warp_jacobian", "unwarp_points"]
+__all__ = ["apply_camera_plane_warp", "apply_plane_tilt", "apply_point_warp", "point_warp_jacobian",
+           "tilt_homography", "unapply_plane_tilt", "unwarp_camera_plane", "unwarp_points"]
 
 
 def _check(points, center):
@@ -110,3 +127,98 @@ def unwarp_points(points, scale_error: float, k_radial: float, center, radius: f
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(rho1 > 0, r / (rho1 * (1.0 + scale_error)), 1.0 / (1.0 + scale_error))
     return c + d1 * scale[..., None]
+
+
+def _rotation(tilt) -> np.ndarray:
+    """Rotation matrix (3, 3) of the rotation vector ``(ω_x, ω_y, 0)`` (Rodrigues' formula)."""
+    w = np.array([float(tilt[0]), float(tilt[1]), 0.0])
+    a = float(np.linalg.norm(w))
+    if a == 0.0:
+        return np.eye(3)
+    k = w / a
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(a) * K + (1.0 - np.cos(a)) * (K @ K)
+
+
+def tilt_homography(tilt, distance: float) -> np.ndarray:
+    """Homography (3, 3) of a tilted plane seen in perspective, in coordinates about its centre.
+
+    ``(q − c) ~ H (P − c, 1)``: the true plane turned by the rotation vector
+    ``(ω_x, ω_y, 0)`` about ``c``, projected from a centre at height
+    ``distance`` on the calibrated plane's normal through ``c``.
+
+    Parameters
+    ----------
+    tilt : (2,) [rad]
+        Rotation vector ``ω`` of the bending plane against the calibrated one.
+    distance : float [m]
+        Distance ``D`` from the projection centre (the camera) to ``c``.
+
+    Returns
+    -------
+    ndarray (3, 3)
+    """
+    if not distance > 0:
+        raise ValueError(f"distance must be > 0, got {distance}")
+    R = _rotation(tilt)
+    D = float(distance)
+    return np.array([[D * R[0, 0], D * R[0, 1], 0.0],
+                     [D * R[1, 0], D * R[1, 1], 0.0],
+                     [-R[2, 0], -R[2, 1], D]])
+
+
+def _homography(P, c, H):
+    d = P - c
+    num = d @ H[:2, :2].T + H[:2, 2]
+    den = d @ H[2, :2] + H[2, 2]
+    return c + num / den[..., None]
+
+
+def apply_plane_tilt(points, tilt, center, distance: float = 0.25):
+    """Where points of a tilted bending plane appear on the calibrated plane (:func:`tilt_homography`).
+
+    Parameters
+    ----------
+    points : array_like (..., 2) [m]
+        True points in the (tilted) bending plane's own frame; NaN stays NaN.
+    tilt : (2,) [rad]
+        Rotation vector of the bending plane against the calibrated one.
+    center : array_like (2,) [m]
+        Where the camera's axis meets the plane (the rotation's fixed point).
+    distance : float [m]
+        Camera to plane distance (0.25 m: a lab camera over a 20-40 mm tube).
+
+    Returns
+    -------
+    ndarray (..., 2) [m]
+    """
+    P, c = _check(points, center)
+    return _homography(P, c, tilt_homography(tilt, distance))
+
+
+def unapply_plane_tilt(points, tilt, center, distance: float = 0.25):
+    """Inverse of :func:`apply_plane_tilt` (the inverse homography)."""
+    P, c = _check(points, center)
+    return _homography(P, c, np.linalg.inv(tilt_homography(tilt, distance)))
+
+
+def apply_camera_plane_warp(points, scale_error: float, k_radial: float, center, *, tilt=(0.0, 0.0),
+                            radius: float = 0.01, distance: float = 0.25):
+    """The whole camera-plane error: the tilted plane projected, then the scale and radial warp.
+
+    ``apply_point_warp(apply_plane_tilt(P, tilt, c, D), s, k, c, ρ)``; with
+    ``tilt = (0, 0)`` it is :func:`apply_point_warp` exactly.
+
+    Returns
+    -------
+    ndarray (..., 2) [m]
+    """
+    return apply_point_warp(apply_plane_tilt(points, tilt, center, distance), scale_error, k_radial,
+                            center, radius)
+
+
+def unwarp_camera_plane(points, scale_error: float, k_radial: float, center, *, tilt=(0.0, 0.0),
+                        radius: float = 0.01, distance: float = 0.25):
+    """Inverse of :func:`apply_camera_plane_warp`: measured points back to the bending plane."""
+    return unapply_plane_tilt(unwarp_points(points, scale_error, k_radial, center, radius), tilt, center,
+                              distance)

@@ -24,11 +24,6 @@ ANALYSIS = ("fitting", "diagnosis", "identify")
 #: time loop each, kept whole for the compiler).
 LONG_FUNCTIONS_ALLOWED = ("_friction_kernels",)
 MAX_FUNCTION_LINES = 100
-#: Deferred imports that are part of a documented interface, never run at import time:
-#: the model-file format names ``notchfit.friction.load_params`` / ``save_params`` as its
-#: reader and writer; friction forwards them to notchfit.io.models on first use
-#: (a module ``__getattr__``), so friction itself loads no file I/O.
-INTERFACE_ALIASES = {("notchfit.friction", "notchfit.io.models"), ("notchfit.friction", "notchfit.io")}
 
 
 def module_name(path: Path) -> str:
@@ -75,20 +70,7 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
 
 def import_graph() -> dict[str, set[str]]:
     modules = all_modules()
-    graph = {name: imports_of(name, path, modules) for name, path in modules.items()}
-    for src, dst in INTERFACE_ALIASES:
-        graph[src].discard(dst)
-    return graph
-
-
-def test_interface_aliases_do_not_load_io_at_import():
-    """friction's model-file aliases resolve lazily: importing friction loads no notchfit.io."""
-    import subprocess
-    import sys
-
-    code = ("import sys, notchfit.friction as f; assert 'notchfit.io' not in sys.modules; "
-            "assert callable(f.load_params) and 'notchfit.io' in sys.modules")
-    subprocess.run([sys.executable, "-c", code], check=True)
+    return {name: imports_of(name, path, modules) for name, path in modules.items()}
 
 
 def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:

@@ -5,6 +5,7 @@ import re
 
 import pytest
 from test_report import b_signs, check_self_standing, sections
+from test_report_wrists import check_in_browser, needs_chromium
 
 from notchfit.cli import main
 
@@ -63,3 +64,10 @@ def test_demo_report_one_sign_for_b(demo):
     # and the simulation and the held-out predictions bend the same way
     for (sec, col), v in found.items():
         assert all(s == (1.0 if n.startswith("L") else -1.0) for n, s in v.items()), (sec, col, v)
+
+
+@needs_chromium
+def test_demo_report_in_a_browser(demo, tmp_path):
+    """The demo's report loaded in headless Chromium: laid out, no error text (issue 27)."""
+    out, _, _ = demo
+    check_in_browser(out / "results" / "report.html", tmp_path)

@@ -29,4 +29,6 @@ def test_wrist_demo_identifies_and_simulates(tmp_path, capsys):
         assert abs(float(found) / float(truth) - 1) < 0.1
     cmp = pd.read_csv(res / "A1" / "simulation_vs_angles.csv")
     assert cmp["rms_deg"].mean() < 1.0 and (res / "A1" / "angle_fits.csv").is_file()
+    page = (res / "report.html").read_text()                    # the demo writes its report
+    assert "wrist_tip_first" in page and "could not build" not in page and f"report: {res / 'report.html'}" in text
     assert main(["demo", "--tube", "wrist", "--small", "--out", str(out)]) == 2       # no overwrite without --force

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from notchfit import _friction_kernels as K
-from notchfit.friction import (FrictionParams, SimulationResult, cable_displacement, load_params, save_params,
-                               simulate, simulation_table)
+from notchfit.friction import FrictionParams, SimulationResult, cable_displacement, simulate, simulation_table
 from notchfit.friction import stepwise_regimes as classify_regimes
 from notchfit.shapes import line_fit as shape_ab
 from notchfit.geometry import Geometry
+from notchfit.io import load_params, save_params
 from notchfit.kinematics import joint_torques_from_tip_wrench
 from notchfit.protocols import bend_unbend, paper_protocols
 from notchfit.springs import friction_spring

@@ -22,7 +22,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from notchfit import _hysteresis_kernels as H
-from notchfit.friction import FrictionParams, load_params, save_params, simulate
+from notchfit.friction import FrictionParams, simulate
+from notchfit.io import load_params, save_params
 from notchfit.protocols import bend_unbend
 
 

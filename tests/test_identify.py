@@ -19,7 +19,8 @@ import pytest
 
 from notchfit import io
 from notchfit.cli import main
-from notchfit.friction import default_params, load_params
+from notchfit.friction import default_params
+from notchfit.io import load_params
 from notchfit.identify import default_free, identify, observe_study, parse_free, study_metric, zero_tension_samples
 from notchfit.identify.data import tube_labels
 from notchfit.identify.problem import standard_errors

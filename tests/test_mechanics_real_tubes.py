@@ -21,8 +21,8 @@ import pytest
 
 from notchfit import _friction_kernels as K
 from notchfit import statics
-from notchfit.friction import (DEFAULT_DAMPING_TIME, FrictionParams, clip_load_cell, load_params,
-                               params_from_mapping, params_to_mapping, save_params, simulate)
+from notchfit.friction import DEFAULT_DAMPING_TIME, FrictionParams, clip_load_cell, simulate
+from notchfit.io import load_params, params_from_mapping, params_to_mapping, save_params
 from notchfit.geometry import default_geometry
 from notchfit.io import datasets_dir, load_geometry
 from notchfit.protocols import bend_unbend

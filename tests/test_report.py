@@ -67,6 +67,35 @@ def check_self_standing(html):
     return len(srcs)
 
 
+#: A number in running text: a decimal, a power of ten, or a percentage's digits.
+NUMBER = re.compile(r"(?<![\w.×⁻])[-+−]?\d+\.\d+(?:×10[⁻⁰¹²³⁴⁵⁶⁷⁸⁹]+)?")
+#: What may follow a measured number: its unit (or ×, %, a ratio's "×").
+UNIT = re.compile(r"(–[-+−]?[\d.]+)?\s?(mm|°|deg|N m/rad|N m s/rad|N m|N|rad|s|px|%|×|GPa|m/s|µm)(?![a-zA-Z])")
+
+
+def glance_text(html) -> str:
+    body = sections(html)["summary"]
+    body = body[:body.index('<p class="conv">')] if '<p class="conv">' in body else body
+    return re.sub(r"\s+", " ", re.sub(r"<[^>]+>", "", body)).replace("&#39;", "'")
+
+
+def numbers_without_unit(text) -> list[str]:
+    """Every decimal number of ``text`` not followed by a unit (symbols such as β = 0.104 are parameters
+    given with their symbol: a unitless coefficient is allowed after ``=``)."""
+    bad = []
+    for m in NUMBER.finditer(text):
+        after = text[m.end():]
+        before = text[max(0, m.start() - 3):m.start()]
+        if not UNIT.match(after) and "=" not in before:
+            bad.append(text[max(0, m.start() - 40):m.end() + 10])
+    return bad
+
+
+def noise_floors(html) -> set[str]:
+    text = re.sub(r"<[^>]+>", "", html)
+    return set(re.findall(r"noise floor,? (?:of )?([\d.]+)", text))
+
+
 def test_empty_folder_every_section_says_why(tmp_path):
     html = report.build_report(tmp_path).read_text()
     secs = sections(html)
@@ -135,7 +164,7 @@ def full_run(tmp_path, geom):
                             "excess_removed": 0.97, "significant": True},
                            {"cause": "joint_hysteresis", "params": {"hysteresis_torque": 0.003},
                             "n_params": 1, "train_rms_mm": 0.2, "heldout_rms_mm": 0.25, "aic": 50.0}],
-            "cause": "proximal_friction", "explanation": "The band explains the hold.",
+            "cause": "proximal_friction", "explanation": "The band explains the hold <while> unloading.",
             "extended_model": {"cause": "proximal_friction", "params": {"k_lin": 0.46, "proximal_beta": 0.1}},
             "gain": {"metric": "heldout_rms_mm", "baseline": 0.31, "extended": 0.06, "reduction_pct": 80.6},
             "extended_model_file": "extended_model.toml"}
@@ -160,7 +189,9 @@ def test_full_report_reads_at_a_glance(full_run):
     secs = sections(html)
     assert list(secs) == SECTION_IDS
     for k in SECTION_IDS:
-        assert "not available" not in secs[k], (k, secs[k][:300])
+        if k != "identify":                 # a points study diagnosed, not identified
+            assert "not available" not in secs[k], (k, secs[k][:300])
+    assert "no identify.json" in secs["identify"]
     glance = secs["summary"]
     for row in ("Question", "Measured", "Cause", "Gain", "Assumed"):
         assert f"<th>{row}</th>" in glance
@@ -172,7 +203,9 @@ def test_full_report_reads_at_a_glance(full_run):
     assert re.search(r'href="L045/fig13_pointwise.png"', secs["files"])
     d = secs["diagnosis"]
     assert "Cause 1: proximal friction" in d and "&lt;while&gt;" in d and 'href="diagnosis.json"' in d
-    assert "joint_hysteresis" in d and "The band explains the hold." in d
+    assert "joint_hysteresis" in d and "The band explains the hold" in d
+    # the signature's value with the 0.01 N the tensions resolve, its meaning in words
+    assert "extra tension the measured shape holds while unloading" in d and "6.10 N" in d
     assert check_self_standing(html) >= 2
     lines = report.summary_lines(out)
     assert lines[0].startswith("fit errors over 3 samples: cc") and "linear 0.0337 mm rms" in lines[0]
@@ -266,3 +299,15 @@ def test_numbers_with_sensible_digits():
         ["0.647", "27.7", "+0.0050", "-0.128"]
     assert num(5e-05, 4, trim=True) == "5×10⁻⁵" and num(0.01, 4, trim=True) == "0.01" and num(None) == "–"
     assert pct(81.6071) == "82 %" and pct(5.31) == "5.3 %" and pct(float("nan")) == "–"
+
+
+def test_first_section_numbers_have_units_and_one_noise_floor(full_run):
+    """The first line says what the model misses before the cause; every number of the first section
+    carries its unit; the noise floor is one number on the whole page (issue 29)."""
+    out, _ = full_run
+    html = report.build_report(out).read_text()
+    text = glance_text(html)
+    assert text.index("Model misses") < text.index("Cause")
+    assert "misses the held-out notch points by 0.310 mm rms, 6.2× the noise floor" in text
+    assert numbers_without_unit(text) == []
+    assert noise_floors(html) == {"0.0500"}

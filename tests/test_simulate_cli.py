@@ -3,7 +3,8 @@ import pandas as pd
 import pytest
 
 from notchfit.cli import main
-from notchfit.friction import FrictionParams, save_params
+from notchfit.friction import FrictionParams
+from notchfit.io import save_params
 from notchfit.synth import generate_study, load_recipe
 
 

@@ -68,3 +68,22 @@ def test_written_study_has_truth_and_empty_columns_for_the_missing_tendon(asym, 
     assert df["tension_right_N"].notna().all()
     pts = pd.read_csv(out / e.name / "notch_points.csv")
     assert pts["point"].max() == 4 + 2 * 5
+
+
+def test_moved_study_still_runs(asym, tmp_path):
+    """A study names its geometry files relative to itself (a copy in ``STUDY/geometry``, never an
+    absolute path): moved elsewhere, it is read with the same geometry and ``fit`` runs on it (issue 27)."""
+    from notchfit import io
+    from notchfit.cli import main
+
+    written = write_study(asym, tmp_path / "a" / "study")
+    toml = (written / asym.experiments[0].name / "experiment.toml").read_text()
+    assert 'geometry = "../geometry/wrist_asymmetric.toml"' in toml and str(tmp_path) not in toml
+    moved = tmp_path / "b" / "moved"
+    moved.parent.mkdir()
+    written.rename(moved)
+    exps = io.read_study(moved)
+    assert [e.name for e in exps] == [e.name for e in asym.experiments]
+    assert exps[0].geometry.n_joints == asym.geometry.n_joints
+    np.testing.assert_allclose(exps[0].geometry.rest_angles, asym.geometry.rest_angles)
+    assert main(["fit", str(moved), "--out", str(tmp_path / "out"), "--no-figures"]) == 0

@@ -56,7 +56,8 @@ def source_lines(lookup, command: str) -> list[str]:
         elif where == "own angles":
             lines.append(f"{command}: joint angles of {_names(names)} from their own angles.csv")
         else:
-            lines.append(f"{command}: points of {_names(names)} from detections.csv in {_where(folder)} ({where})")
+            files = "detections.csv corrected by review.csv" if where.endswith(", reviewed") else "detections.csv"
+            lines.append(f"{command}: points of {_names(names)} from {files} in {_where(folder)} ({where})")
     return lines
 
 

@@ -6,7 +6,7 @@ pre-curved wrist, repeated loading-only trials, the angle of every notch
 measured with 0.5° noise) is generated, then the job a lab runs on its own
 wrists:
 
-  synth -> fit (angle-space shape models) -> identify -> simulate --model (the identified model)
+  synth -> fit (angle-space shape models) -> identify -> simulate --model (the identified model) -> report
 
 and the identified material is printed beside the hidden truth (read from
 ``truth.json`` only for that line). Outputs: ``OUT/study/`` and ``OUT/results/``.
@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 from .. import io
+from ..report import build_report
 from ..synth import generate_study, load_recipe
 from . import fit, simulate
 from . import identify as identify_cmd
@@ -72,7 +73,11 @@ def run_wrist_demo(args) -> int:
             raise InputError(f"the {command.NAME} step failed (see the message above)")
         if rc == EXIT_ITEMS_FAILED:
             failed.append(command.NAME)
-    print(f"\nresults: {res_dir.resolve()}   ({time.perf_counter() - t0:.0f} s); "
+    _step("report", t0)
+    report = build_report(res_dir, study=study_dir, force=True,
+                          title=f"notchfit demo: two synthetic wrists of one stock (seed {args.seed})")
+    print(f"\nreport: {report}   (open it in a browser)")
+    print(f"results: {res_dir.resolve()}   ({time.perf_counter() - t0:.0f} s); "
           f"angle noise {recipe.angle_sigma_deg:g} deg")
     for line in _truth_line(study_dir, res_dir):
         print(line)

@@ -67,6 +67,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--full-overlays", action="store_true",
                         help="overlays show the whole view beside the crop around the tube (larger files)")
     parser.add_argument("--force", action="store_true", help="replace existing detections in --out")
+    parser.add_argument("--drop-review", action="store_true",
+                        help="also remove the corrections of `notchfit review` (review.csv) of the experiments "
+                             "detected again (kept by default, also with --force)")
 
 
 @functools.lru_cache(maxsize=8)
@@ -173,5 +176,18 @@ def run(args) -> int:
     n_done = sum(r.ok for r in res.items)
     print(f"detect: {n_done} of {n_total} images processed ({n_ok_images} with every point ok) "
           f"in {res.seconds:.1f} s; outputs in {args.out}")
+    _say_reviews(args, plan, study)
     list_failures(failed, limit=len(failed))
     return EXIT_ITEMS_FAILED if failed else 0
+
+
+def _say_reviews(args, plan, study) -> None:
+    """``notchfit review``'s corrections beside the new detections: kept (said), or removed with --drop-review."""
+    for e in plan:
+        rev = io.review_path(Path(args.out) / io.experiment_output_dir("", e.name, study) / "detections.csv")
+        if rev.is_file() and args.drop_review:
+            rev.unlink()
+            print(f"  {e.name}: removed the corrections {rev} (--drop-review)")
+        elif rev.is_file():
+            print(f"  {e.name}: kept the corrections {rev} (notchfit review); fit and the others apply them to "
+                  "the new detections (--drop-review removes them)")

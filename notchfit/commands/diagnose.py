@@ -9,7 +9,7 @@ from .. import io
 from ..diagnosis import CAUSES, Diagnosis, choose_metric, diagnose
 from ..diagnosis.results import metric_unit
 from ..figures.diagnosis import write_diagnosis_figures
-from ..friction import save_params
+from ..io import save_params
 from ..progress import Steps
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
                       check_points_dir, count_option, list_failures)

@@ -196,6 +196,8 @@ def _item(e, models, args) -> dict:
     if e.points is None:
         return {**base, "angles": e.angles, "sigma": e.angle_sigma}
     sigma = args.sigma_mm * MM if args.sigma_mm is not None else e.point_sigma
+    if sigma is None and e.point_sigmas is not None:     # reviewed points (notchfit review): σ per point
+        sigma = e.point_sigmas
     return {**base, "points": e.points, "mirror": e.mirror, "sigma": sigma, "loss": args.loss}
 
 

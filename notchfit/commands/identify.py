@@ -37,7 +37,7 @@ experiment predicted by a model fitted without it (leave one experiment out) and
 tubes, each tube's experiments predicted by a model fitted on the other tubes, from its geometry.
 
 Writes into --out: model.toml (the identified model, read by `notchfit simulate --model` and
-notchfit.friction.load_params; with several tubes it holds the shared parameters, and
+notchfit.io.load_params; with several tubes it holds the shared parameters, and
 model_<tube>.toml each tube's model with its rest angles), identify.json (free parameters,
 values, standard errors, metric, training and held-out errors) and identify_run.json.
 

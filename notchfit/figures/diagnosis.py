@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from ..diagnosis.results import metric_unit
+from ..identify.data import tube_labels
 from ..shapes import line_fit
 from ..units import MM
 from . import new_figure, save_png, write_csv
@@ -65,24 +66,43 @@ def plot_loops(diag, out_dir) -> list[Path]:
             out_dir / "diagnosis_loops.csv"]
 
 
+def tube_groups(preps) -> list[tuple[str, list[int]]]:
+    """``(tube, experiment indices)`` per tube (geometry, labelled as ``identify`` labels it:
+    :func:`notchfit.identify.data.tube_labels`) in order of first appearance. A study of several tubes
+    has as many joints and notch points per tube as each tube's geometry, so per-joint and per-point
+    errors are pooled within a tube only."""
+    groups: dict = {}
+    for i, label in enumerate(tube_labels([p.geom for p in preps])):
+        groups.setdefault(label, []).append(i)
+    return list(groups.items())
+
+
 def residual_tables(diag) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Held-out point errors [mm]: rms by notch point (baseline, extension, free-θ fit residual, noise
-    floor) and the error of every point of every sample (baseline, extension)."""
+    floor) and the error of every point of every sample (baseline, extension); with several tubes the
+    rows by point carry a ``tube`` column (each tube's points pooled over its experiments)."""
     preps = diag.prepared
-    m = preps[0].geom.n_points
     series = {tag: diag.heldout[key] for tag, (key, _) in zip(("baseline", "extended"), _models(diag))}
-    cells, by_point = [], {"point": np.arange(1, m + 1)}
+    groups = tube_groups(preps)
+    tables, cells = [], {key: [] for key in series}
+    for tube, idx in groups:
+        m = preps[idx[0]].geom.n_points
+        by_point = {**({"tube": tube} if len(groups) > 1 else {}), "point": np.arange(1, m + 1)}
+        for key, src in series.items():
+            errs = [np.linalg.norm(src.predicted[i] - preps[i].measured, axis=-1) / MM for i in idx]
+            by_point[f"rms_mm_{key}"] = np.sqrt(np.nanmean(np.concatenate(errs) ** 2, axis=0))
+        free = np.concatenate([np.where(preps[i].valid, np.linalg.norm(preps[i].free_residuals, axis=-1), np.nan)
+                               for i in idx])
+        by_point["rms_mm_free_fit"] = np.sqrt(np.nanmean(free ** 2, axis=0)) / MM
+        by_point["noise_mm"] = np.full(m, diag.noise_rms / MM)
+        tables.append(pd.DataFrame(by_point))
     for key, src in series.items():
-        errs = [np.linalg.norm(src.predicted[i] - p.measured, axis=-1) / MM for i, p in enumerate(preps)]
-        by_point[f"rms_mm_{key}"] = np.sqrt(np.nanmean(np.concatenate(errs) ** 2, axis=0))
-        cells.append(np.concatenate(errs).ravel())
-    free = np.concatenate([np.where(p.valid, np.linalg.norm(p.free_residuals, axis=-1), np.nan) for p in preps])
-    by_point["rms_mm_free_fit"] = np.sqrt(np.nanmean(free ** 2, axis=0)) / MM
-    by_point["noise_mm"] = np.full(m, diag.noise_rms / MM)
+        cells[key] = np.concatenate([(np.linalg.norm(src.predicted[i] - p.measured, axis=-1) / MM).ravel()
+                                     for i, p in enumerate(preps)])
     idx = pd.MultiIndex.from_tuples([(p.name, s + 1, j + 1) for p in preps for s in range(len(p.measured))
-                                     for j in range(m)], names=["experiment", "sample", "point"])
-    grid = pd.DataFrame({f"err_mm_{k}": v for k, v in zip(series, cells)}, index=idx).reset_index()
-    return pd.DataFrame(by_point), grid
+                                     for j in range(p.geom.n_points)], names=["experiment", "sample", "point"])
+    grid = pd.DataFrame({f"err_mm_{k}": v for k, v in cells.items()}, index=idx).reset_index()
+    return pd.concat(tables, ignore_index=True), grid
 
 
 def plot_residual_map(diag, out_dir) -> list[Path]:
@@ -113,23 +133,28 @@ def _joint_errors(diag, out_dir: Path) -> list[Path]:
     """Held-out rms joint-angle error per joint [deg] (angle data)."""
     _, f = metric_unit("angles")
     preps = diag.prepared
-    n = preps[0].geom.n_joints
+    groups = tube_groups(preps)
     fig = new_figure(7, 4)
     ax = fig.subplots()
-    errs = {}
-    for tag, (key, label) in zip(("baseline", "extended"), _models(diag)):
-        src = diag.heldout[key]
-        e = np.concatenate([np.where(p.valid, src.predicted[i] - p.measured, np.nan) for i, p in enumerate(preps)])
-        errs[tag] = np.sqrt(np.nanmean(e**2, axis=0)) / f
-        ax.plot(np.arange(1, n + 1), errs[tag], marker="o", label=label)
+    tables = []
+    for tube, idx in groups:
+        n = preps[idx[0]].geom.n_joints
+        table = {**({"tube": tube} if len(groups) > 1 else {}), "joint": np.arange(1, n + 1)}
+        for (tag, (key, label)), ls in zip(zip(("baseline", "extended"), _models(diag)), ("-", "--")):
+            src = diag.heldout[key]
+            e = np.concatenate([np.where(preps[i].valid, src.predicted[i] - preps[i].measured, np.nan) for i in idx])
+            table[f"rms_deg_{tag}"] = np.sqrt(np.nanmean(e**2, axis=0)) / f
+            ax.plot(table["joint"], table[f"rms_deg_{tag}"], marker="o", ls=ls,
+                    label=label if len(groups) == 1 else f"{tube}: {label}")
+        tables.append(pd.DataFrame(table))
     ax.axhline(diag.noise_rms / f, color="0.5", ls=":", label="noise floor")
-    ax.set_xticks(np.arange(1, n + 1))
+    ax.set_xticks(np.arange(1, max(preps[idx[0]].geom.n_joints for _, idx in groups) + 1))
     ax.set_xlabel("joint (base to tip)")
     ax.set_ylabel("held-out rms joint-angle error [deg]")
     ax.legend(fontsize=7)
+    table = pd.concat(tables, ignore_index=True)
     return [save_png(fig, out_dir / "diagnosis_residuals.png", dpi=DPI),
-            write_csv(out_dir / "diagnosis_joint_errors.csv",
-                      {"joint": np.arange(1, n + 1), **{f"rms_deg_{k}": v for k, v in errs.items()}})]
+            write_csv(out_dir / "diagnosis_joint_errors.csv", {c: table[c].to_numpy() for c in table})]
 
 
 def plot_candidates(diag, out_dir) -> list[Path]:
@@ -214,13 +239,18 @@ def _view_backbone(diag, contrib, fig) -> dict:
     """Joint-angle error along the backbone while loading (toward the pulled side)."""
     ax = fig.subplots()
     preps = diag.prepared
-    n = preps[0].geom.n_joints
-    rows = {"joint": np.arange(1, n + 1)}
-    for j, ((key, label), col) in enumerate(zip(_series(diag, contrib), ("tab:red", "tab:blue"))):
-        e = [p.pulled * (p.theta_free - diag.heldout[key].theta[i])[p.regime == "I"] for i, p in enumerate(preps)]
-        err = np.nanmean(np.concatenate(e), axis=0)
-        ax.plot(rows["joint"], err, marker="o", color=col, label=label)
-        rows[f"loading_error_rad_{'without' if j == 0 else 'with'}"] = err
+    groups = tube_groups(preps)
+    tables = []
+    for tube, idx in groups:
+        rows = {**({"tube": tube} if len(groups) > 1 else {}), "joint": np.arange(1, preps[idx[0]].geom.n_joints + 1)}
+        for j, ((key, label), col) in enumerate(zip(_series(diag, contrib), ("tab:red", "tab:blue"))):
+            e = [preps[i].pulled * (preps[i].theta_free - diag.heldout[key].theta[i])[preps[i].regime == "I"]
+                 for i in idx]
+            err = np.nanmean(np.concatenate(e), axis=0)
+            ax.plot(rows["joint"], err, marker="o", color=col, label=label if len(groups) == 1 else f"{tube}: {label}")
+            rows[f"loading_error_rad_{'without' if j == 0 else 'with'}"] = err
+        tables.append(pd.DataFrame(rows))
+    rows = {c: v.to_numpy() for c, v in pd.concat(tables, ignore_index=True).items()}
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_xlabel("joint (base to tip)")
     ax.set_ylabel("joint-angle error while loading, measured − model [rad]")

@@ -170,7 +170,7 @@ def candidates_figure(candidates: pd.DataFrame, noise: float, named=(), regimes:
     c = candidates.sort_values(col, ascending=False)
     colours = ["tab:red" if m == "baseline" else ("tab:green" if m in named else "0.7") for m in c["model"]]
     axes[0].barh(c["model"], c[col], color=colours)
-    axes[0].axvline(noise, color="k", ls=":", label=f"noise floor {noise:.2f} {unit}")
+    axes[0].axvline(noise, color="k", ls=":", label=f"noise floor {noise:.3g} {unit}")
     axes[0].set_xlabel(f"held-out {what} error, rms [{unit}]")
     axes[0].set_title("shorter is better; green: named", fontsize=10)
     axes[0].legend(fontsize=8, loc="lower right")
@@ -186,7 +186,7 @@ def candidates_figure(candidates: pd.DataFrame, noise: float, named=(), regimes:
     return fig
 
 
-def loops_figure(loops: pd.DataFrame, *, columns: int = 3):
+def loops_figure(loops: pd.DataFrame, *, columns: int = 3, degrees: bool = False):
     """Tip angle against the pulled tension per experiment: measured, baseline and extended (held out).
 
     Parameters
@@ -194,7 +194,10 @@ def loops_figure(loops: pd.DataFrame, *, columns: int = 3):
     loops : DataFrame
         ``experiment, tension_pulled_N, series, tip_angle_rad`` (frame sign);
         ``series`` is ``measured``, ``baseline`` or ``extended (<cause>)``.
+    degrees : bool
+        Draw the tip angle in degrees (a study measured as joint angles), else rad.
     """
+    f, unit = (180.0 / np.pi, "deg") if degrees else (1.0, "rad")
     names = list(loops["experiment"].unique())
     rows = -(-len(names) // columns)
     fig = new_figure(WIDTH, 2.0 * rows + 0.5)
@@ -205,13 +208,13 @@ def loops_figure(loops: pd.DataFrame, *, columns: int = 3):
             key = "measured" if series == "measured" else ("baseline" if series == "baseline" else "extended")
             style = dict(color=SERIES[key], lw=1.0, ls="--" if key == "baseline" else "-",
                          marker="o" if key == "measured" else None, ms=2.5)
-            ax.plot(s["tension_pulled_N"], s["tip_angle_rad"], label=series, **style)
+            ax.plot(s["tension_pulled_N"], s["tip_angle_rad"] * f, label=series, **style)
         ax.set_title(name, fontsize=9, pad=2)
         ax.tick_params(labelsize=8)
     for ax in axes[len(names):]:
         ax.set_visible(False)
     for ax in axes[::columns]:
-        ax.set_ylabel("tip angle Σθ [rad]", fontsize=9)
+        ax.set_ylabel(f"tip angle Σθ [{unit}]", fontsize=9)
     for ax in axes[(rows - 1) * columns:]:
         ax.set_xlabel("pulled-cable tension [N]", fontsize=9)
     axes[0].legend(fontsize=7)

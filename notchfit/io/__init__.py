@@ -12,7 +12,9 @@ module                 files
 :mod:`.images`         image files
 :mod:`.models`         geometry files, friction-model parameters, FEA reference
 :mod:`.outputs`        atomic writers, the output-run transaction, output files
+:mod:`.results`        typed readers of result files (diagnosis.json, identify.json, run records, tables)
 :mod:`.resources`      where the shipped ``datasets/`` and ``calibration/`` are
+:mod:`.review`         ``review.csv``: a person's corrections of a detect run
 =====================  ========================================================
 
 Readers validate everything and raise an :class:`InputFileError` (a
@@ -37,12 +39,17 @@ _HOME = {
                     "read_experiment_toml", "read_points_table", "read_samples", "read_study", "scan_study",
                     "with_points", "write_experiment"),
     "images": ("PNG_SETTINGS", "image_info", "load_image", "write_image"),
-    "models": ("load_fea_reference", "load_geometry", "load_params", "save_params"),
+    "models": ("load_fea_reference", "load_geometry", "load_params", "params_from_mapping", "params_to_mapping",
+               "save_params"),
     "outputs": ("LOCK_NAME", "STAGE_PREFIX", "OutputLockedError", "OutputRun", "atomic_write",
                 "existing_outputs", "experiment_output_dir", "find_output", "live_lock_holder", "prepare_output_dir", "provenance", "read_detections",
                 "read_diagnosis", "read_fits", "read_json", "read_pointwise", "read_simulation",
                 "write_json_atomic", "write_table_atomic", "write_text_atomic"),
     "resources": ("calibration_dir", "datasets_dir"),
+    "results": ("DiagnosisRecord", "IdentifyRecord", "RunRecord", "read_angle_fits", "read_diagnosis_csv",
+                "read_diagnosis_record", "read_identify", "read_run_records", "read_simulation_vs_measured"),
+    "review": ("REVIEW_COLUMNS", "REVIEW_NAME", "REVIEW_STATUSES", "apply_review", "read_review", "review_path",
+               "write_review"),
     "tables": ("DETECTION_COLUMNS", "FITS_COLUMNS", "POINT_COLUMNS", "POINTWISE_COLUMNS", "SAMPLE_COLUMNS",
                "SIMULATION_COLUMNS", "read_csv_table"),
     "toml": ("TomlError", "TomlFileNotFoundError", "load_toml", "toml_dumps"),

@@ -24,6 +24,7 @@ from ..units import DEG, MM
 from .errors import InputFileError, InputFileNotFoundError
 from .models import load_geometry
 from .outputs import find_output, read_detections, write_table_atomic, write_text_atomic
+from .review import apply_review, read_review, review_path
 from .tables import POINT_COLUMNS, SAMPLE_COLUMNS, Problems, check_point_rows, read_csv_table
 from .toml import TomlError, TomlFile, load_toml, toml_dumps
 
@@ -109,6 +110,11 @@ class Experiment:
         ``(v / full) ** image_gamma`` (1: linear light, a camera's JPEG about
         2.2); None when experiment.toml does not say (``detect`` then assumes
         2.2 for JPEG files and 1 for others, and says so).
+    point_sigmas : ndarray, shape (S, m) [m], or None
+        The uncertainty of each point where a person reviewed the points
+        (``notchfit review``): a detected corner's ``sigma_mm`` of
+        detections.csv, a corrected corner's of review.csv; None otherwise
+        (the fits then use ``point_sigma`` or estimate σ).
     """
 
     name: str
@@ -127,6 +133,7 @@ class Experiment:
     angles: np.ndarray | None = None
     angle_sigma: float | None = None
     image_gamma: float | None = None
+    point_sigmas: np.ndarray | None = None
 
     @property
     def sample_ids(self) -> np.ndarray:
@@ -782,11 +789,27 @@ def write_experiment(folder, *, name: str, samples: pd.DataFrame, points=None, m
 
 
 # ----------------------------------------------------------------------------- detections
-def load_detected_points(exp: Experiment, detections, *, ok_status=("ok",)) -> Experiment:
-    """``exp`` with its points taken from a ``detections.csv`` (rows whose status is not ok are missing)."""
+def load_detected_points(exp: Experiment, detections, *, ok_status=("ok",), review=None) -> Experiment:
+    """``exp`` with its points taken from a ``detections.csv`` (rows whose status is not ok are missing).
+
+    With ``review`` (a ``review.csv``, :func:`notchfit.io.apply_review`) its
+    corrections are applied and the experiment carries every point's σ
+    (``point_sigmas``: ``sigma_mm`` of the detections and of the corrections).
+    """
     df = read_detections(detections, n_points=exp.geometry.n_points, sample_ids=exp.sample_ids)
     df = df[df["status"].str.lower().isin([s.lower() for s in ok_status])]
-    return with_points(exp, points_from_table(df, exp.sample_ids, exp.geometry.n_points))
+    pts = points_from_table(df, exp.sample_ids, exp.geometry.n_points)
+    if review is None:
+        return with_points(exp, pts)
+    sig = points_from_table(df.assign(x_mm=df["sigma_mm"], y_mm=df["sigma_mm"]), exp.sample_ids,
+                            exp.geometry.n_points)[..., 0]
+    rows = read_review(review, n_points=exp.geometry.n_points, sample_ids=exp.sample_ids)
+    pts, sig = apply_review(pts, sig, rows, exp.sample_ids)
+    has = np.isfinite(pts).all(-1)
+    if not np.isfinite(sig[has]).all():         # a detected point without sigma_mm: the run's median
+        fill = np.nanmedian(sig[has]) if np.isfinite(sig[has]).any() else np.nan
+        sig = np.where(has & ~np.isfinite(sig), fill, sig)
+    return dataclasses.replace(with_points(exp, pts), point_sigmas=np.where(has, sig, np.nan))
 
 
 def has_own_points(exp: Experiment) -> bool:
@@ -811,7 +834,9 @@ class PointsLookup:
         ``{name: (where, path)}``: ``where`` is ``"own"`` (the experiment's
         own notch_points.csv), ``"own angles"`` (its own angles.csv) or the
         label of the folder they were found in (e.g. ``"--points"``,
-        ``"--out"``); ``path`` the file read.
+        ``"--out"``), followed by ``", reviewed"`` when a ``review.csv`` beside
+        the detections corrected them; ``path`` the file read (that
+        ``review.csv`` for reviewed points).
     problems : dict
         ``{name: reason}`` for the experiments without points.
     """
@@ -831,7 +856,8 @@ def find_points(exps, folders=()) -> PointsLookup:
     First the experiment's own ``notch_points.csv`` (:func:`has_own_points`),
     then ``detections.csv`` of each folder of ``folders`` in turn
     (``DIR/<name>/detections.csv`` of a study run, ``DIR/detections.csv`` of
-    a single experiment), and last its own ``angles.csv`` (measured joint
+    a single experiment) with the corrections of the ``review.csv`` beside it
+    applied first (``notchfit review``), and last its own ``angles.csv`` (measured joint
     angles: the experiment is kept without points). A ``detections.csv`` that
     is found but cannot be read is a problem of that experiment (never
     silently skipped for the next folder).
@@ -847,7 +873,8 @@ def find_points(exps, folders=()) -> PointsLookup:
     -------
     PointsLookup
         ``sources[name]`` is ``("own", notch_points.csv)``, ``(label,
-        detections.csv)`` or ``("own angles", angles.csv)``.
+        detections.csv)``, ``(label + ", reviewed", review.csv)`` or
+        ``("own angles", angles.csv)``.
     """
     exps = list(exps)
     searched = [(label, Path(f)) for label, f in folders if f is not None]
@@ -870,8 +897,10 @@ def find_points(exps, folders=()) -> PointsLookup:
                                 + (f" in {where}" if where else ""))
             continue
         try:
-            out.append(load_detected_points(e, hit[1]))
-            sources[e.name] = hit
+            rev = review_path(hit[1])
+            reviewed = rev.is_file()
+            out.append(load_detected_points(e, hit[1], review=rev if reviewed else None))
+            sources[e.name] = (f"{hit[0]}, reviewed", rev) if reviewed else hit
         except (ValueError, FileNotFoundError) as exc:
             problems[e.name] = str(exc)
     return PointsLookup(tuple(out), sources, problems)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..friction import FrictionParams, params_from_mapping, params_to_mapping
+from ..friction_params import PARAM_KEYS, PER_JOINT_FIELDS, TUBE_FIELDS, FrictionParams
 from ..geometry import Geometry, geometry_from_dict
 from ..statics import FEAReference
 from ..units import MM
@@ -22,11 +22,12 @@ from .outputs import write_text_atomic
 from .resources import datasets_dir
 from .toml import TomlError, load_toml, toml_dumps
 
-__all__ = ["load_fea_reference", "load_geometry", "load_params", "save_params"]
+__all__ = ["load_fea_reference", "load_geometry", "load_params", "params_from_mapping",
+           "params_to_mapping", "save_params"]
 
 
 _PARAMS_HEADER = ("# notchfit friction-model parameters (Sec. IV-B), SI units; "
-                  "read by notchfit.friction.load_params\n")
+                  "read by notchfit.io.load_params\n")
 
 
 def load_geometry(source: str | os.PathLike | None = "default") -> Geometry:
@@ -64,11 +65,10 @@ def load_geometry(source: str | os.PathLike | None = "default") -> Geometry:
 
 
 def load_params(path) -> FrictionParams:
-    """Friction parameters from a TOML file (keys with units, :data:`notchfit.friction.PARAM_KEYS`).
+    """Friction parameters from a TOML file (keys with units, :data:`notchfit.friction_params.PARAM_KEYS`).
 
     Missing keys take the paper's values; a ``[metadata]`` table is ignored.
-    Plain field names (``k_lin``) are accepted too. ``notchfit.friction.load_params``
-    is the same function (the name the model.toml format documents).
+    Plain field names (``k_lin``) are accepted too.
 
     Raises
     ------
@@ -173,3 +173,70 @@ def load_fea_reference(path: str | os.PathLike | None = None) -> FEAReference:
         if a.shape != (out.n_joints,):
             raise doc.error(f"joint-angle lists must have n_joints={out.n_joints} entries", table, "theta_rad")
     return out
+
+
+# =============================================================================
+# the model.toml mapping (file keys with units <-> FrictionParams fields)
+# =============================================================================
+def params_from_mapping(data: dict, origin: str = "<dict>") -> FrictionParams:
+    """Friction parameters from a parameter-file mapping (keys with units, :data:`notchfit.friction_params.PARAM_KEYS`).
+
+    Parameters
+    ----------
+    data : dict
+        Missing keys take the paper's values; a ``metadata`` table is ignored.
+        Plain field names (``k_lin``) are accepted too.
+    origin : str
+        Where the mapping came from, at the start of every message.
+
+    Returns
+    -------
+    FrictionParams
+
+    Raises
+    ------
+    ValueError
+        ``"<origin>: <problem>"`` for an unknown key, a key given twice, a
+        non-number or an invalid value.
+    """
+    by_key = {v: k for k, v in PARAM_KEYS.items()}
+    kw = {}
+    for key, val in data.items():
+        if key == "metadata" and isinstance(val, dict):
+            continue
+        field = by_key.get(key, key if key in PARAM_KEYS else None)
+        if field is None:
+            raise ValueError(f"{origin}: unknown friction parameter {key!r} "
+                             f"(known: {', '.join(PARAM_KEYS.values())})")
+        if field in kw:
+            raise ValueError(f"{origin}: parameter {field} given twice")
+        kw[field] = _mapping_value(field, key, val, origin)
+    try:
+        return FrictionParams(**kw)
+    except ValueError as exc:
+        raise ValueError(f"{origin}: {exc}") from None
+
+
+def _mapping_value(field: str, key: str, val, origin: str):
+    """One parameter-file value: a string law, a number, or a list for a per-joint field."""
+    if field in ("spring_law", "friction_law"):
+        if not isinstance(val, str):
+            raise ValueError(f"{origin}: {key} must be a string, got {val!r}")
+        return val
+    if field in PER_JOINT_FIELDS + TUBE_FIELDS and isinstance(val, list):
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in val):
+            raise ValueError(f"{origin}: {key} must be a number or a list of numbers, got {val!r}")
+        return tuple(float(v) for v in val)
+    if isinstance(val, bool) or not isinstance(val, (int, float)):
+        raise ValueError(f"{origin}: {key} must be a number, got {val!r}")
+    return float(val)
+
+
+def params_to_mapping(params: FrictionParams) -> dict:
+    """``{file key: value}`` of ``params`` (SI keys with units, :data:`notchfit.friction_params.PARAM_KEYS`), in file order.
+
+    The seed model's keys always; the real-tube keys (laws, damping time,
+    material) only where they differ from their defaults, so a seed model file
+    is as before. Per-joint values are lists.
+    """
+    return {PARAM_KEYS[f]: v for f, v in params.to_dict().items()}

@@ -1,48 +1,30 @@
-"""The report's page pieces: numbers with sensible digits, tables, embedded figures, relative links.
+"""The report's page pieces: numbers with sensible digits, embedded figures, relative links, the templates.
 
 Shared by :mod:`notchfit.report` and its sections; no notchfit analysis here.
+The page is laid out by the Jinja2 templates in ``templates/`` with
+autoescaping on: every text a section gives is escaped, and ``**bold**`` and
+```code``` are the only markup it may carry (:func:`rich`).
 """
 
 from __future__ import annotations
 
 import base64
-import html
+import html as _html
 import io as _pyio
 import math
 import os
+import re
 from pathlib import Path
 
-__all__ = ["CSS", "esc", "figure_html", "image_html", "link", "na", "num", "pct", "rel", "table"]
+import jinja2
+from markupsafe import Markup
 
-CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;max-width:1080px;
-margin:1.2em auto;padding:0 1em;color:#222;line-height:1.4;font-size:15px}
-h1{font-size:1.5em;margin:.2em 0}h2{font-size:1.25em;margin:1.4em 0 .4em;border-bottom:1px solid #bbb}
-h3{font-size:1.05em;margin:1em 0 .3em}
-table{border-collapse:collapse;margin:.4em 0;font-size:.9em}
-td,th{border:1px solid #ccc;padding:.2em .55em;text-align:right;vertical-align:top}
-th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}td.text,th.text{text-align:left}
-table.glance{width:100%;font-size:1em}table.glance th{width:9em;text-align:left;background:#eef3f8}
-table.glance td{text-align:left}
-.na{color:#a33;font-style:italic}.meta{color:#555;font-size:.85em;margin:.2em 0 .6em}
-.note{background:#fff8e1;border-left:4px solid #f0b400;padding:.4em .7em;margin:.6em 0}
-.conv{background:#f4f4f4;padding:.4em .7em;font-size:.9em;margin:.6em 0}
-.params{background:#eef6ee;border-left:4px solid #4a4;padding:.35em .7em;margin:.5em 0}
-figure{margin:.5em 0}figure img{max-width:100%;height:auto}
-figcaption{font-size:.9em;color:#333;margin-top:.2em}
-tr.named td{background:#e8f5e9;font-weight:600}
-nav{font-size:.9em}nav a{margin-right:.9em}
-details{margin:.4em 0}summary{cursor:pointer;color:#335}
-"""
+from .forms import Figure, Link, Page
 
+__all__ = ["figure", "image", "link", "newton", "num", "pct", "rel", "render_page", "rich", "TEMPLATES"]
 
-def esc(x) -> str:
-    return html.escape(str(x))
-
-
-def na(why: str) -> str:
-    """The line a section shows when its input is absent."""
-    return f'<p class="na">not available: {esc(why)}</p>'
+#: The folder of the report's templates and style sheet (package data).
+TEMPLATES = Path(__file__).parent / "templates"
 
 
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
@@ -92,39 +74,67 @@ def rel(path, root) -> str:
         return Path(path).as_posix()
 
 
-def link(path, root, text=None) -> str:
+def newton(v, decimals: int = 2) -> str:
+    """A tension [N] with the digits the load cell resolves (``decimals`` after the point) and at most
+    three significant digits: 0.0058 N at a 0.1 mN resolution, not "0.01 N"; 27.7 N, not 27.6843."""
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return "–"
+    if not math.isfinite(v):
+        return "–"
+    if v == 0:
+        return "0"
+    mag = math.floor(math.log10(abs(v)))
+    return f"{v:.{max(0, min(decimals, 2 - mag))}f}"
+
+
+def link(path, root, text=None) -> Link:
     """A relative link to a file beside the report."""
     r = rel(path, root)
-    return f'<a href="{esc(r)}">{esc(text if text is not None else r)}</a>'
+    return Link(r, text if text is not None else r)
 
 
-def table(rows: list[dict], *, cls: str = "", row_cls=None, text_cols=()) -> str:
-    """An HTML table of already formatted cells; ``row_cls(row) -> str`` marks rows."""
-    if not rows:
-        return ""
-    cols = list(rows[0])
-    head = "".join(f'<th class="text">{esc(c)}</th>' if c in text_cols else f"<th>{esc(c)}</th>" for c in cols)
-    body = []
-    for r in rows:
-        rc = row_cls(r) if row_cls else ""
-        cells = "".join(f'<td class="text">{esc(r.get(c, ""))}</td>' if c in text_cols
-                        else f"<td>{esc(r.get(c, ''))}</td>" for c in cols)
-        body.append(f'<tr class="{rc}">{cells}</tr>' if rc else f"<tr>{cells}</tr>")
-    c = f' class="{cls}"' if cls else ""
-    return f"<table{c}><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
-
-
-def image_html(data: bytes, mime: str, caption: str, alt: str, size=None) -> str:
+def image(data: bytes, mime: str, caption: str, alt: str, size=None) -> Figure:
     """An embedded image with its one-sentence caption; ``size`` = (w, h) px shows it 1:1."""
-    b64 = base64.b64encode(data).decode("ascii")
-    wh = f' width="{size[0]}" height="{size[1]}"' if size else ""
-    return (f'<figure><img alt="{esc(alt)}"{wh} src="data:{mime};base64,{b64}">'
-            f"<figcaption>{caption}</figcaption></figure>")
+    uri = f"data:{mime};base64,{base64.b64encode(data).decode('ascii')}"
+    return Figure(uri, caption, alt, *(size or (None, None)))
 
 
-def figure_html(fig, caption: str, alt: str, *, dpi: int = 100) -> str:
+def figure(fig, caption: str, alt: str, *, dpi: int = 100) -> Figure:
     """A matplotlib figure embedded as PNG at ``dpi`` (one figure pixel = one screen pixel at 100 %)."""
     buf = _pyio.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     w, h = (int(round(x * dpi)) for x in fig.get_size_inches())
-    return image_html(buf.getvalue(), "image/png", caption, alt, (w, h))
+    return image(buf.getvalue(), "image/png", caption, alt, (w, h))
+
+
+_BOLD = re.compile(r"\*\*(.+?)\*\*")
+_CODE = re.compile(r"`([^`]+)`")
+
+
+def rich(text) -> Markup:
+    """``text`` escaped, then ``**bold**`` → ``<b>`` and ```code``` → ``<code>`` (the only markup a section's
+    text may carry)."""
+    html = _html.escape(str(text), quote=False)           # text, not attributes: quotes stay as typed
+    html = _CODE.sub(r"<code>\1</code>", html)
+    return Markup(_BOLD.sub(r"<b>\1</b>", html))
+
+
+def _environment() -> jinja2.Environment:
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES), autoescape=True,
+                             undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    env.filters["rich"] = rich
+    env.tests["link"] = lambda x: isinstance(x, Link)
+    return env
+
+
+_ENV = None
+
+
+def render_page(page: Page) -> str:
+    """The report's HTML from its typed form (``templates/report.html.j2``)."""
+    global _ENV
+    if _ENV is None:
+        _ENV = _environment()
+    return _ENV.get_template("report.html.j2").render(page=page)

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from .. import io as nio
+from ..units import DEG
 from .page import num, pct
 
 __all__ = ["b_at_peak_rows", "detection_rows", "diagnosis_loops", "fit_tables", "peak_index",
@@ -127,6 +128,8 @@ def fit_tables(inp):
         by_point = (p.groupby(["model", "point"], sort=False)["err_mm"]
                     .apply(lambda v: float(np.sqrt(np.nanmean(np.square(v))))).rename("rms_mm").reset_index())
     samples, per_exp = [], []
+    if inp.angles:
+        return None, pd.DataFrame(columns=["experiment", "model", "dT_N", "rms_mm"]), _angle_fit_rows(inp)
     for name, path in _by_name(inp, "fits.csv").items():
         try:
             fits = nio.read_fits(path)
@@ -153,6 +156,30 @@ def fit_tables(inp):
     return by_point, by_sample, per_exp
 
 
+def _angle_fit_rows(inp) -> list[dict]:
+    """Per experiment of an angle study: the linear fit's rms [deg] and ``a``, ``b`` at the peak [deg, deg per
+    joint] (``angle_fits.csv``)."""
+    rows = []
+    for name, path in _by_name(inp, "angle_fits.csv").items():
+        try:
+            fits = nio.read_angle_fits(path)
+        except (ValueError, FileNotFoundError):
+            continue
+        lin = fits[fits["model"] == "linear"]
+        if lin.empty:
+            continue
+        row = {"experiment": name, "linear rms [deg]": num(np.sqrt(np.nanmean(lin["rms_deg"] ** 2)))}
+        e = inp.by_name.get(name)
+        if e is not None:
+            s = int(e.sample_ids[peak_index(np.nan_to_num(e.tension_left), np.nan_to_num(e.tension_right))])
+            pk = lin[lin["sample"] == s]
+            if len(pk):
+                row["a at peak [deg]"] = num(pk["a"].iloc[0] / DEG, sign=True)
+                row["b at peak [deg/joint]"] = num(pk["b"].iloc[0] / DEG, 2, sign=True)
+        rows.append(row)
+    return rows
+
+
 # ----------------------------------------------------------------------------- simulation
 def simulation_table(inp):
     """Simulation against measurement: every sample (frame signs) and a formatted row per experiment."""
@@ -161,7 +188,7 @@ def simulation_table(inp):
         cpath = path.parent / "simulation_vs_measured.csv"
         if not cpath.is_file():
             continue
-        c = pd.read_csv(cpath)
+        c = nio.read_simulation_vs_measured(cpath)
         c = c.assign(experiment=name, dT_N=c["tension_left_N"] - c["tension_right_N"])
         frames.append(c)
         k = peak_index(c["tension_left_N"], c["tension_right_N"])
@@ -182,7 +209,7 @@ def diagnosis_loops(inp) -> pd.DataFrame | None:
     path = inp.out / "diagnosis_loops.csv"
     if not path.is_file():
         return None
-    loops = pd.read_csv(path)
+    loops = nio.read_diagnosis_csv(path)
     if "pulled_cable" not in loops:
         if not inp.pulled:
             return None                          # the sign cannot be told without the study
@@ -203,12 +230,13 @@ def b_at_peak_rows(inp) -> list[dict]:
             continue
         s = meas["sample"].iloc[int(np.argmax(meas["tension_pulled_N"].to_numpy(float)))]
         row = {"experiment": name}
+        f, u = (DEG, "deg") if inp.angles else (1.0, "rad")
         for series, h in g.groupby("series", sort=False):
             label = series.split(" (")[0]
             val = h.loc[h["sample"] == s, "b_rad"]
-            row[f"b at peak, {label} [rad/joint]"] = num(val.iloc[0], 2, sign=True) if len(val) else "–"
+            row[f"b at peak, {label} [{u}/joint]"] = num(val.iloc[0] / f, 2, sign=True) if len(val) else "–"
             if label == "measured":
                 tip = h.loc[h["sample"] == s, "tip_angle_rad"]
-                row["tip angle at peak, measured [rad]"] = num(tip.iloc[0], sign=True) if len(tip) else "–"
+                row[f"tip angle at peak, measured [{u}]"] = num(tip.iloc[0] / f, sign=True) if len(tip) else "–"
         rows.append(row)
     return rows

@@ -1,0 +1,1 @@
+"""The estimation core under identify and diagnose (docs/architecture.md)."""
