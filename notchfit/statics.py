@@ -740,7 +740,7 @@ class PathDependence:
     """Two load orders with the same final load (Fig. 8).
 
     ``a``: moment first, then force (solution A); ``b``: force first, then
-    moment (solution B). ``max_dtheta`` = max_j |θ_A - θ_B| [rad];
+    moment (solution B). ``max_dtheta`` = ``max_j |θ_A - θ_B|`` [rad];
     ``tip_distance`` = distance between the two tip points [m];
     ``tip_a``/``tip_b`` = ``(x, z, φ)`` of each final tip [m, m, rad].
     """

@@ -29,7 +29,8 @@ from ..io.interrupts import received_signal
 
 __all__ = ["EXIT_INPUT_ERROR", "EXIT_ITEMS_FAILED", "INPUT_ERRORS", "InputError", "OneLineParser",
            "add_batch_options", "add_command", "add_points_option", "call", "check_out_dir", "check_points_dir",
-           "count_option", "debug_enabled", "error_exit", "execute", "jobs_option", "list_failures"]
+           "count_option", "debug_enabled", "error_exit", "execute", "in_words", "jobs_option", "list_failures",
+           "new_folders", "remove_empty"]
 
 EXIT_ITEMS_FAILED = 1
 EXIT_INPUT_ERROR = 2
@@ -89,7 +90,7 @@ def _message(exc: BaseException) -> str:
     elif isinstance(exc, MemoryError):
         text = "out of memory (an input too large for this machine?)"
     elif isinstance(exc, RecursionError):
-        text = "input nested too deeply (RecursionError)"
+        text = "input nested too deeply (a recursion limit was reached)"
     else:
         text = f"unexpected {type(exc).__name__}: {exc} (a notchfit bug or an unchecked input; " \
                "rerun with --debug for the traceback)"
@@ -154,23 +155,63 @@ def add_command(subparsers, mod) -> argparse.ArgumentParser:
     return parser
 
 
+def new_folders(path) -> list[Path]:
+    """``path`` and those of its parents that do not exist yet, deepest first."""
+    if path is None:
+        return []
+    new = []
+    for p in [Path(path), *Path(path).parents]:
+        if p.exists() or p.is_symlink():
+            break
+        new.append(p)
+    return new
+
+
+def remove_empty(folders) -> None:
+    """Remove the folders (deepest first) that are empty; stop at the first that is not."""
+    for p in folders:
+        try:
+            p.rmdir()
+        except FileNotFoundError:
+            continue
+        except OSError:
+            break
+
+
 def execute(args) -> int:
     """Run the parsed command ``args._run(args)``; any exception becomes one line and an exit code.
 
     See :func:`error_exit` (exit 2 for an input error, 130/143 when
-    interrupted, 141 on a broken pipe).
+    interrupted, 141 on a broken pipe). A command that fails (exit 2 or
+    more) leaves no folder behind that it created for ``--out`` and left
+    empty.
     """
+    created = new_folders(getattr(args, "out", None))
     try:
-        return int(args._run(args) or 0)
+        code = int(args._run(args) or 0)
     except Exception as exc:  # noqa: BLE001 - the one place that maps exceptions to exit codes
-        return error_exit(args.command, exc, debug=debug_enabled(args))
+        code = error_exit(args.command, exc, debug=debug_enabled(args))
     except KeyboardInterrupt as exc:
-        return error_exit(args.command, exc, debug=debug_enabled(args))
+        code = error_exit(args.command, exc, debug=debug_enabled(args))
+    if code >= EXIT_INPUT_ERROR:
+        remove_empty(created)
+    return code
 
 
 def call(mod, argv) -> int:
-    """Run command module ``mod`` on the arguments ``argv`` (without the command name), as the CLI would."""
-    return execute(add_command(None, mod).parse_args([str(a) for a in argv]))
+    """Run command module ``mod`` on the arguments ``argv`` (without the command name), as the CLI would.
+
+    An error is reported as the CLI reports it and its exit code returned;
+    an interruption (Ctrl-C, SIGTERM) is raised instead, so that the caller
+    (``notchfit demo``) stops as a whole.
+    """
+    args = add_command(None, mod).parse_args([str(a) for a in argv])
+    try:
+        return int(args._run(args) or 0)
+    except Exception as exc:  # noqa: BLE001 - reported as the CLI does, unless a signal caused it
+        if _interrupt_signal(exc) is not None:
+            raise
+        return error_exit(args.command, exc, debug=debug_enabled(args))
 
 
 def count_option(minimum: int = 1):
@@ -252,15 +293,19 @@ def _input_data_reason(out: Path) -> str | None:
     return None
 
 
-def check_out_dir(out, *inputs, option: str = "--out", hint: str | None = None) -> Path:
+def check_out_dir(out, *inputs, option: str = "--out", hint: str | None = None, outputs=None,
+                  force: bool = False) -> Path:
     """Check an output folder before anything is read or written; returns it as a Path.
 
     Refused (:class:`InputError`): the folder equal to or inside an input
     folder (outputs would mix with the raw data, and a study would see the
     output folder as a broken experiment), a folder that is itself input
     data (an experiment, a folder inside one, or a study: it or a sub-folder
-    holds ``experiment.toml``), a file where the folder should be, or a path
-    through a file (``afile/x``).
+    holds ``experiment.toml``), a file where the folder should be, a path
+    through a file (``afile/x``), a folder another live notchfit run is
+    writing into (its lock), and, without ``force``, a folder that already
+    holds one of ``outputs``. A command calls it first, so that it refuses
+    before it reads or prints anything.
 
     Parameters
     ----------
@@ -271,6 +316,11 @@ def check_out_dir(out, *inputs, option: str = "--out", hint: str | None = None) 
         How the messages name the folder (``"--out"``; ``""`` for a positional argument).
     hint : str, optional
         Appended to the message when the folder is input data (what to run instead).
+    outputs : sequence of str, optional
+        Relative paths whose presence means an earlier run's outputs (e.g. the
+        command's run record ``fit_run.json``); none are checked by default.
+    force : bool
+        The command replaces existing outputs (``--force``).
     """
     out = Path(out)
     label = f"{option} {out}" if option else str(out)
@@ -293,12 +343,39 @@ def check_out_dir(out, *inputs, option: str = "--out", hint: str | None = None) 
     if reason is not None:
         raise InputError(f"{label}: {reason}, not an output folder; outputs would mix with the data"
                          + (f"; {hint}" if hint else ": choose a folder outside it"))
+    elsewhere = f" or choose another {option}" if option else ""
+    who = io.live_lock_holder(out)
+    if who is not None:
+        raise InputError(f"{label}: another notchfit run ({who}) is writing into this folder; wait for it "
+                         f"to finish{elsewhere}")
+    clash = [] if force or not outputs else io.existing_outputs(out, outputs)
+    if clash:
+        raise InputError(f"{label}: already holds {', '.join(clash)} of an earlier run; use --force to "
+                         f"replace {'it' if len(clash) == 1 else 'them'}{elsewhere}")
     return out
+
+
+def _input_error_names() -> set[str]:
+    """The class names of the input errors (and of their subclasses), which a message need not show."""
+    names, todo = set(), list(INPUT_ERRORS)
+    while todo:
+        cls = todo.pop()
+        if cls.__name__ not in names:
+            names.add(cls.__name__)
+            todo.extend(cls.__subclasses__())
+    return names
+
+
+def in_words(reason: str) -> str:
+    """``reason`` without a leading input-error class name (``"InputFileNotFoundError: x.csv: ..."``
+    becomes ``"x.csv: ..."``): the message already says what is wrong, in words."""
+    name, sep, rest = str(reason).partition(": ")
+    return rest if sep and rest and name in _input_error_names() else str(reason)
 
 
 def list_failures(failed: dict, *, limit: int = 20) -> None:
     """Print ``  FAILED key: reason`` for each failure (stdout; the command exits 1)."""
     for k, v in list(failed.items())[:limit]:
-        print(f"  FAILED {k}: {v}")
+        print(f"  FAILED {k}: {in_words(v)}")
     if len(failed) > limit:
         print(f"  ... and {len(failed) - limit} more")

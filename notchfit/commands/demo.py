@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import shutil
 import time
@@ -10,9 +11,11 @@ from pathlib import Path
 
 from .. import io
 from .. import diagnosis
+from ..io.interrupts import deferred_interrupts
 from ..progress import Steps, bar as progress_bar
 from ..report import SECTIONS, build_report, summary_lines
 from ..synth import generate_study, load_recipe
+from . import _common as common
 from . import detect, fit, simulate
 from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call, count_option, jobs_option
 from ._points import MISSING_HINT, source_lines
@@ -103,21 +106,72 @@ def demo_study(study_dir, *, cause: str = "proximal_friction", small: bool = Fal
     return recipe, images
 
 
+#: What a demo writes into its --out folder (all of it is replaced with --force, nothing else is touched).
+PARTS = ("study", "results")
+
+
+@contextlib.contextmanager
+def whole_or_nothing(out: Path):
+    """Run a demo into folder ``out`` as a whole: an error or Ctrl-C leaves ``out`` as it was.
+
+    An earlier demo's ``study/`` and ``results/`` in ``out`` (replaced with
+    ``--force``) are renamed aside while the new one runs, deleted once it has
+    finished, and renamed back after an error or an interruption; what the
+    new run wrote is removed, and so are the folders it created. Nothing
+    else in ``out`` is touched. So an interrupted demo leaves the earlier
+    one, or nothing, and a plain rerun works.
+    """
+    new = common.new_folders(out)
+    asides = {}
+    for name in PARTS:
+        part = out / name
+        if part.exists() or part.is_symlink():
+            asides[part] = out / f".{name}.previous-{os.getpid()}"
+            os.replace(part, asides[part])
+    try:
+        yield
+    except BaseException:
+        with deferred_interrupts():
+            for name in PARTS:
+                _remove(out / name)
+            for part, aside in asides.items():
+                os.replace(aside, part)
+            common.remove_empty(new)
+        raise
+    for aside in asides.values():
+        _remove(aside)
+
+
+def _remove(path: Path) -> None:
+    """Remove a file or a folder tree (nothing when absent)."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()
+
+
 def run(args) -> int:
-    if args.tube == "wrist":
-        return run_wrist_demo(args)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: is a file, not a folder")
+    if out.exists() and any(out.iterdir()) and not args.force:
+        raise FileExistsError(f"{out}: holds an earlier demo; use --force to replace it or --out elsewhere")
+    with whole_or_nothing(out):
+        if args.tube == "wrist":
+            return run_wrist_demo(args)
+        return _run_seed(args)
+
+
+def _run_seed(args) -> int:
+    """The default demo (the paper's tube, one hidden effect) into the empty ``args.out``."""
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
     out = Path(args.out)
     study_dir, res_dir = out / "study", out / "results"
-    if out.exists() and any(out.iterdir()) and not args.force:
-        raise FileExistsError(f"{out}: holds an earlier demo; use --force to replace it or --out elsewhere")
     t0 = time.perf_counter()
     _step(f"synth: recipe {args.cause}, the {'small' if args.small else 'full'} study, seed {args.seed} "
           f"-> {study_dir}", t0)
     recipe, images = demo_study(study_dir, cause=args.cause, small=args.small, images=args.images,
                                 seed=args.seed, jobs=jobs)
-    if res_dir.exists() and args.force:
-        shutil.rmtree(res_dir)
     common = ["--out", str(res_dir), "--jobs", str(jobs)]
     commands = []
     if images:

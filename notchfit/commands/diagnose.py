@@ -125,7 +125,7 @@ def run(args) -> int:
     bad = [c for c in causes if c not in CAUSES]
     if bad:
         raise InputError(f"unknown cause(s) {', '.join(bad)}; known: {', '.join(CAUSES)}")
-    check_out_dir(args.out, args.study)
+    check_out_dir(args.out, args.study, outputs=OUTPUTS, force=args.force)
     check_points_dir(args.points)
     exps, unread = _experiments(args)
     with io.OutputRun(args.out, outputs=list(OUTPUTS), force=args.force, name="diagnose") as run_, \

@@ -141,7 +141,7 @@ def _fittable(args, models) -> tuple[list, dict, bool]:
 
 def run(args) -> int:
     models = _model_names(args.models)
-    check_out_dir(args.out, args.input)
+    check_out_dir(args.out, args.input, outputs=["fit_run.json"], force=args.force)
     check_points_dir(args.points)
     exps, problems, study = _fittable(args, models)
     items = [_item(e, models, args) for e in exps]

@@ -115,7 +115,7 @@ def _experiments(args) -> tuple[list, dict]:
 def run(args) -> int:
     if args.starts < 1:
         raise InputError("--starts must be at least 1")
-    check_out_dir(args.out, args.study)
+    check_out_dir(args.out, args.study, outputs=OUTPUTS, force=args.force)
     check_points_dir(args.points)
     free = None if args.free is None else [f for f in args.free.split(",") if f.strip()]
     model = io.load_params(args.model) if args.model is not None else None

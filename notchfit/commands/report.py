@@ -41,7 +41,7 @@ def run(args) -> int:
     # DIR is an output folder: never a study or experiment (the report would land in the raw data),
     # and written under the folder's lock like every other command's outputs
     check_out_dir(args.dir, args.study, option="", hint=f"run `notchfit report OUT --study {args.dir}` on "
-                  "the --out folder of fit/simulate/diagnose")
+                  "the --out folder of fit/simulate/diagnose", outputs=["report.html"], force=args.force)
     if not args.dir.is_dir():
         raise InputError(f"{args.dir}: output folder not found")
     with io.OutputRun(args.dir, outputs=["report.html"], force=args.force, name="report"), \

@@ -158,7 +158,7 @@ def _items(exps, params: dict, args) -> list[dict]:
 def run(args) -> int:
     if args.method not in ("fast", "reference"):
         raise ValueError(f"--method must be fast or reference, got {args.method!r}")
-    check_out_dir(args.out, args.input)
+    check_out_dir(args.out, args.input, outputs=["simulate_run.json"], force=args.force)
     check_points_dir(args.points)
     scan = io.scan_study(args.input)
     exps, study = scan.experiments, scan.study

@@ -85,7 +85,7 @@ class DetectorOptions:
     sigma_inflation : float
         Factor on the line-fit uncertainty: crossings 1 px apart share pixels
         (bilinear sampling) and blur, so the residual-based σ is too small;
-        1.45 makes rms(|error| / (√2 σ)) = 1.0 over rendered images
+        1.45 makes ``rms(|error| / (√2 σ)) = 1.0`` over rendered images
         (``benchmarks/bench_detection.py``).
     width_stations : int
         Profiles across the tube per straight link edge when the scale comes

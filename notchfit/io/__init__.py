@@ -42,7 +42,7 @@ _HOME = {
     "models": ("load_fea_reference", "load_geometry", "load_params", "params_from_mapping", "params_to_mapping",
                "save_params"),
     "outputs": ("LOCK_NAME", "STAGE_PREFIX", "OutputLockedError", "OutputRun", "atomic_write",
-                "experiment_output_dir", "find_output", "prepare_output_dir", "provenance", "read_detections",
+                "existing_outputs", "experiment_output_dir", "find_output", "live_lock_holder", "prepare_output_dir", "provenance", "read_detections",
                 "read_diagnosis", "read_fits", "read_json", "read_pointwise", "read_simulation",
                 "write_json_atomic", "write_table_atomic", "write_text_atomic"),
     "resources": ("calibration_dir", "datasets_dir"),

@@ -55,8 +55,10 @@ __all__ = [
     "OutputRun",
     "STAGE_PREFIX",
     "atomic_write",
+    "existing_outputs",
     "experiment_output_dir",
     "find_output",
+    "live_lock_holder",
     "prepare_output_dir",
     "provenance",
     "read_detections",
@@ -248,15 +250,26 @@ def prepare_output_dir(path, force: bool = False, outputs=None) -> Path:
     _clean_stale_stages(path)
     if force:
         return path
-    if outputs is None:
-        clash = sorted(p.name for p in path.iterdir() if not p.name.startswith("."))
-    else:
-        clash = sorted(str(o) for o in outputs if (path / o).exists())
+    clash = existing_outputs(path, outputs)
     if clash:
         shown = ", ".join(clash[:5]) + (" ..." if len(clash) > 5 else "")
         raise FileExistsError(f"{path}: already holds outputs ({shown}); use --force to replace them "
                               "or choose another --out")
     return path
+
+
+def existing_outputs(path, outputs=None) -> list[str]:
+    """The outputs already in folder ``path``, sorted (none when the folder does not exist).
+
+    ``outputs`` as :func:`prepare_output_dir` takes it: the relative paths a
+    command writes, or None for any visible entry of the folder.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        return []
+    if outputs is None:
+        return sorted(p.name for p in path.iterdir() if not p.name.startswith("."))
+    return sorted(str(o) for o in outputs if (path / o).exists())
 
 
 class OutputLockedError(FileExistsError):
@@ -283,6 +296,15 @@ def _lock_is_stale(lock: Path, *, grace_s: float = 10.0) -> bool:
     return host == socket.gethostname() and not _pid_alive(pid)
 
 
+def live_lock_holder(out_dir) -> str | None:
+    """Who is writing into ``out_dir`` now (``"pid N on HOST"``), or None when its lock is free or stale."""
+    lock = Path(out_dir) / LOCK_NAME
+    if not lock.exists() or _lock_is_stale(lock):
+        return None
+    holder = _lock_holder(lock)
+    return f"pid {holder[0]} on {holder[1]}" if holder else "a process starting up"
+
+
 def acquire_output_lock(out_dir: Path) -> Path:
     """Create ``out_dir/.notchfit-lock`` exclusively (removing a stale one); returns its path.
 
@@ -296,11 +318,10 @@ def acquire_output_lock(out_dir: Path) -> Path:
         try:
             fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
         except FileExistsError:
-            if _lock_is_stale(lock):
+            who = live_lock_holder(out_dir)
+            if who is None:
                 lock.unlink(missing_ok=True)
                 continue
-            holder = _lock_holder(lock)
-            who = f"pid {holder[0]} on {holder[1]}" if holder else "a process starting up"
             raise OutputLockedError(f"{out_dir}: another notchfit run ({who}) is writing into this folder; "
                                     f"wait for it to finish or choose another --out (a stale lock is "
                                     f"{lock})") from None

@@ -9,17 +9,17 @@ package (``notchfit/review/static``): nothing is fetched from the internet.
 
 API (``E`` the experiment's index, ``S`` the sample id):
 
-=====================================  ==============================================
-``GET  /api/study``                    experiments, samples and their corner counts
-``GET  /api/sample/E/S``               the sample's corners and its image's pyramid
-``GET  /api/tile/E/S/L/X/Y.jpg``       tile (X, Y) of pyramid level L
-``GET  /api/thumb/E/S.jpg``            the sample's thumbnail
-``GET  /api/fit/E/S``                  the live free-θ fit (residual per corner)
-``GET  /api/angles/E/S``               the angles by hand and the cut-face lines
+======================================  ============================================
+``GET  /api/study``                     experiments, samples and their corner counts
+``GET  /api/sample/E/S``                the sample's corners and its image's pyramid
+``GET  /api/tile/E/S/L/X/Y.jpg``        tile (X, Y) of pyramid level L
+``GET  /api/thumb/E/S.jpg``             the sample's thumbnail
+``GET  /api/fit/E/S``                   the live free-θ fit (residual per corner)
+``GET  /api/angles/E/S``                the angles by hand and the cut-face lines
 ``GET  /api/changes?since=N&client=C``  corners changed by other tabs since change N
-``POST /api/edit``                     one action on one corner (JSON body)
-``POST /api/angles/E``                 write the experiment's angles.csv
-=====================================  ==============================================
+``POST /api/edit``                      one action on one corner (JSON body)
+``POST /api/angles/E``                  write the experiment's angles.csv
+======================================  ============================================
 """
 
 from __future__ import annotations
