@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 
 from notchfit.camera import CameraModel
-from notchfit.detection import detect_notches
+from notchfit.detection import detect_notches, mirror_without_camera
 from notchfit.geometry import default_geometry
 from notchfit.render import place_in_view, render_manipulator
 
@@ -132,7 +132,8 @@ def big_timing(repeat, seed):
         ts = []
         for _ in range(max(repeat, 3)):
             t0 = time.perf_counter()
-            det = detect_notches(r.image, cam if calibrated else None, geom)
+            det = detect_notches(r.image, cam, geom) if calibrated else \
+                detect_notches(r.image, None, geom, mirror=mirror_without_camera(cam, r.image.shape[:2], False))
             ts.append(time.perf_counter() - t0)
         print(f"4928x3264 wrist in a chuck, {'calibrated' if calibrated else 'no calibration'}: "
               f"{1e3 * min(ts):.0f} ms per image (best of {len(ts)}), {det.n_ok}/{len(det.status)} ok")
@@ -162,7 +163,8 @@ def scene_rows(per_scene, seed, size=(4928, 3264), px_per_mm=130.0, repeat=2):
                 best = np.inf
                 for _ in range(repeat):
                     t0 = time.perf_counter()
-                    det = detect_notches(r.image, cam if calibrated else None, geom)
+                    det = detect_notches(r.image, cam, geom) if calibrated else detect_notches(
+                        r.image, None, geom, mirror=mirror_without_camera(cam, r.image.shape[:2], False))
                     best = min(best, time.perf_counter() - t0)
                 ok = np.array(det.status) == "ok"
                 row = res[calibrated]
@@ -227,7 +229,8 @@ def variety(n, seed, size=(4928, 3264), px_per_mm=130.0):
         r = render_draw(d, rng)
         for cal in (True, False):
             t0 = time.perf_counter()
-            det = detect_notches(r.image, d.camera if cal else None, d.geom)
+            det = detect_notches(r.image, d.camera, d.geom) if cal else detect_notches(
+                r.image, None, d.geom, mirror=mirror_without_camera(d.camera, r.image.shape[:2], d.plane[3]))
             t = time.perf_counter() - t0
             s = score(det, r, px_per_mm)
             scale = det.scale_mm_per_px * px_per_mm - 1 if not cal and det.n_ok else math.nan

@@ -58,11 +58,11 @@ from .base import holder_mask
 from .dims import slot_depths, slot_widths
 from .segment import band_directions, downsample, fill_holes, fill_thin_lines, largest_region
 from .segment import segment as _segment
-from .view import DiameterScale, view_orientation
+from .view import DiameterScale, mirror_without_camera, view_orientation
 from .width import band_centreline, band_width, measure_diameter, tube_radius
 
 __all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detections_table", "draw_overlay",
-           "overlay_with_crop"]
+           "mirror_without_camera", "overlay_with_crop"]
 
 
 def _linearised(image, gamma: float):
@@ -100,7 +100,12 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
     geom : Geometry
         Dimensions and slot layout (the kinematics is not used).
     mirror : bool
-        The experiment's ``mirror`` flag (a reflected view, geometry.md).
+        The experiment's ``mirror`` flag (a reflected view, geometry.md). It
+        means the same with and without a camera file: without one the plane
+        frame is the image's, x right and y down, the handedness of every
+        camera file (a calibration board is seen from its printed side). With
+        the tube's tip up in the picture, ``mirror = false`` puts the
+        manipulator's +x (the right-side slots) on the image's left.
     base : {"top", "bottom", "left", "right"}, optional
         The image side the tube's base is at; found automatically when None
         (the end attached to the holder or the image border).
@@ -292,7 +297,7 @@ def _scale_extra(widths, R):
     mm_px = 2 * R / MM / wpx
     text = (f"no calibration: fronto-parallel view assumed; scale {mm_px:.6f} mm/px from the tube's outer "
             f"diameter {2 * R / MM:.3f} mm (geometry) measured as {wpx:.2f} ± {sw:.2f} px over {len(widths)} "
-            "profiles; plane frame = image axes (x right, y up); a view tilted by a degrees shrinks one "
+            "profiles; plane frame = image axes in mm (x right, y down, as a calibration board lying upright gives them); a view tilted by a degrees shrinks one "
             "direction by cos a, and the diameter's tolerance scales every length")
     return wpx / (2 * R), {"scale_mm_per_px": mm_px, "scale_sigma": mm_px * sw / wpx, "assumption": text}
 
