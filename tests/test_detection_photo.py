@@ -84,3 +84,20 @@ def test_mirror_means_the_same_with_and_without_a_camera_file(mirror):
     wrong = detect_notches(r.image, None, geom, mirror=not mirror)
     good = np.array(wrong.status) == "ok"
     assert np.abs(wrong.points_px[good] - r.points_px[good]).max(initial=0.0) < 0.5
+
+
+def test_working_resolution_follows_the_tube_not_the_file():
+    """The working copy's factor comes from the tube's radius and narrowest slot in pixels: the seed tube
+    at 0.03 mm/px and the lab's wrist at 130 px/mm keep their factors (2 and 8); a large printed tube in a
+    2 MP phone photo at 20 px/mm is worked on at 1/5 (it used to be full resolution); the file's size
+    does not enter."""
+    from notchfit.detection import DetectorOptions, work_factor
+
+    opts = DetectorOptions()
+    printed = Geometry(n_joints=6, p=4e-3, outer_radius=3e-3, slot_width=1.5e-3, slot_depth=4.2e-3,
+                       slot_sides=(1, -1, 1, -1, 1, -1), name="printed", inner_radius=2e-3, tendon_path="lumen",
+                       r_x=None, r_z=None, cable_radius=None, channel_radius=None)
+    assert work_factor(default_geometry(), 1 / 0.03e-3, opts) == 2
+    assert work_factor(WRIST, 130e3, opts) == 8
+    assert work_factor(printed, 20e3, opts) == 5
+    assert work_factor(WRIST, 10e3, opts) == 1                 # a thin tube seen small: full resolution

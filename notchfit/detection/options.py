@@ -20,9 +20,14 @@ class DetectorOptions:
         2.2, the sRGB curve; 1: linear images, as the renders). A 50 %
         crossing in tone-mapped values is not the edge: with 2 px of blur and
         gamma 2.2 the corners are 0.008 mm rms off at 100 px/mm.
-    lowres_mm : float
-        Pixel size of the downsampled copy used to segment and parse [mm]
-        (calibrated images).
+    work_radius_px, work_slot_px : float
+        The downsampled copy used to segment and parse is chosen from the
+        tube's size in pixels, not from the file's: the block-averaging factor
+        is the largest that leaves the tube's radius at least about
+        ``work_radius_px`` and the narrowest slot at least about
+        ``work_slot_px`` pixels (rounded; 1 at most: full resolution). A 2 MP
+        phone photo of a large printed tube is then worked on as coarsely as
+        a 16 MP photograph of a thin wrist.
     lowres_long_side_px : int
         Long side of the downsampled copy when there is no calibration (the
         scale is not known before the tube is found) [px].
@@ -109,7 +114,8 @@ class DetectorOptions:
     """
 
     tone_gamma: float = 1.0
-    lowres_mm: float = 0.06
+    work_radius_px: float = 13.0
+    work_slot_px: float = 6.5
     lowres_long_side_px: int = 750
     min_snr: float = 4.0
     segment_level: float = 0.35
