@@ -101,3 +101,58 @@ def test_working_resolution_follows_the_tube_not_the_file():
     assert work_factor(WRIST, 130e3, opts) == 8
     assert work_factor(printed, 20e3, opts) == 5
     assert work_factor(WRIST, 10e3, opts) == 1                 # a thin tube seen small: full resolution
+
+
+def test_overlay_frames_a_partial_detection_without_a_sliver():
+    """Two corners found far apart on one image row (a partial detection): the crop around them keeps a
+    readable shape (sides at most 2:1), in both overlays."""
+    from notchfit.detection import overlay_with_crop
+    from notchfit.detection.overlay import overlay_crop
+    from notchfit.detection.result import Detection
+
+    img = np.full((3000, 4000), 150, np.uint8)
+    px = np.full((14, 2), np.nan)
+    px[3], px[9] = (200.0, 1500.0), (3800.0, 1510.0)
+    det = Detection(px.copy(), px, np.full(14, np.nan), ("occluded",) * 3 + ("ok",) + ("occluded",) * 5 + ("ok",)
+                    + ("occluded",) * 4, "partial", "", np.zeros((0, 2)))
+    both = overlay_with_crop(img, det, height=500)
+    assert both.shape[0] == 500 and both.shape[1] <= 500 * 4000 / 3000 + 8 + 2 * 500 + 2
+    crop = overlay_crop(img, det, size=1000)
+    assert max(crop.shape[:2]) == 1000 and min(crop.shape[:2]) >= 400
+
+
+def test_a_geometry_written_for_detection_alone_needs_no_tendon():
+    """The dimensions and the slots only: loaded, detected with; what needs a tendon says which keys."""
+    from notchfit.geometry import geometry_from_dict
+
+    g = geometry_from_dict({"n_joints": 5, "p_mm": 1.6, "outer_radius_mm": 0.81, "slot_width_mm": 0.8,
+                            "slot_depth_mm": 1.3, "base_edge_z_mm": WRIST.base_edge_z * 1e3,
+                            "slot_sides": [1] * 5}, "wrist_for_detection.toml")
+    assert g.tendons == ()
+    cam, plane = scene_camera(BEND, g, image_size=(600, 500), mm_per_px=1 / 40, angle_deg=90)
+    r = render_scene(BEND, g, cam, plane=plane, scene=Scene(holder="chuck"), rng=np.random.default_rng(2))
+    det = detect_notches(r.image, cam, g)
+    assert det.n_ok == r.visible.sum(), det.message
+    with pytest.raises(ValueError, match="describes no tendon.*r_x_mm"):
+        g.moment_arms(+1)
+
+
+def test_fit_says_what_happened_to_a_detections_file_without_an_ok_point(tmp_path):
+    """A detections.csv whose rows are all occluded or ambiguous: the hint counts them and points at the
+    detect run's messages (not "header only?"); a file with the header alone says that."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from notchfit.commands._points import points_problem
+
+    exp = SimpleNamespace(points=np.full((2, 14, 2), np.nan), geometry=WRIST)
+    path = tmp_path / "detections.csv"
+    rows = [{"sample": s, "point": p, "x_mm": np.nan, "y_mm": np.nan, "u_px": np.nan, "v_px": np.nan,
+             "sigma_mm": np.nan, "status": "ambiguous" if p < 4 else "occluded"} for s in (1, 2) for p in range(1, 15)]
+    pd.DataFrame(rows).to_csv(path, index=False)
+    why = points_problem(exp, path, "fitting")
+    assert "header only" not in why and "28 rows" in why and "occluded 22" in why and "ambiguous 6" in why
+    assert "detect_run.json" in why
+    pd.DataFrame(rows[:0], columns=list(rows[0])).to_csv(path, index=False)
+    assert "header only" in points_problem(exp, path, "fitting")
