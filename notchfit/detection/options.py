@@ -68,6 +68,14 @@ class DetectorOptions:
         ``link_abs_w`` slot widths, whichever is larger (a tube as built
         differs from its drawing by a few %; a slot numbered one off or a
         holder corner taken for a base point is off by a link).
+    chain_rel_tol, chain_abs_w, chain_abs_px, chain_play : float
+        Numbering by the rigid-link chain (:mod:`~notchfit.detection.chain`,
+        on the working copy): two corners on one link agree when their
+        distance matches the drawing within ``chain_rel_tol`` of it or
+        ``chain_abs_w`` narrowest slot widths or ``chain_abs_px`` working
+        pixels, whichever is largest; every joint between two corners adds
+        ``chain_play`` times what its bend can change the distance by
+        (:func:`~notchfit.detection.chain.joint_play`).
     scale_tol : float
         Relative tolerance of the measured base and tip widths (``2R``) in mm;
         beyond it the camera file is taken to be wrong.
@@ -130,6 +138,10 @@ class DetectorOptions:
     base_edge_tol: float = 0.25
     link_rel_tol: float = 0.15
     link_abs_w: float = 0.5
+    chain_rel_tol: float = 0.08
+    chain_abs_w: float = 0.25
+    chain_abs_px: float = 2.5
+    chain_play: float = 1.0
     scale_tol: float = 0.05
     max_shift_px: float = 10.0
     max_sigma_px: float = 0.3

@@ -9,10 +9,11 @@ from scipy.ndimage import maximum_filter1d
 
 from ..geometry import notch_layout
 from .base import find_base, holder_masks, raw_base_corners
+from .chain import ChainTolerance
 from .corners import base_specs, slot_specs, tip_specs
 from .dims import slot_depths, slot_widths
 from .lines import unit
-from .numbering import number_slots, orient_corner_pair
+from .numbering import ChainInput, number_slots, orient_corner_pair
 from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_mouth_corners, slot_mouths, turn_angles,
                       turn_peaks)
 from .plane import finish
@@ -37,6 +38,29 @@ def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
             i = min(ends, key=pos) if side > 0 else max(ends, key=pos)
             out[s] = (i, i, False)
     return out
+
+
+def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, camera, full) -> ChainInput:
+    """The slot candidates' outer corners and the base corners in the plane (low-res px), and the chain's
+    tolerances (options ``chain_rel_tol``, ``chain_abs_w``, ``chain_abs_px``, ``chain_play``)."""
+    cnt, mcnt = ol.contour, ol.raw_contour
+    N = len(cnt)
+    to_plane = lambda p: camera.pixel_to_plane(full(np.asarray(p, float))) / low_m
+    w = slot_widths(geom)
+    corners, slack = {}, {}
+    for s, (i0, i1, bridged) in mouths.items():
+        if s in rawc:
+            a, b = mcnt[rawc[s][0]], mcnt[rawc[s][1]]
+        elif bridged:
+            a, b = cnt[(i0 - 1) % N], cnt[(i1 + 1) % N]
+        else:                                    # a closed mouth: one point for both corners
+            a = b = cnt[i0]
+            slack[s] = 0.5 * float(w.max()) / low_m
+        corners[s] = (to_plane(a), to_plane(b))
+    base = tuple(None if raw is None or raw[e] is None else to_plane(mcnt[raw[e]]) for e in (0, 1))
+    tol = ChainTolerance(opts.chain_rel_tol, max(opts.chain_abs_w * float(w.min()) / low_m, opts.chain_abs_px),
+                         opts.chain_play)
+    return ChainInput(corners, slack, base, plane_px, low_m, tol)
 
 
 def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
@@ -86,17 +110,18 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     k = corner_window(r_close, R_lo)
     near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
     convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
+    w_lo = float(slot_widths(geom).min()) / low_m
+    rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
+    chain = _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, low_m=low_m, camera=camera, full=full)
     num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, lay, dist=dist, two_R=2 * R_lo,
-                       pair_tol=opts.pair_tol, base_at_border=be.kind == "border")
+                       pair_tol=opts.pair_tol, chain=chain)
     if num.mirror_conflict:
         n_r = sum(1 for s in geom.slot_sides if s > 0)
         return None, empty_detection(
             m, "partial", f"the slot counts fit the opposite mirror flag ({n_r} right-side slots expected): "
                           "check `mirror` in experiment.toml", contour_px, status="ambiguous")
-    if num.unnumbered:
-        return None, empty_detection(m, "partial", "; ".join(["base outside the image"] + num.messages), contour_px)
     return {"ol": ol, "be": be, "num": num, "mouths": mouths, "raw": raw, "full": full,
-            "contour_px": contour_px}, None
+            "contour_px": contour_px, "rawc": rawc}, None
 
 
 def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base, small=None, dark=True):
@@ -142,7 +167,6 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     if res is None:
         return None, best[1]
     ol, be, num, mouths, raw, full = (res[k] for k in ("ol", "be", "num", "mouths", "raw", "full"))
-    w_lo = float(slot_widths(geom).min()) / low_m
     cnt = ol.contour
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
     specs = []
@@ -156,12 +180,12 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
                             ("image border" if be.kind == "border" else "holder without a corner at the base edge"))
     if num.tip is not None:
         specs += tip_specs(cnt, num.tip, index=index, geom=geom, low_m=low_m)
-    rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
+    rawc = res["rawc"]
     specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
                         geom=geom, low_m=low_m, raw_corners=rawc)
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
     return specs, {"contour_px": res["contour_px"], "status": num.status, "messages": num.messages,
-                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube], "guessed": num.guessed}
+                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube], "guessed": []}
 
 
 def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
