@@ -139,3 +139,23 @@ def test_a_wire_from_the_tip_to_the_image_border():
              _tube_level(r), 6, cv2.LINE_AA)
     det = detect_notches(img, cam, WRIST)
     _no_wrong_number(det, r, min_found=10)
+
+
+def test_a_double_edge_widens_the_corner_uncertainty():
+    """A face seen a little from the side shows its near and far rims a few pixels apart: the profiles
+    rise in two steps. edge_spread gives that edge a shared offset variance (Δ²/12 of the excess rise
+    width Δ); clean edges get none."""
+    from math import erf, sqrt
+
+    from notchfit.detection.refine import edge_spread
+
+    t = np.arange(-12, 12.01, 0.5)
+    step = lambda x, s: 0.5 * (1 + np.vectorize(erf)(x / (sqrt(2) * s)))
+    clean = step(t, 1.0)
+    double = 0.5 * step(t + 2.5, 1.0) + 0.5 * step(t - 2.5, 1.0)           # two rims 5 px apart
+    rng = np.random.default_rng(4)
+    qa = np.vstack([clean + rng.normal(0, 0.01, (30, t.size)), double + rng.normal(0, 0.01, (10, t.size))])
+    edge = np.repeat([0, 1, 2, 3], 10)
+    var = edge_spread(qa, np.ones(len(qa), bool), t, 0.5, edge, 4)
+    assert np.all(var[:3] == 0.0)
+    assert 4.0 <= np.sqrt(12 * var[3]) <= 5.5                                  # Δ: about the 5 px between the rims

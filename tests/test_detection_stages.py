@@ -163,7 +163,7 @@ def test_refine_pass_finds_an_l_corner_to_a_twentieth_of_a_pixel():
     cam = DiameterScale(1e-5, (120, 120))
     best = None
     for sgn in (1.0, -1.0):
-        Cn, *_ , ok, blur, _, _ = refine_pass(img, np.zeros(2), cam, sp, sgn, s0=4, s_end=3, h=6, step=0.5,
+        Cn, *_, ok, blur, _, _, _ = refine_pass(img, np.zeros(2), cam, sp, sgn, s0=4, s_end=3, h=6, step=0.5,
                                               lim=0.25, min_points=5, contrast=-160.0)
         if ok[0]:
             best = (sgn, Cn[0], blur)
@@ -218,7 +218,7 @@ def _refine_two_passes(img, X, Din, Dout, face, **kw):
                      np.array([40.0]), np.array([40.0]), np.array(face), **kw.pop("specs", {}))
     cam = DiameterScale(1e-5, img.shape[::-1])
     for it, h in enumerate((10.0, 5.0)):
-        Cn, Xi, Ci, ok, blur, Din2, Dout2 = refine_pass(img, np.zeros(2), cam, sp, -1.0, s0=4, s_end=3, h=h,
+        Cn, Xi, Ci, ok, blur, Din2, Dout2, _ = refine_pass(img, np.zeros(2), cam, sp, -1.0, s0=4, s_end=3, h=h,
                                                         step=0.5, lim=0.25, min_points=5, contrast=-160.0,
                                                         h_face=h, blur_prior=1.0 if it else math.nan, **kw)
         if ok[0]:

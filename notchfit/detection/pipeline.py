@@ -266,7 +266,7 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
         else:
             s0, s_end, h, lim = max(3.0, 3.0 * bl + 1.0), max(2.0, 2.5 * bl + 1.0), max(3.0, 3.0 * bl + 2.0), 0.1
             h_face = h
-        Cn, Xi, Ci, ok, bl_new, Din, Dout = refine_pass(
+        Cn, Xi, Ci, ok, bl_new, Din, Dout, Csys = refine_pass(
             img, off, camera, sp, sgn, s0=s0, s_end=s_end, h=h, step=opts.profile_step_px, lim=lim,
             min_points=opts.min_edge_points, contrast=contrast, h_face=h_face,
             blur_prior=bl if it > 0 else math.nan, radius_px=radius_px if it == opts.iterations else math.nan)
@@ -276,7 +276,8 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
         sp.Din, sp.Dout = Din, Dout
     shift = np.linalg.norm(sp.C - C0, axis=1)
     sig_px = np.sqrt(np.maximum(np.trace(Ci, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
-    return {"pidx": pidx, "C": sp.C, "Xi": Xi, "cov": Ci, "ok": ok, "shift": shift, "blur": bl,
+    # the reported covariance adds what the edges' own profiles show (two rims of a face seen from the side)
+    return {"pidx": pidx, "C": sp.C, "Xi": Xi, "cov": Ci + Csys / opts.sigma_inflation ** 2, "ok": ok, "shift": shift, "blur": bl,
             "sig_px": sig_px, "specs": sp, "img": img, "off": off, "kf": kf}
 
 
