@@ -104,11 +104,10 @@ class ChainNumbers:
     tip_ok: bool = False
 
 
-def _nodes(geom: Geometry, side: int):
+def _nodes(geom: Geometry, side: int, lay):
     """The side's chain nodes, base to tip: (near point index, far point index) each; the base and tip
     anchors are nodes whose near and far points are their corner. Returns (node list, joint of each node,
     0 = base and n + 1 = tip)."""
-    lay = notch_layout(geom)
     idx = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(lay.n_points)}
     nodes = [(idx[("base", 0, side)],) * 2]
     joints = [0]
@@ -133,10 +132,9 @@ def joint_play(geom: Geometry, side: int) -> np.ndarray:
     return np.where(same, geom.slot_widths, other)
 
 
-def _expected(geom: Geometry, nodes, side: int, scale: float):
+def _expected(geom: Geometry, nodes, side: int, scale: float, lay):
     """Drawn distance from each node's far point to each later node's near point (M, M) and what the joints
     between them can change it by (M, M) [unit]; 0 for points on one link."""
-    lay = notch_layout(geom)
     far = lay.straight[[n[1] for n in nodes]] / scale
     near = lay.straight[[n[0] for n in nodes]] / scale
     d = np.linalg.norm(far[:, None, :] - near[None, :, :], axis=2)
@@ -165,9 +163,10 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
     -------
     ChainNumbers
     """
-    nodes, joints = _nodes(geom, cands.side)
+    lay = notch_layout(geom)
+    nodes, joints = _nodes(geom, cands.side, lay)
     M = len(nodes)
-    d0, play = _expected(geom, nodes, cands.side, scale)
+    d0, play = _expected(geom, nodes, cands.side, scale, lay)
     # the candidates, with the anchors as candidates 0 (base) and K + 1 (tip) that only their node takes
     K = len(cands.near)
     nan2 = np.full(2, np.nan)

@@ -45,19 +45,22 @@ def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, camera, 
     tolerances (options ``chain_rel_tol``, ``chain_abs_w``, ``chain_abs_px``, ``chain_play``)."""
     cnt, mcnt = ol.contour, ol.raw_contour
     N = len(cnt)
-    to_plane = lambda p: camera.pixel_to_plane(full(np.asarray(p, float))) / low_m
     w = slot_widths(geom)
-    corners, slack = {}, {}
+    pts, slack = [], {}
     for s, (i0, i1, bridged) in mouths.items():
         if s in rawc:
-            a, b = mcnt[rawc[s][0]], mcnt[rawc[s][1]]
+            pts += [mcnt[rawc[s][0]], mcnt[rawc[s][1]]]
         elif bridged:
-            a, b = cnt[(i0 - 1) % N], cnt[(i1 + 1) % N]
+            pts += [cnt[(i0 - 1) % N], cnt[(i1 + 1) % N]]
         else:                                    # a closed mouth: one point for both corners
-            a = b = cnt[i0]
+            pts += [cnt[i0], cnt[i0]]
             slack[s] = 0.5 * float(w.max()) / low_m
-        corners[s] = (to_plane(a), to_plane(b))
-    base = tuple(None if raw is None or raw[e] is None else to_plane(mcnt[raw[e]]) for e in (0, 1))
+    ends = [None if raw is None or raw[e] is None else mcnt[raw[e]] for e in (0, 1)]
+    pts += [e for e in ends if e is not None]
+    plane = camera.pixel_to_plane(full(np.array(pts, float).reshape(-1, 2))) / low_m     # one call for all
+    corners = {s: (plane[2 * q], plane[2 * q + 1]) for q, s in enumerate(mouths)}
+    rest = iter(plane[2 * len(mouths):])
+    base = tuple(None if e is None else next(rest) for e in ends)
     tol = ChainTolerance(opts.chain_rel_tol, max(opts.chain_abs_w * float(w.min()) / low_m, opts.chain_abs_px),
                          opts.chain_play)
     return ChainInput(corners, slack, base, plane_px, low_m, tol)

@@ -215,7 +215,7 @@ def _rise_widths(qa, t, step) -> np.ndarray:
     return np.where(np.isfinite(wd) & (wd > 0), wd, np.nan)
 
 
-def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1.25) -> np.ndarray:
+def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1.25, widths=None) -> np.ndarray:
     """Variance of each edge line's offset that its own profiles show beyond their noise [px²] (n_edges,).
 
     A face seen a little from the side shows two edges a few pixels apart (its
@@ -226,9 +226,10 @@ def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1
     median rise exceeds ``min_excess`` times the median over all edges, the
     excess width ``Δ = sqrt(rise² - rise_all²)`` is taken as the spread of
     two edges and ``Δ² / 12`` (a uniform offset over it) returned; 0 elsewhere.
+    ``widths``: the valid profiles' rise widths when already measured.
     """
-    wd = _rise_widths(qa, t, step)
-    wd = np.where(valid, wd, np.nan)
+    wd = np.full(len(qa), np.nan)
+    wd[valid] = _rise_widths(qa[valid], t, step) if widths is None else widths
     per_edge = group_median(wd, edge, n_edges)
     fin = wd[np.isfinite(wd)]
     if len(fin) < 5:
@@ -238,11 +239,12 @@ def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1
     return np.nan_to_num(excess2, nan=0.0) / 12.0
 
 
-def edge_blur(qa, valid, t, step) -> float:
-    """Gaussian σ of the edges from the 25 % -> 75 % rise of valid profiles (1.349 σ) [px]."""
+def edge_blur(qa, valid, t, step, widths=None) -> float:
+    """Gaussian σ of the edges from the 25 % -> 75 % rise of valid profiles (1.349 σ) [px] (``widths``: the
+    valid profiles' rises when already measured)."""
     if valid.sum() < 5:
         return math.nan
-    wd = _rise_widths(qa[valid], t, step)
+    wd = _rise_widths(qa[valid], t, step) if widths is None else widths
     wd = wd[np.isfinite(wd)]
     return float(np.median(wd)) / 1.349 if len(wd) else math.nan
 
@@ -514,7 +516,8 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
                                          holder_face=sp.holder_face,
                                          extrapolate=bool(np.isfinite(blur_prior)))
     fp = sp.face[pr.edge]
-    blur = edge_blur(qa, valid & ~fp, pr.t, step)
+    rises = _rise_widths(qa[valid], pr.t, step)
+    blur = edge_blur(qa, valid & ~fp, pr.t, step, widths=rises[~fp[valid]])
     raw = pr.base[valid] + tc[valid, None] * pr.normal[valid] + off
     und = camera.undistort_pixels(raw)
     # floor on the crossing variance: image noise over the edge slope (a few crossings can scatter
@@ -528,8 +531,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
                                                         s2_floor=s2_floor)
     # the offsets that an edge's own profiles show (two rims, a shadow's edge) add to the reported
     # uncertainty, not to the fit's (which decides whether the corner is found)
-    s2_edge = edge_spread(qa, valid, pr.t, step, pr.edge, 2 * K)
     cov_sys = np.zeros((K, 2, 2))
+    s2_edge = edge_spread(qa, valid, pr.t, step, pr.edge, 2 * K, widths=rises) if np.isfinite(radius_px) \
+        else np.zeros(2 * K)                 # the last pass's (the one whose corners are reported)
     if s2_edge.any():
         cov_sys = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor,
                                s2_edge=s2_edge)[1] - cov
