@@ -39,10 +39,19 @@ def _side(geom, side, joints, *, base=True, tip=True, extra=()):
     ([1, 2, 3, 4], True, False, [1, 2, 3, 4]),          # tip cut off: numbered from the base
     ([1, 2, 3, 4], False, False, []),                   # no end agrees: one off fits as well: nothing
     ([2, 3, 4, 5], False, False, []),
+    ([1, 2, 3, 4, 5], False, False, [1, 2, 3, 4, 5]),   # every joint matched: the count fixes the numbers
 ])
 def test_chain_numbers_one_sided_slots(joints, base, tip, expect):
     res = number_side(_side(WRIST, +1, joints, base=base, tip=tip), WRIST, TOL, scale=1e-3)
     assert [res.joints.get(k) for k in range(len(joints))] == (expect or [None] * len(joints))
+
+
+def test_a_complete_side_with_an_end_that_disagrees_is_not_numbered():
+    """Every joint matched, but the base corners found one link off (a mirrored view, the other side's
+    slots): the count alone is not trusted."""
+    cands = _side(WRIST, +1, [1, 2, 3, 4, 5], tip=False)
+    off = SideCandidates(+1, cands.near, cands.far, cands.base + [0.0, 1.6], None)
+    assert number_side(off, WRIST, TOL, scale=1e-3).joints == {}
 
 
 def test_a_spurious_gap_costs_only_itself():

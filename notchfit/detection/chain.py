@@ -17,7 +17,8 @@ every one of them gives it that number (a spurious gap, a missing slot, a
 hidden end link cost only the slots they touch; a shift that the chain cannot
 tell apart numbers nothing: never a wrong number). The links repeat, so a
 side is numbered only when the base or the tip corners agree with its slots
-in every best matching: they fix where the count starts. The candidates keep their
+in every best matching (they fix where the count starts), or when every
+joint of the side is matched and no base or tip corner found disagrees. The candidates keep their
 own measured corners: the chain decides identities only.
 
 Solved exactly by dynamic programming over (candidate, joint) pairs with
@@ -234,8 +235,10 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
     to_tip = np.nonzero(edge_best[:, :, C - 1, M - 1])
     base_ok = bool(on[0, 0] and not skipped[0] and len(from_base[1]) and np.all(from_base[1] == 1))
     tip_ok = bool(on[C - 1, M - 1] and not skipped[C - 1] and len(to_tip[1]) and np.all(to_tip[1] == M - 2))
-    if not (base_ok or tip_ok):
-        # equal links repeat: without an end of the chain that agrees, a shift by a joint (or the other
-        # side's slots, in a mirrored view) fits as well
+    # equal links repeat: a shift by a joint (or the other side's slots, in a mirrored view) fits as well,
+    # unless an end of the chain agrees, or every joint of the side is matched and no end found disagrees
+    complete = len(out) == M - 2 and not unnumbered
+    disagree = (cands.base is not None and not base_ok) or (cands.tip is not None and not tip_ok)
+    if not (base_ok or tip_ok or (complete and not disagree)):
         return ChainNumbers({}, list(range(K)), False, False)
     return ChainNumbers(out, unnumbered, base_ok, tip_ok)
