@@ -225,18 +225,18 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
                              extra=extra, stations=stations)
 
 
-def _stations(ref, n_per_edge):
+def _stations(ref, n_per_edge, sgn):
     """Points on the straight outer edge next to every ok corner, with the unit normal into the tube (S, 4)."""
-    sp = ref["specs"]
+    sp = ref.specs
     K = len(sp.C)
     rows = []
-    for k in np.nonzero(ref["ok"])[0]:
+    for k in np.nonzero(ref.ok)[0]:
         for e, (D, L, face) in enumerate(((-sp.Din[k], sp.Lin[k], sp.face[k]), (sp.Dout[k], sp.Lout[k],
                                                                                  sp.face[K + k]))):
             if face or not np.isfinite(L) or L < 8:
                 continue
             trav = sp.Din[k] if e == 0 else sp.Dout[k]
-            inward = -ref["sgn"] * np.array([trav[1], -trav[0]])
+            inward = -sgn * np.array([trav[1], -trav[0]])
             for s in np.linspace(0.3, 0.7, n_per_edge) * L:
                 P = sp.C[k] + s * D
                 rows.append([P[0], P[1], inward[0], inward[1]])
@@ -383,12 +383,11 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
     # the rough scale can be a few % off: no scale or base-edge check before the measured scale
     det, ref = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts.replace(scale_tol=math.inf,
                           base_edge_tol=math.inf), px_per_m=px_per_m, extra={}, stations=True, **kw)
-    if ref is None or not ref["ok"].any():
+    if ref is None or not ref.ok.any():
         return det
-    ref["sgn"] = sgn
-    st = _stations(ref, opts.width_stations)
-    widths = measure_diameter(ref["img"], ref["off"], st, 2 * R * px_per_m, _segmented(gray, f, opts, cache)[1].contrast,
-                              ref["blur"]) if len(st) else np.zeros(0)
+    st = _stations(ref, opts.width_stations, sgn)
+    widths = measure_diameter(ref.img, ref.off, st, 2 * R * px_per_m, _segmented(gray, f, opts, cache)[1].contrast,
+                              ref.blur) if len(st) else np.zeros(0)
     scale = _scale_extra(widths, R)
     if scale is None:
         return empty_detection(m, "partial", "the tube's width could not be measured (no calibration): fewer "
@@ -396,12 +395,12 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
     rough_ppm = px_per_m
     px_per_m, extra = scale
     cam = DiameterScale(1 / px_per_m, (W, H))
-    if abs(px_per_m / rough_ppm - 1) <= opts.rescale_tol and "finish_args" in ref:
+    if abs(px_per_m / rough_ppm - 1) <= opts.rescale_tol and ref.plane_input is not None:
         # the corners in pixels do not depend on the scale beyond the profile lengths: map them again
-        pts_px, ideal, cov, status, msg, blur, contour, side, guessed = ref["finish_args"]
-        return finish(cam, geom, pts_px, ideal, cov, status, msg, blur, contour, scale_tol=opts.scale_tol,
-                      base_edge_tol=opts.base_edge_tol, base_side=side, link_tol=link_tolerance(geom, opts),
-                      need_partner=guessed, **extra)
+        p = ref.plane_input
+        return finish(cam, geom, p.pts_px, p.ideal, p.cov, p.status, p.messages, p.blur, p.contour_px,
+                      scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=p.side,
+                      link_tol=link_tolerance(geom, opts), **extra)
     kw["f"] = work_factor(geom, px_per_m, opts)
     det, _ = _detect_at(gray, cam, geom, opts, px_per_m=px_per_m, extra=extra, **kw)
     return det

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d
@@ -20,7 +21,126 @@ from .plane import finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
 
-__all__ = ["link_tolerance", "locate", "refine_and_finish", "refine_corners"]
+__all__ = ["Located", "Parsed", "PlaneInput", "Refinement", "link_tolerance", "locate", "refine_and_finish",
+           "refine_corners"]
+
+
+@dataclass(frozen=True)
+class Parsed:
+    """One cropped silhouette parsed (:func:`_parse`): its bridged outline, base end, slot numbers.
+
+    Attributes
+    ----------
+    ol : Outline
+    be : BaseEnd
+    num : Numbering
+    mouths : dict
+        Slot label -> (first, last, bridged) outline indices.
+    raw : (int or None, int or None) or None
+        The base corners on the unbridged outline.
+    full : callable
+        Low-res crop coordinates -> full-resolution pixels.
+    contour_px : ndarray (N, 2)
+        The bridged outline [px].
+    rawc : dict
+        Slot label -> its outer corners on the unbridged outline.
+    """
+
+    ol: object
+    be: object
+    num: object
+    mouths: dict
+    raw: tuple | None
+    full: object
+    contour_px: np.ndarray
+    rawc: dict
+
+    @property
+    def n_found(self) -> int:
+        """Slots numbered, and 1 for the tip."""
+        return len(self.num.right) + len(self.num.left) + (self.num.tip is not None)
+
+
+@dataclass(frozen=True)
+class Located:
+    """What stages 2-4 hand to the refinement besides the corner specs (:func:`locate`).
+
+    Attributes
+    ----------
+    contour_px : ndarray (N, 2)
+        The bridged outline [px] (overlays).
+    status : list of str (m,)
+    messages : list of str
+    side : str
+        The image side the base points to.
+    full : callable
+        Low-res crop coordinates -> full-resolution pixels.
+    tube_px : ndarray (T, 2)
+        The tube's part of the outline [px] (diameter stations).
+    """
+
+    contour_px: np.ndarray
+    status: list
+    messages: list
+    side: str
+    full: object
+    tube_px: np.ndarray
+
+
+@dataclass(frozen=True)
+class PlaneInput:
+    """The refined corners before stage 6, kept to map them again at another scale (no calibration)."""
+
+    pts_px: np.ndarray
+    ideal: np.ndarray
+    cov: np.ndarray
+    status: list
+    messages: list
+    blur: float
+    contour_px: np.ndarray
+    side: str
+
+
+@dataclass
+class Refinement:
+    """Stage 5's outcome for K corners (:func:`refine_corners`).
+
+    Attributes
+    ----------
+    pidx : ndarray (K,) int
+        Point index of each corner.
+    C, Xi : ndarray (K, 2)
+        Raw and ideal (undistorted) corners [px].
+    cov : ndarray (K, 2, 2)
+        Reported covariance of the ideal corners [px²] (before ``sigma_inflation``).
+    ok : ndarray (K,) bool
+    shift : ndarray (K,)
+        How far each corner moved during refinement [px].
+    blur : float
+        Edge blur σ [px].
+    sig_px : ndarray (K,)
+        The fit's standard uncertainty (inflated) [px]: decides ``ambiguous``.
+    specs : CornerSpecs
+    img, off : the image region refined and its offset (u0, v0) [px]
+    kf : float
+        Profile length factor.
+    plane_input : PlaneInput or None
+        Set by :func:`refine_and_finish`.
+    """
+
+    pidx: np.ndarray
+    C: np.ndarray
+    Xi: np.ndarray
+    cov: np.ndarray
+    ok: np.ndarray
+    shift: np.ndarray
+    blur: float
+    sig_px: np.ndarray
+    specs: CornerSpecs
+    img: np.ndarray
+    off: np.ndarray
+    kf: float
+    plane_input: PlaneInput | None = None
 
 
 def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
@@ -68,7 +188,7 @@ def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, camera, 
 
 def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
            exclude_holder, gray=None, dark=True):
-    """Bridge, base end, slot numbering on one cropped silhouette. Returns a dict, or (None, Detection)."""
+    """Bridge, base end, slot numbering on one cropped silhouette: (Parsed, None) or (None, Detection)."""
     lay = notch_layout(geom)
     m = lay.n_points
     R_lo = geom.outer_radius / low_m
@@ -123,8 +243,7 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
         return None, empty_detection(
             m, "partial", f"the slot counts fit the opposite mirror flag ({n_r} right-side slots expected): "
                           "check `mirror` in experiment.toml", contour_px, status="ambiguous")
-    return {"ol": ol, "be": be, "num": num, "mouths": mouths, "raw": raw, "full": full,
-            "contour_px": contour_px, "rawc": rawc}, None
+    return Parsed(ol, be, num, mouths, raw, full, contour_px, rawc), None
 
 
 def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base, small=None, dark=True):
@@ -138,7 +257,7 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     Returns
     -------
     specs : list of corner specs (point, xy low-res, d_in, d_out, L_in m, L_out m, face_in, face_out)
-    context : dict (contour_px, status, messages, base side, full() mapping) or a Detection (failure)
+    context : Located, or a Detection (failure)
     """
     lay = notch_layout(geom)
     m = lay.n_points
@@ -161,15 +280,14 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
         if res is None:
             best = best or (None, fail)
             continue
-        n_found = len(res["num"].right) + len(res["num"].left) + (res["num"].tip is not None)
-        if best is None or best[0] is None or n_found > best[1]:
-            best = (res, n_found)
-        if n_found == geom.n_joints + 1:
+        if best is None or best[0] is None or res.n_found > best[1]:
+            best = (res, res.n_found)
+        if res.n_found == geom.n_joints + 1:
             break
     res = best[0]
     if res is None:
         return None, best[1]
-    ol, be, num, mouths, raw, full = (res[k] for k in ("ol", "be", "num", "mouths", "raw", "full"))
+    ol, be, num, mouths, raw, full = res.ol, res.be, res.num, res.mouths, res.raw, res.full
     cnt = ol.contour
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
     specs = []
@@ -183,12 +301,11 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
                             ("image border" if be.kind == "border" else "holder without a corner at the base edge"))
     if num.tip is not None:
         specs += tip_specs(cnt, num.tip, index=index, geom=geom, low_m=low_m)
-    rawc = res["rawc"]
+    rawc = res.rawc
     specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
                         geom=geom, low_m=low_m, raw_corners=rawc)
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
-    return specs, {"contour_px": res["contour_px"], "status": num.status, "messages": num.messages,
-                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube], "guessed": []}
+    return specs, Located(res.contour_px, num.status, num.messages, be.side, full, res.contour_px[tube])
 
 
 def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
@@ -246,8 +363,7 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
 
     Returns
     -------
-    dict with pidx (K,), C (K,2) raw px, Xi (K,2) ideal px, cov (K,2,2), ok (K,), shift (K,),
-    blur [px], sig_px (K,), the CornerSpecs and the ROI (img, off).
+    Refinement
     """
     kf = max(1.0, f / 2.0)
     pidx = np.array([s[0] for s in specs])
@@ -280,29 +396,29 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
     shift = np.linalg.norm(sp.C - C0, axis=1)
     sig_px = np.sqrt(np.maximum(np.trace(Ci, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
     # the reported covariance adds what the edges' own profiles show (two rims of a face seen from the side)
-    return {"pidx": pidx, "C": sp.C, "Xi": Xi, "cov": Ci + Csys / opts.sigma_inflation ** 2, "ok": ok, "shift": shift, "blur": bl,
-            "sig_px": sig_px, "specs": sp, "img": img, "off": off, "kf": kf}
+    return Refinement(pidx, sp.C, Xi, Ci + Csys / opts.sigma_inflation ** 2, ok, shift, bl, sig_px, sp, img, off,
+                      kf)
 
 
-def statuses(ref, m, status, shape, opts):
+def statuses(ref: Refinement, m, status, shape, opts):
     """Per-point status, raw px, ideal px and covariance from the refinement."""
     H, W = shape
     pts_px = np.full((m, 2), np.nan)
     ideal = np.full((m, 2), np.nan)
     cov = np.full((m, 2, 2), np.nan)
-    C = ref["C"]
+    C = ref.C
     inimg = np.all((C >= 0) & (C <= np.array([W - 1.0, H - 1.0])), axis=1)
-    for q, i in enumerate(ref["pidx"]):
-        if not ref["ok"][q] or not inimg[q]:
+    for q, i in enumerate(ref.pidx):
+        if not ref.ok[q] or not inimg[q]:
             status[i] = "occluded"
-        elif ref["shift"][q] > opts.max_shift_px * ref["kf"] or not ref["sig_px"][q] <= opts.max_sigma_px:
+        elif ref.shift[q] > opts.max_shift_px * ref.kf or not ref.sig_px[q] <= opts.max_sigma_px:
             status[i] = "ambiguous"
             pts_px[i] = C[q]
         else:
             status[i] = "ok"
             pts_px[i] = C[q]
-            ideal[i] = ref["Xi"][q]
-            cov[i] = ref["cov"][q] * opts.sigma_inflation ** 2
+            ideal[i] = ref.Xi[q]
+            cov[i] = ref.cov[q] * opts.sigma_inflation ** 2
     return status, pts_px, ideal, cov
 
 
@@ -313,24 +429,25 @@ def link_tolerance(geom, opts):
     return opts.link_rel_tol, opts.link_abs_w * float(slot_widths(geom).min())
 
 
-def refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, *, f, px_per_m, sgn, extra=None, stations=None):
-    """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, refinement dict or None)."""
+def refine_and_finish(gray, seg, specs, ctx: Located, camera, geom, opts, *, f, px_per_m, sgn, extra=None,
+                      stations=None):
+    """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, Refinement or None)."""
     m = geom.n_points
     extra = extra or {}
-    status, msg = list(ctx["status"]), list(ctx["messages"])
+    status, msg = list(ctx.status), list(ctx.messages)
     ref = None
     pts_px, ideal, cov = np.full((m, 2), np.nan), np.full((m, 2), np.nan), np.full((m, 2, 2), np.nan)
     blur = math.nan
     if specs:
-        far = ctx["tube_px"] if stations else None
-        ref = refine_corners(gray, specs, camera, full=ctx["full"], px_per_m=px_per_m, sgn=sgn,
+        far = ctx.tube_px if stations else None
+        ref = refine_corners(gray, specs, camera, full=ctx.full, px_per_m=px_per_m, sgn=sgn,
                              contrast=seg.contrast, f=f, opts=opts, extra_px=far, geom=geom)
         status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
-        blur = ref["blur"]
-        ref["finish_args"] = (pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
-                              ctx["contour_px"], ctx["side"], ctx["guessed"])
-    det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx["contour_px"],
-                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"],
-                 link_tol=link_tolerance(geom, opts), need_partner=ctx["guessed"], **extra)
+        blur = ref.blur
+        ref.plane_input = PlaneInput(pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
+                                     ctx.contour_px, ctx.side)
+    det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx.contour_px,
+                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx.side,
+                 link_tol=link_tolerance(geom, opts), **extra)
     return det, ref
 
