@@ -213,12 +213,12 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
         else:
             tried.append(locate(region, box, shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base,
                                 small=seg.image, dark=seg.contrast < 0))
-        if tried[-1][0] is not None and wanted <= {s_[0] for s_ in tried[-1][0]}:
+        if tried[-1][0] is not None and wanted <= {s_.point for s_ in tried[-1][0]}:
             break
     found = [t for t in tried if t[0] is not None]
     # slot counts that fit the opposite mirror flag are strong evidence: they win over an incomplete result
     conflict = [t[1] for t in tried if t[0] is None and "opposite mirror flag" in t[1].message]
-    if not found or (conflict and not any(wanted <= {s_[0] for s_ in t[0]} for t in found)):
+    if not found or (conflict and not any(wanted <= {s_.point for s_ in t[0]} for t in found)):
         return (conflict or [tried[0][1]])[0], None
     specs, ctx = max(found, key=lambda t: len(t[0]))
     return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,

@@ -256,7 +256,7 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
 
     Returns
     -------
-    specs : list of corner specs (point, xy low-res, d_in, d_out, L_in m, L_out m, face_in, face_out)
+    specs : list of CornerSpec
     context : Located, or a Detection (failure)
     """
     lay = notch_layout(geom)
@@ -324,7 +324,7 @@ def _curved_edges(pidx, geom, specs) -> np.ndarray:
     """(2K,) bool: the edges that are circular faces of the tube (slot faces, the tip face)."""
     lay = notch_layout(geom)
     K = len(specs)
-    out = np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool)
+    out = np.concatenate([[s.face_in for s in specs], [s.face_out for s in specs]]).astype(bool)
     for k, i in enumerate(pidx):
         if lay.kind[i] == "tip":              # tip-right: the outgoing edge is the tip face; tip-left: incoming
             out[K + k if lay.side[i] > 0 else k] = True
@@ -366,11 +366,11 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
     Refinement
     """
     kf = max(1.0, f / 2.0)
-    pidx = np.array([s[0] for s in specs])
-    sp = CornerSpecs(full(np.array([s[1] for s in specs])), unit(np.array([s[2] for s in specs])),
-                     unit(np.array([s[3] for s in specs])), np.array([s[4] for s in specs]) * px_per_m,
-                     np.array([s[5] for s in specs]) * px_per_m,
-                     np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool),
+    pidx = np.array([s.point for s in specs])
+    sp = CornerSpecs(full(np.array([s.xy for s in specs])), unit(np.array([s.d_in for s in specs])),
+                     unit(np.array([s.d_out for s in specs])), np.array([s.len_in for s in specs]) * px_per_m,
+                     np.array([s.len_out for s in specs]) * px_per_m,
+                     np.concatenate([[s.face_in for s in specs], [s.face_out for s in specs]]).astype(bool),
                      _curved_edges(pidx, geom, specs), _partners(pidx, geom), _holder_faces(pidx, geom))
     radius_px = geom.outer_radius * px_per_m
     C0 = sp.C.copy()
