@@ -126,7 +126,7 @@ def _side_numbers(labels, side, chain: ChainInput, geom, tip, msg):
     return [(labels[k], j) for k, j in sorted(res.joints.items())]
 
 
-def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *, dist, two_R, pair_tol,
+def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dist, pair_tol,
                  chain: ChainInput) -> Numbering:
     """Match the slots on the tube arc to joints and find the tip.
 
@@ -140,14 +140,15 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *
         From :func:`~notchfit.detection.outline.slot_mouths`.
     convex : list of int
         Convex corner candidates on the outline.
-    geom, lay : Geometry and its NotchLayout
-    dist : callable (i, j) -> distance [same unit as two_R]
+    geom : Geometry
+    dist : callable (i, j) -> distance between outline points [plane units of ``chain``]
     chain : ChainInput
         The candidates' corners: each side's slots are numbered by agreement
         with the rigid-link chain (:func:`~notchfit.detection.chain.number_side`).
     """
     N = len(cnt)
-    m = lay.n_points
+    m = geom.n_points
+    two_R = 2 * geom.outer_radius / chain.scale
     i_br, i_bl = be.i_right, be.i_left
     apos = lambda i, start: (i - start) % N
     L_tube = apos(i_bl, i_br)

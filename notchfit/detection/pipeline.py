@@ -160,7 +160,7 @@ def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
     return out
 
 
-def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, camera, full) -> ChainInput:
+def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, to_plane) -> ChainInput:
     """The slot candidates' outer corners and the base corners in the plane (low-res px), and the chain's
     tolerances (options ``chain_rel_tol``, ``chain_abs_w``, ``chain_abs_px``, ``chain_play``)."""
     cnt, mcnt = ol.contour, ol.raw_contour
@@ -177,7 +177,7 @@ def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, camera, 
             slack[s] = 0.5 * float(w.max()) / low_m
     ends = [None if raw is None or raw[e] is None else mcnt[raw[e]] for e in (0, 1)]
     pts += [e for e in ends if e is not None]
-    plane = camera.pixel_to_plane(full(np.array(pts, float).reshape(-1, 2))) / low_m     # one call for all
+    plane = to_plane(np.array(pts, float).reshape(-1, 2))                                # one call for all
     corners = {s: (plane[2 * q], plane[2 * q + 1]) for q, s in enumerate(mouths)}
     rest = iter(plane[2 * len(mouths):])
     base = tuple(None if e is None else next(rest) for e in ends)
@@ -235,9 +235,9 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
     w_lo = float(slot_widths(geom).min()) / low_m
     rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
-    chain = _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, low_m=low_m, camera=camera, full=full)
-    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, lay, dist=dist, two_R=2 * R_lo,
-                       pair_tol=opts.pair_tol, chain=chain)
+    chain = _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, low_m=low_m,
+                         to_plane=lambda p: camera.pixel_to_plane(full(p)) / low_m)
+    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, dist=dist, pair_tol=opts.pair_tol, chain=chain)
     if num.mirror_conflict:
         n_r = sum(1 for s in geom.slot_sides if s > 0)
         return None, empty_detection(
