@@ -64,8 +64,9 @@ def exif_orientation(data: bytes) -> int:
     try:
         with Image.open(_io.BytesIO(data)) as im:
             value = im.getexif().get(_EXIF_ORIENTATION_TAG, 1)
-    except (UnidentifiedImageError, OSError, ValueError, SyntaxError, struct.error):
-        return 1
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError, struct.error, Image.DecompressionBombError,
+            KeyError, IndexError, TypeError):
+        return 1                          # a damaged or unknown header: no tag (the decoder says the rest)
     return int(value) if value in EXIF_ORIENTATIONS else 1
 
 
