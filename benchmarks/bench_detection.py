@@ -27,7 +27,13 @@ tendon loop at the tip, a printed tube on blue paper through a phone-like lens, 
 kind with the camera and without it: corners ok / present, wrong identities, invented points, rms and max
 error, the spread of (found - true) / sigma; --pbr-render re-renders the gallery first (needs Mitsuba).
 
+Speed side by side (--speed): ms per 1920x1200 seed image, per 16 MP photograph (the lab's wrist in a
+chuck, 4928x3264 at 130 px/mm) and per 2 MP phone photograph (a large printed tube on coloured paper,
+1320x1629 at 20 px/mm, its base entering from the image border), with the camera and without it, all
+in one run (best of --repeat each), with the corners found.
+
 Run:  python benchmarks/bench_detection.py [--images 12] [--repeat 3]
+      python benchmarks/bench_detection.py --speed [--repeat 5]
       python benchmarks/bench_detection.py --robustness [--per-row 4]   (the table of docs/robustness.md)
       python benchmarks/bench_detection.py --scenes [--per-scene 2]     (the real-scene table)
       python benchmarks/bench_detection.py --variety 40 [--seed 1] [--size 4928x3264] [--px-per-mm 130]
@@ -44,7 +50,7 @@ import cv2
 import numpy as np
 
 from notchfit.camera import CameraModel
-from notchfit.detection import detect_notches
+from notchfit.detection import detect_notches, mirror_without_camera
 from notchfit.geometry import default_geometry
 from notchfit.render import place_in_view, render_manipulator
 
@@ -139,10 +145,66 @@ def big_timing(repeat, seed):
         ts = []
         for _ in range(max(repeat, 3)):
             t0 = time.perf_counter()
-            det = detect_notches(r.image, cam if calibrated else None, geom)
+            det = detect_notches(r.image, cam, geom) if calibrated else \
+                detect_notches(r.image, None, geom, mirror=mirror_without_camera(cam, r.image.shape[:2], False))
             ts.append(time.perf_counter() - t0)
         print(f"4928x3264 wrist in a chuck, {'calibrated' if calibrated else 'no calibration'}: "
               f"{1e3 * min(ts):.0f} ms per image (best of {len(ts)}), {det.n_ok}/{len(det.status)} ok")
+
+
+PRINTED = dict(n_joints=6, p=4e-3, outer_radius=3e-3, slot_width=1.5e-3, slot_depth=4.2e-3,
+               slot_sides=(1, -1, 1, -1, 1, -1), name="printed", inner_radius=2e-3, tendon_path="lumen",
+               r_x=None, r_z=None, cable_radius=None, channel_radius=None)
+
+
+def _best_ms(fn, repeat):
+    """Best wall time and best process CPU time (all threads) of ``repeat`` calls [ms], and the last result.
+    On a machine shared with other jobs the CPU time is the detector's own cost."""
+    best, cpu, out = np.inf, np.inf, None
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
+    return 1e3 * best, 1e3 * cpu, out
+
+
+def speed(repeat, seed):
+    """ms per image of the three photograph kinds the targets name, measured in one run."""
+    from notchfit.geometry import Geometry
+    from notchfit.render.scenes import Scene, render_scene, scene_camera
+
+    rng = np.random.default_rng(seed)
+    geom = default_geometry()
+    cam = CameraModel.synthetic(1920, 1200, mm_per_px=0.03)
+    th = np.full(geom.n_joints, 0.03)
+    plane, fits = place_in_view(th, geom, cam, phi=0.2, mirror=False)
+    assert fits
+    cases = [("1920x1200 seed tube (target 40 ms)", render_manipulator(th, geom, cam, plane=plane, rng=rng), cam,
+              geom, False)]
+    wrist = Geometry(**WRIST)
+    thw = np.array([0.2, 0.25, 0.3, 0.3, 0.25])
+    camw, planew = scene_camera(thw, wrist, image_size=(4928, 3264), mm_per_px=1 / 130, angle_deg=90, base_at=0.05)
+    cases.append(("4928x3264 wrist in a chuck (target 150 ms)",
+                  render_scene(thw, wrist, camw, plane=planew, scene=Scene(holder_half_width=4e-3, blur_sigma=2.0),
+                               rng=rng), camw, wrist, False))
+    printed = Geometry(**PRINTED)
+    thp = np.array([0.1, -0.1, 0.15, -0.05, 0.1, 0.0])
+    camp, planep = scene_camera(thp, printed, image_size=(1320, 1629), mm_per_px=1 / 20, angle_deg=80, base_at=0.03)
+    cases.append(("1320x1629 phone photo, printed tube (target 60 ms)",
+                  render_scene(thp, printed, camp, plane=planep, scene=Scene(holder="none", background=70.0,
+                                                                             tube_level=225.0, blur_sigma=1.5),
+                               rng=rng), camp, printed, False))
+    print("| image | camera | ms / image | CPU ms / image | corners ok / visible |")
+    print("|---|---|---|---|---|")
+    for name, r, c, g, mirror in cases:
+        for cal in (True, False):
+            m = mirror if cal else mirror_without_camera(c, r.image.shape[:2], mirror)
+            ms, cpu, det = _best_ms(lambda: detect_notches(r.image, c if cal else None, g, mirror=m), repeat)
+            print(f"| {name} | {'yes' if cal else 'no'} | {ms:.0f} | {cpu:.0f} | {det.n_ok}/{int(r.visible.sum())} |",
+                  flush=True)
+    ms, cpu, _ = _best_ms(lambda: generic(cases[0][1].image), repeat)
+    print(f"(reference in the same run: goodFeaturesToTrack + cornerSubPix on the 1920x1200 image, {ms:.0f} ms, "
+          f"{cpu:.0f} ms CPU)")
 
 
 def scene_rows(per_scene, seed, size=(4928, 3264), px_per_mm=130.0, repeat=2):
@@ -169,7 +231,8 @@ def scene_rows(per_scene, seed, size=(4928, 3264), px_per_mm=130.0, repeat=2):
                 best = np.inf
                 for _ in range(repeat):
                     t0 = time.perf_counter()
-                    det = detect_notches(r.image, cam if calibrated else None, geom)
+                    det = detect_notches(r.image, cam, geom) if calibrated else detect_notches(
+                        r.image, None, geom, mirror=mirror_without_camera(cam, r.image.shape[:2], False))
                     best = min(best, time.perf_counter() - t0)
                 ok = np.array(det.status) == "ok"
                 row = res[calibrated]
@@ -234,7 +297,8 @@ def variety(n, seed, size=(4928, 3264), px_per_mm=130.0):
         r = render_draw(d, rng)
         for cal in (True, False):
             t0 = time.perf_counter()
-            det = detect_notches(r.image, d.camera if cal else None, d.geom)
+            det = detect_notches(r.image, d.camera, d.geom) if cal else detect_notches(
+                r.image, None, d.geom, mirror=mirror_without_camera(d.camera, r.image.shape[:2], d.plane[3]))
             t = time.perf_counter() - t0
             s = score(det, r, px_per_mm)
             scale = det.scale_mm_per_px * px_per_mm - 1 if not cal and det.n_ok else math.nan
@@ -312,7 +376,11 @@ def pbr(folder, repeat=1, render=False):
             best = np.inf
             for _ in range(max(repeat, 1)):
                 t0 = time.perf_counter()
-                det = detect_notches(img, truth.camera if cal else None, geom)
+                # without the camera file the plane frame is the image's (x right, y down): the flag a
+                # user would write for this view (mirror_without_camera)
+                mirror = truth.pose.plane[3] if cal else mirror_without_camera(truth.camera, img.shape[:2],
+                                                                                truth.pose.plane[3])
+                det = detect_notches(img, truth.camera if cal else None, geom, mirror=mirror)
                 best = min(best, time.perf_counter() - t0)
             rows.append((scene.kind, cal, score_detection(det, truth, scene.px_per_mm), best, scene.px_per_mm))
         # the same tube, camera and pose drawn by notchfit's own renderer (a solid, flat shading, blur 1 px):
@@ -322,7 +390,8 @@ def pbr(folder, repeat=1, render=False):
                                      holder_half_width=scene.holder_half_width, tilt_deg=scene.tilt_deg,
                                      tilt_axis_deg=scene.tilt_axis_deg, blur_sigma=1.0),
                          rng=np.random.default_rng(scene.seed))
-        s = score_detection(detect_notches(r.image, truth.camera, geom), truth, scene.px_per_mm)
+        s = score_detection(detect_notches(r.image, truth.camera, geom, mirror=truth.pose.plane[3]), truth,
+                            scene.px_per_mm)
         k = own.setdefault(scene.kind, [0, 0])
         k[0] += s.ok
         k[1] += s.present
@@ -350,6 +419,7 @@ def main(argv=None):
     ap.add_argument("--per-scene", type=int, default=2, help="images per scene kind")
     ap.add_argument("--variety", type=int, default=0, help="detect this many seeded random lab scenes instead")
     ap.add_argument("--size", default="4928x3264", help="image size of --variety (WxH)")
+    ap.add_argument("--speed", action="store_true", help="ms per seed image, 16 MP photo and 2 MP phone photo")
     ap.add_argument("--px-per-mm", type=float, default=130.0, help="scale of --variety")
     ap.add_argument("--pbr", action="store_true", help="score the physically based gallery instead")
     ap.add_argument("--pbr-dir", default=None, help="gallery folder of --pbr (default tests/data/pbr)")
@@ -365,6 +435,9 @@ def main(argv=None):
         return
     if a.robustness:
         robustness(a.per_row, a.seed)
+        return
+    if a.speed:
+        speed(max(a.repeat, 3), a.seed)
         return
     if a.scenes:
         scene_rows(a.per_scene, a.seed)

@@ -133,7 +133,11 @@ class Geometry:
         ``"section"``: joint ``j`` bends about the neutral axis of the section
         its slot leaves (:mod:`notchfit.section`), at mid-slot height.
     tendons : tuple of str
-        The tendons the tube has: ``("left", "right")`` or one of them.
+        The tendons the tube has: ``("left", "right")`` or one of them; empty
+        for a geometry that describes no tendon (written for detection alone:
+        the detector needs the dimensions and the slots only). A geometry file
+        without any tendon key (``tendons``, ``tendon_path``, the channel and
+        cable radii) is such a geometry; what needs a tendon then says so.
     tendon_path : {"channel", "lumen"}
         ``"channel"``: in channels at ``±r_x`` (the seed tube); ``"lumen"``: free
         in the lumen along the inner wall on its side.
@@ -193,7 +197,7 @@ class Geometry:
             raise ValueError("a list of spacings p needs at least two joints")
         set_("p", _per_joint(self.p, n - 1, "p (joint to joint spacing)"))
         tendons = (self.tendons,) if isinstance(self.tendons, str) else tuple(self.tendons)
-        if not tendons or len(set(tendons)) != len(tendons) or any(t not in _TENDON_SIDES for t in tendons):
+        if len(set(tendons)) != len(tendons) or any(t not in _TENDON_SIDES for t in tendons):
             raise ValueError(f"tendons must be 'left', 'right' or both, got {self.tendons!r}")
         set_("tendons", tuple(t for t in ("left", "right") if t in tendons))
 
@@ -252,6 +256,8 @@ class Geometry:
             raise ValueError("mount_half_width must be larger than outer_radius (the tube enters the mount)")
 
     def _check_tendons(self) -> None:
+        if not self.tendons:
+            return                        # no tendon described: a geometry for detection alone
         if self.tendon_path not in TENDON_PATHS:
             raise ValueError(f"tendon_path must be one of {TENDON_PATHS}, got {self.tendon_path!r}")
         if self.tendon_path == "channel":
@@ -386,6 +392,10 @@ class Geometry:
         """
         if side not in (-1, 1):
             raise ValueError(f"side must be -1 (left) or +1 (right), got {side!r}")
+        if not self.tendons:
+            raise ValueError(f"geometry {self.name!r} describes no tendon (a geometry for detection alone): give "
+                             "r_x_mm, r_z_mm, cable_radius_mm and channel_radius_mm, or tendon_path = \"lumen\" "
+                             "with inner_radius_mm")
         if self.tendon_path == "channel":
             offset = self.r_x
         else:
@@ -490,6 +500,9 @@ def geometry_from_dict(data: dict, origin: str = "<dict>", *, line_of=None) -> G
             if not isinstance(data[key], str):
                 raise fail(f"{key} must be a string, got {data[key]!r}", key)
             kw[key] = data[key]
+    if not any(k in data for k in ("tendons", "tendon_path", "r_x_mm", "r_z_mm", "cable_radius_mm",
+                                   "channel_radius_mm")):
+        kw["tendons"] = ()                # written for detection alone: no tendon described
     if "tendons" in data:
         t = data["tendons"]
         if not (isinstance(t, list) and all(isinstance(x, str) for x in t)):

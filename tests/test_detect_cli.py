@@ -114,8 +114,10 @@ def test_detect_cli_photo_without_calibration_and_stated_base(tmp_path, capsys):
     cv2.imwrite(str(folder / "images" / "0001.png"), r.image)
     pd.DataFrame([{"sample": 1, "time_s": 1.0, "tension_right_N": 0.5, "image": "images/0001.png"}]) \
         .to_csv(folder / "samples.csv", index=False)
+    # the scene camera sees the plane from behind: without its file, the same view is a mirrored one
     (folder / "experiment.toml").write_text(
-        f'name = "exp"\ngeometry = "{io.datasets_dir() / "geometry" / "wrist_asymmetric.toml"}"\nbase = "top"\n')
+        f'name = "exp"\ngeometry = "{io.datasets_dir() / "geometry" / "wrist_asymmetric.toml"}"\nbase = "top"\n'
+        'mirror = true\n')
     out = tmp_path / "out"
     assert main(["detect", str(folder), "--out", str(out)]) == 0
     assert "outer diameter" in capsys.readouterr().out

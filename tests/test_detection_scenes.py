@@ -9,7 +9,7 @@ numbered, no other point may be reported, and the error stays within 0.005 mm rm
 import numpy as np
 import pytest
 
-from notchfit.detection import detect_notches, draw_overlay, overlay_with_crop
+from notchfit.detection import detect_notches, draw_overlay, mirror_without_camera, overlay_with_crop
 from notchfit.geometry import Geometry, default_geometry
 from notchfit.render.scenes import Scene, render_scene, scene_camera
 
@@ -24,6 +24,12 @@ def _scene(seed, angle=90.0, theta=BEND, geom=WRIST, size=(600, 500), mm_per_px=
     cam, plane = scene_camera(theta, geom, image_size=size, mm_per_px=mm_per_px, angle_deg=angle)
     r = render_scene(theta, geom, cam, plane=plane, scene=Scene(**scene_kw), rng=np.random.default_rng(seed))
     return cam, r
+
+
+def _uncal_mirror(cam, r):
+    """The scene cameras see the plane from behind (plane y up the image): without the camera file the
+    same view is a mirrored one (the image's own frame has a calibration's handedness, x right, y down)."""
+    return mirror_without_camera(cam, r.image.shape[:2], False)
 
 
 def _check(det, r, *, rms_mm=0.005, max_mm=0.01, mm_per_px=MM_PER_PX):
@@ -88,16 +94,16 @@ def test_uncalibrated_scale_from_the_diameter(kind):
     """No camera file: the scale from the tube's outer diameter within 1 % (issue target), stated with
     its uncertainty and assumption; the corners as with the camera."""
     cam, r = _scene(20 + list(SCENES).index(kind), **SCENES[kind])
-    det = detect_notches(r.image, None, WRIST)
+    det = detect_notches(r.image, None, WRIST, mirror=_uncal_mirror(cam, r))
     assert abs(det.scale_mm_per_px / (MM_PER_PX) - 1) <= 0.01
     assert 0 < det.scale_sigma < 0.01 * det.scale_mm_per_px
     assert "fronto-parallel" in det.assumption and "diameter" in det.assumption
     _check(det, r)
-    # plane coordinates: image axes (x right, y up) in mm
+    # plane coordinates: image axes (x right, y down) in mm
     ok = np.array(det.status) == "ok"
     uv = det.points[ok] / (det.scale_mm_per_px * 1e-3)
     np.testing.assert_allclose(uv[:, 0], det.points_px[ok, 0], atol=1e-6)
-    np.testing.assert_allclose(-uv[:, 1], det.points_px[ok, 1], atol=1e-6)
+    np.testing.assert_allclose(uv[:, 1], det.points_px[ok, 1], atol=1e-6)
 
 
 def test_seed_tube_in_a_chuck_light_on_dark():
@@ -120,7 +126,7 @@ def test_overlays_scale_with_the_image():
     assert both.shape[0] == 400 and both.shape[1] > 400 * r.image.shape[1] / r.image.shape[0]
     # a big image gets thicker marks: more coloured pixels per corner than the plain scale
     big = np.kron(r.image, np.ones((6, 6), np.uint8))
-    det_big = detect_notches(big, None, WRIST)
+    det_big = detect_notches(big, None, WRIST, mirror=_uncal_mirror(cam, r))
     green = lambda im: np.count_nonzero((im[..., 1] > 150) & (im[..., 0] < 80) & (im[..., 2] < 80))
     n_small, n_auto = green(draw_overlay(big, det_big, marker_scale=1.0)), green(draw_overlay(big, det_big))
     assert n_auto > 2 * n_small
@@ -165,7 +171,8 @@ def _variety(n, seed, size, px_per_mm, calibrated):
     for _ in range(n):
         d = draw_scene(rng, geoms, size=size, px_per_mm=px_per_mm)
         r = render_draw(d, rng)
-        det = detect_notches(r.image, d.camera if calibrated else None, d.geom)
+        det = detect_notches(r.image, d.camera, d.geom) if calibrated else \
+            detect_notches(r.image, None, d.geom, mirror=mirror_without_camera(d.camera, r.image.shape[:2], d.plane[3]))
         s = score(det, r, px_per_mm)
         found, corners, invented = found + s["found"], corners + s["corners"], invented + s["invented"]
         errs.append(s["errors_mm"])

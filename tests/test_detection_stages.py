@@ -163,7 +163,7 @@ def test_refine_pass_finds_an_l_corner_to_a_twentieth_of_a_pixel():
     cam = DiameterScale(1e-5, (120, 120))
     best = None
     for sgn in (1.0, -1.0):
-        Cn, *_ , ok, blur, _, _ = refine_pass(img, np.zeros(2), cam, sp, sgn, s0=4, s_end=3, h=6, step=0.5,
+        Cn, *_, ok, blur, _, _, _ = refine_pass(img, np.zeros(2), cam, sp, sgn, s0=4, s_end=3, h=6, step=0.5,
                                               lim=0.25, min_points=5, contrast=-160.0)
         if ok[0]:
             best = (sgn, Cn[0], blur)
@@ -218,7 +218,7 @@ def _refine_two_passes(img, X, Din, Dout, face, **kw):
                      np.array([40.0]), np.array([40.0]), np.array(face), **kw.pop("specs", {}))
     cam = DiameterScale(1e-5, img.shape[::-1])
     for it, h in enumerate((10.0, 5.0)):
-        Cn, Xi, Ci, ok, blur, Din2, Dout2 = refine_pass(img, np.zeros(2), cam, sp, -1.0, s0=4, s_end=3, h=h,
+        Cn, Xi, Ci, ok, blur, Din2, Dout2, _ = refine_pass(img, np.zeros(2), cam, sp, -1.0, s0=4, s_end=3, h=h,
                                                         step=0.5, lim=0.25, min_points=5, contrast=-160.0,
                                                         h_face=h, blur_prior=1.0 if it else math.nan, **kw)
         if ok[0]:
@@ -344,3 +344,21 @@ def test_segment_under_vignetting_and_a_hot_spot():
     seg = segment(img)
     assert seg.mask is not None and seg.contrast < 0
     np.testing.assert_array_equal(seg.mask.astype(bool), cov > 0.5)
+
+
+def test_a_specular_line_brighter_than_the_background_stays_inside_the_tube():
+    """A dark tube on a light backdrop with a specular line along it, brighter than the backdrop (the
+    lab's polished wrist: 198 DN on a 158 DN background): the line is object (it differs from the
+    background the other way by more than a third of the contrast), so the tube is one region; taken
+    for background it would cut the tube in two."""
+    from notchfit.detection.segment import largest_region, segment
+
+    rng = np.random.default_rng(5)
+    img = np.full((120, 160), 158.0) + rng.normal(0, 1.0, (120, 160))
+    img[40:80, 20:140] = 40.0                    # the tube, 40 px wide
+    img[58:62, 20:140] = 198.0                   # its specular line
+    seg = segment(img.astype(np.float32), level=0.35)
+    region, _ = largest_region(seg.mask)
+    assert region[40:80, 20:140].mean() > 0.99
+    split = segment(img.astype(np.float32), level=0.35, opposite=np.inf)
+    assert largest_region(split.mask)[0][40:80, 20:140].mean() < 0.6

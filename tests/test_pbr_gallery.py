@@ -92,7 +92,7 @@ def test_detector_on_the_gallery_never_numbers_a_corner_wrongly():
     per_kind = defaultdict(lambda: [0, 0, 0, 0, []])
     for p in RECORDS:
         rec, scene, truth, geom = _load(p)
-        det = detect_notches(load_image(GALLERY / rec["image"]), truth.camera, geom)
+        det = detect_notches(load_image(GALLERY / rec["image"]), truth.camera, geom, mirror=truth.pose.plane[3])
         s = score_detection(det, truth, scene.px_per_mm)
         k = per_kind[scene.kind]
         k[0] += s.ok

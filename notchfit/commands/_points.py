@@ -70,6 +70,21 @@ def lookup_points(exps, args, command: str, *, say=print) -> "io.PointsLookup":
     return lookup
 
 
+def _why_empty(source) -> str:
+    """What an experiment's file without a single usable point holds, in words."""
+    if Path(source).name != "detections.csv":
+        return "no notch points (every row empty, or header only)"
+    try:
+        status = io.read_detections(source)["status"].astype(str).str.lower()
+    except (OSError, ValueError, KeyError):
+        return "no notch point with status ok"
+    if not len(status):
+        return "header only: the detect run wrote no row for this experiment"
+    counts = ", ".join(f"{k} {v}" for k, v in status.value_counts().items())
+    return (f"no point with status ok in its {len(status)} rows ({counts}): the detector numbered no corner "
+            "in these images (detect_run.json gives each image's message; the overlays show what was found)")
+
+
 def points_problem(exp, source, what: str) -> str | None:
     """Why ``exp``'s points cannot feed ``what`` (a fit, the diagnosis), naming ``source``; None if they can.
 
@@ -80,7 +95,7 @@ def points_problem(exp, source, what: str) -> str | None:
     counts = np.isfinite(exp.points).all(-1).sum(1) if exp.points is not None else np.zeros(0, int)
     n = exp.geometry.n_joints
     if counts.max(initial=0) == 0:
-        return f"{source}: no notch points (header only?): nothing for {what}"
+        return f"{source}: {_why_empty(source)}: nothing for {what}"
     if (2 * counts <= n).all():
         return (f"{source}: no sample has enough notch points for {what}: the plane transform needs more "
                 f"than {n // 2} points of one sample, the most is {counts.max()}")

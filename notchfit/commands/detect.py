@@ -96,7 +96,8 @@ def detect_one(item: dict) -> dict:
     return {"table": detections_table(item["sample"], det), "image_status": det.image_status,
             "message": det.message, "n_ok": det.n_ok, "base_side": det.base_side,
             "scale_mm_per_px": det.scale_mm_per_px, "scale_sigma_mm_per_px": det.scale_sigma,
-            "assumption": det.assumption or None, "image_gamma": item.get("tone_gamma", 1.0)}
+            "assumption": det.assumption or None, "image_gamma": item.get("tone_gamma", 1.0),
+            "exif_orientation": io.image_orientation(item["image"]) or None}
 
 
 def _say_assumed_gamma(exps) -> list[str]:
@@ -125,7 +126,7 @@ def run(args) -> int:
         if e.calibration_path is None:
             print(f"  {e.name}: no camera file: the scale comes from the tube's outer diameter "
                   f"({2 * e.geometry.outer_radius / MM:g} mm) in a fronto-parallel view, x_mm/y_mm in the "
-                  "image axes (x right, y up); detect_run.json gives the scale and its uncertainty")
+                  "image axes (x right, y down); detect_run.json gives the scale and its uncertainty")
             plan.append(e)
             continue
         if not Path(e.calibration_path).is_file():
@@ -170,6 +171,10 @@ def run(args) -> int:
             n_ok_images += sum(1 for r in rows if r.ok and r.value["image_status"] == "ok")
         for r in res.failures:
             failed[r.key] = r.error
+        turned = [(r.key, r.value["exif_orientation"]) for r in res.items if r.ok and r.value.get("exif_orientation")]
+        if turned:
+            print(f"  {len(turned)} images turned upright by their EXIF orientation tag (base and pixel coordinates "
+                  f"refer to the picture as a photo viewer shows it), e.g. {turned[0][0]}: {turned[0][1]}")
         io.write_json_atomic(io.provenance("detect", args.input, experiments=[e.name for e in plan],
                                            samples=summary, image_gamma_assumed=assumed, failures=failed),
                              run_.path("detect_run.json"))

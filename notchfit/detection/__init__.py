@@ -42,6 +42,7 @@ No point is ever interpolated from a model. Every tolerance is a field of
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -56,13 +57,13 @@ from .plane import finish
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
 from .dims import slot_depths, slot_widths
-from .segment import band_directions, downsample, fill_holes, fill_thin_lines, largest_region
+from .segment import Segmentation, band_directions, downsample, fill_holes, fill_thin_lines, largest_region
 from .segment import segment as _segment
-from .view import DiameterScale, view_orientation
+from .view import DiameterScale, mirror_without_camera, view_orientation
 from .width import band_centreline, band_width, measure_diameter, tube_radius
 
 __all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detections_table", "draw_overlay",
-           "overlay_with_crop"]
+           "mirror_without_camera", "overlay_with_crop", "work_factor"]
 
 
 def _linearised(image, gamma: float):
@@ -100,7 +101,12 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
     geom : Geometry
         Dimensions and slot layout (the kinematics is not used).
     mirror : bool
-        The experiment's ``mirror`` flag (a reflected view, geometry.md).
+        The experiment's ``mirror`` flag (a reflected view, geometry.md). It
+        means the same with and without a camera file: without one the plane
+        frame is the image's, x right and y down, the handedness of every
+        camera file (a calibration board is seen from its printed side). With
+        the tube's tip up in the picture, ``mirror = false`` puts the
+        manipulator's +x (the right-side slots) on the image's left.
     base : {"top", "bottom", "left", "right"}, optional
         The image side the tube's base is at; found automatically when None
         (the end attached to the holder or the image border).
@@ -129,10 +135,18 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
     if not camera.has_plane:
         raise ValueError("the camera model has no plane pose: calibrate with --plane-image")
     px_per_m, sgn = view_orientation(camera, (H, W), mirror)
-    f = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
+    f = work_factor(geom, px_per_m, opts)
     extra = {"scale_mm_per_px": 1.0 / (px_per_m * MM), "scale_sigma": 0.0}
     det, _ = _detect_at(gray, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base, extra=extra)
     return det
+
+
+def work_factor(geom: Geometry, px_per_m: float, opts: DetectorOptions) -> int:
+    """The block-averaging factor of the working copy, from the tube's size in pixels (options
+    ``work_radius_px``, ``work_slot_px``): the file's size does not enter."""
+    r = min(geom.outer_radius * px_per_m / opts.work_radius_px,
+            float(slot_widths(geom).min()) * px_per_m / opts.work_slot_px)
+    return max(1, int(round(r)))
 
 
 def _segmented(gray, f, opts, cache: dict):
@@ -199,40 +213,78 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
         else:
             tried.append(locate(region, box, shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base,
                                 small=seg.image, dark=seg.contrast < 0))
-        if tried[-1][0] is not None and wanted <= {s_[0] for s_ in tried[-1][0]}:
+        if tried[-1][0] is not None and wanted <= {s_.point for s_ in tried[-1][0]}:
             break
     found = [t for t in tried if t[0] is not None]
     # slot counts that fit the opposite mirror flag are strong evidence: they win over an incomplete result
     conflict = [t[1] for t in tried if t[0] is None and "opposite mirror flag" in t[1].message]
-    if not found or (conflict and not any(wanted <= {s_[0] for s_ in t[0]} for t in found)):
+    if not found or (conflict and not any(wanted <= {s_.point for s_ in t[0]} for t in found)):
         return (conflict or [tried[0][1]])[0], None
     specs, ctx = max(found, key=lambda t: len(t[0]))
     return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
                              extra=extra, stations=stations)
 
 
-def _stations(ref, n_per_edge):
+def _stations(ref, n_per_edge, sgn):
     """Points on the straight outer edge next to every ok corner, with the unit normal into the tube (S, 4)."""
-    sp = ref["specs"]
+    sp = ref.specs
     K = len(sp.C)
     rows = []
-    for k in np.nonzero(ref["ok"])[0]:
+    for k in np.nonzero(ref.ok)[0]:
         for e, (D, L, face) in enumerate(((-sp.Din[k], sp.Lin[k], sp.face[k]), (sp.Dout[k], sp.Lout[k],
                                                                                  sp.face[K + k]))):
             if face or not np.isfinite(L) or L < 8:
                 continue
             trav = sp.Din[k] if e == 0 else sp.Dout[k]
-            inward = -ref["sgn"] * np.array([trav[1], -trav[0]])
+            inward = -sgn * np.array([trav[1], -trav[0]])
             for s in np.linspace(0.3, 0.7, n_per_edge) * L:
                 P = sp.C[k] + s * D
                 rows.append([P[0], P[1], inward[0], inward[1]])
     return np.array(rows).reshape(-1, 4)
 
 
+@dataclass(frozen=True)
+class RoughScale:
+    """The tube found on a coarse copy before the scale is known (no calibration).
+
+    Attributes
+    ----------
+    radius_px : float
+        The tube's radius [coarse px].
+    factor : int
+        Block-averaging factor of the coarse copy.
+    region : ndarray (h, w) uint8
+        The silhouette the tube was found in, cropped to the object's box.
+    offset : (int, int)
+        The crop's (x0, y0) in the coarse copy [coarse px].
+    seg : Segmentation
+        The coarse copy's segmentation.
+    """
+
+    radius_px: float
+    factor: int
+    region: np.ndarray
+    offset: tuple
+    seg: Segmentation
+
+    @property
+    def px_per_m(self) -> float:
+        """The rough scale [full-resolution px per m] for a tube of radius ``R`` (divide by R)."""
+        return self.radius_px * self.factor
+
+
+def _object_box(mask, pad: int):
+    """The largest region's box grown by ``pad`` and clipped to the mask: (x0, y0, x1, y1)."""
+    _, (x0, y0, bw, bh) = largest_region(mask)
+    h, w = mask.shape
+    return max(x0 - pad, 0), max(y0 - pad, 0), min(x0 + bw + pad, w), min(y0 + bh + pad, h)
+
+
 def _rough_scale(gray, geom, opts, cache):
-    """The tube's radius on a coarse copy: (radius [coarse px], factor, the region it was found in,
-    segmentation), or (None, message). Again with thin background lines filled across the tube (a streak
-    may have split the silhouette)."""
+    """The tube's radius on a coarse copy (:class:`RoughScale`), or (None, message). Again with thin
+    background lines filled across the tube (a streak may have split the silhouette). The coarse copy's
+    size follows the file's (the tube's size is not known yet); the work is done in the box around the
+    object, so a small tube in a large frame costs little."""
     H, W = gray.shape
     R = geom.outer_radius
     fc = max(1, int(round(max(H, W) / (opts.lowres_long_side_px / 2.5))))
@@ -240,30 +292,32 @@ def _rough_scale(gray, geom, opts, cache):
     if seg_c.mask is None:
         return None, seg_c.message
     max_close = int(opts.uncal_close_frac * max(shape_c))
+    x0, y0, x1, y1 = _object_box(seg_c.mask, max_close + 4)
+    mask = np.ascontiguousarray(seg_c.mask[y0:y1, x0:x1])
 
-    def radius(mask):
-        reg = largest_region(mask)[0]
+    def radius(m_):
+        reg = largest_region(m_)[0]
         return (*tube_radius(reg, geom, max_close_px=max_close, close_factor=opts.close_slot_factor,
-                             area_range=opts.rough_slot_area_range, filled=fill_holes(reg)), reg)
+                             area_range=opts.rough_slot_area_range, filled=fill_holes(reg),
+                             max_radius_px=0.25 * min(shape_c)), reg)
 
-    R_lo, n_slots, reg = radius(seg_c.mask)
+    R_lo, n_slots, reg = radius(mask)
     if np.isfinite(R_lo):
         # a streak splits the tube into two bands of half its width, each with the slots beside it: the
         # filled silhouette's band is the tube when it holds as many slots and is wider
-        across = band_directions(seg_c.mask, opts.close_slot_factor * float(slot_widths(geom).max()) / R * R_lo + 1,
-                                 R_lo)
-        R2, n2, reg2 = radius(fill_thin_lines(seg_c.mask, _streak_length(geom, opts) / R * R_lo, across=across))
+        across = band_directions(mask, opts.close_slot_factor * float(slot_widths(geom).max()) / R * R_lo + 1, R_lo)
+        R2, n2, reg2 = radius(fill_thin_lines(mask, _streak_length(geom, opts) / R * R_lo, across=across))
         if np.isfinite(R2) and (n2 > n_slots or (n2 == n_slots and R2 > R_lo)):
             R_lo, reg = R2, reg2
     if not np.isfinite(R_lo):
         return None, "no tube found: no band of constant width in the silhouette"
-    return (R_lo, fc, reg, seg_c), ""
+    return RoughScale(float(R_lo), fc, reg, (x0, y0), seg_c), ""
 
 
-def _band_widths(gray, geom, opts, rough):
+def _band_widths(gray, geom, opts, rough: RoughScale):
     """The tube's width [px] across its centreline where it has its full width (profiles at full
     resolution, at most ``4 width_stations`` of them)."""
-    R_lo, fc, reg, seg_c = rough
+    R_lo, fc, reg = rough.radius_px, rough.factor, rough.region
     w_, d_ = float(np.median(slot_widths(geom))), float(np.median(slot_depths(geom)))
     pts = band_centreline(reg, R_lo, slot_width=w_, slot_depth=d_, radius=geom.outer_radius,
                           close_factor=opts.close_slot_factor, area_range=opts.rough_slot_area_range)
@@ -273,9 +327,9 @@ def _band_widths(gray, geom, opts, rough):
     ang = band_directions(reg, opts.close_slot_factor * float(slot_widths(geom).max()) / geom.outer_radius * R_lo
                           + 1, R_lo)[pts[:, 1].astype(int), pts[:, 0].astype(int)]
     fine = np.isfinite(ang)
-    centres = pts[fine] * fc + (fc - 1) / 2.0
+    centres = (pts[fine] + rough.offset) * fc + (fc - 1) / 2.0
     normals = np.stack([np.cos(ang[fine]), np.sin(ang[fine])], 1)
-    return band_width(gray, centres, normals, 2 * R_lo * fc, seg_c.contrast)
+    return band_width(gray, centres, normals, 2 * R_lo * fc, rough.seg.contrast)
 
 
 def _scale_extra(widths, R):
@@ -292,7 +346,7 @@ def _scale_extra(widths, R):
     mm_px = 2 * R / MM / wpx
     text = (f"no calibration: fronto-parallel view assumed; scale {mm_px:.6f} mm/px from the tube's outer "
             f"diameter {2 * R / MM:.3f} mm (geometry) measured as {wpx:.2f} ± {sw:.2f} px over {len(widths)} "
-            "profiles; plane frame = image axes (x right, y up); a view tilted by a degrees shrinks one "
+            "profiles; plane frame = image axes in mm (x right, y down, as a calibration board lying upright gives them); a view tilted by a degrees shrinks one "
             "direction by cos a, and the diameter's tolerance scales every length")
     return wpx / (2 * R), {"scale_mm_per_px": mm_px, "scale_sigma": mm_px * sw / wpx, "assumption": text}
 
@@ -313,7 +367,7 @@ def _uncalibrated(gray, geom, opts, *, mirror, base):
     if scale is not None:
         px_per_m, extra = scale
         cam = DiameterScale(1 / px_per_m, (W, H))
-        return _detect_at(gray, cam, geom, opts, f=max(1, int(round(opts.lowres_mm * MM * px_per_m))), sgn=sgn,
+        return _detect_at(gray, cam, geom, opts, f=work_factor(geom, px_per_m, opts), sgn=sgn,
                           base=base, cache=cache, px_per_m=px_per_m, extra=extra)[0]
     return _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
 
@@ -323,18 +377,17 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
     m = geom.n_points
     H, W = gray.shape
     R = geom.outer_radius
-    px_per_m = rough[0] * rough[1] / R
-    f = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
+    px_per_m = rough.px_per_m / R
+    f = work_factor(geom, px_per_m, opts)
     kw = dict(f=f, sgn=sgn, base=base, cache=cache)
     # the rough scale can be a few % off: no scale or base-edge check before the measured scale
     det, ref = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts.replace(scale_tol=math.inf,
                           base_edge_tol=math.inf), px_per_m=px_per_m, extra={}, stations=True, **kw)
-    if ref is None or not ref["ok"].any():
+    if ref is None or not ref.ok.any():
         return det
-    ref["sgn"] = sgn
-    st = _stations(ref, opts.width_stations)
-    widths = measure_diameter(ref["img"], ref["off"], st, 2 * R * px_per_m, _segmented(gray, f, opts, cache)[1].contrast,
-                              ref["blur"]) if len(st) else np.zeros(0)
+    st = _stations(ref, opts.width_stations, sgn)
+    widths = measure_diameter(ref.img, ref.off, st, 2 * R * px_per_m, _segmented(gray, f, opts, cache)[1].contrast,
+                              ref.blur) if len(st) else np.zeros(0)
     scale = _scale_extra(widths, R)
     if scale is None:
         return empty_detection(m, "partial", "the tube's width could not be measured (no calibration): fewer "
@@ -342,12 +395,12 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
     rough_ppm = px_per_m
     px_per_m, extra = scale
     cam = DiameterScale(1 / px_per_m, (W, H))
-    if abs(px_per_m / rough_ppm - 1) <= opts.rescale_tol and "finish_args" in ref:
+    if abs(px_per_m / rough_ppm - 1) <= opts.rescale_tol and ref.plane_input is not None:
         # the corners in pixels do not depend on the scale beyond the profile lengths: map them again
-        pts_px, ideal, cov, status, msg, blur, contour, side, guessed = ref["finish_args"]
-        return finish(cam, geom, pts_px, ideal, cov, status, msg, blur, contour, scale_tol=opts.scale_tol,
-                      base_edge_tol=opts.base_edge_tol, base_side=side, link_tol=link_tolerance(geom, opts),
-                      need_partner=guessed, **extra)
-    kw["f"] = max(1, int(round(opts.lowres_mm * MM * px_per_m)))
+        p = ref.plane_input
+        return finish(cam, geom, p.pts_px, p.ideal, p.cov, p.status, p.messages, p.blur, p.contour_px,
+                      scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=p.side,
+                      link_tol=link_tolerance(geom, opts), **extra)
+    kw["f"] = work_factor(geom, px_per_m, opts)
     det, _ = _detect_at(gray, cam, geom, opts, px_per_m=px_per_m, extra=extra, **kw)
     return det

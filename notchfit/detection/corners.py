@@ -9,6 +9,7 @@ directions taken from the unbridged outline in a cone around the rough ones.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -16,10 +17,39 @@ from scipy.spatial import cKDTree
 from .dims import joint_z, slot_depths, slot_widths
 from .lines import intersect, pca_line, unit
 
-__all__ = ["base_specs", "edge_room", "outline_directions", "slot_specs", "tip_specs"]
+__all__ = ["CornerSpec", "base_specs", "edge_room", "outline_directions", "slot_specs", "tip_specs"]
 
 # a spec: (point index, corner xy [low-res px], d_in, d_out, L_in [m], L_out [m], face_in, face_out)
 
+
+
+@dataclass(frozen=True)
+class CornerSpec:
+    """A corner to refine, as located on the working copy.
+
+    Attributes
+    ----------
+    point : int
+        Its point index (0-based, geometry.md numbering).
+    xy : ndarray (2,)
+        First estimate [working-copy px of the crop].
+    d_in, d_out : ndarray (2,)
+        Directions of the incoming edge (travelling into the corner) and the
+        outgoing edge, along the outline.
+    len_in, len_out : float
+        Usable straight length of each edge [m].
+    face_in, face_out : bool
+        The edge is a slot face (its background is the slot).
+    """
+
+    point: int
+    xy: np.ndarray
+    d_in: np.ndarray
+    d_out: np.ndarray
+    len_in: float
+    len_out: float
+    face_in: bool = False
+    face_out: bool = False
 
 def edge_room(geom, z: float, up: bool) -> float:
     """Straight edge from z along a side, towards the tip (``up``) or the base, before the next slot [m]."""
@@ -79,8 +109,8 @@ def base_specs(mcnt, mi_right, mi_left, *, sgn, index, geom, low_m, face_len):
         P = intersect(c_in, d_in, c_out, d_out)
         if P is None or np.linalg.norm(P - mcnt[mi]) > 3:
             P = mcnt[mi]
-        out.append((index[("base", 0, side)], P, d_in, d_out, face_len if side > 0 else up_len,
-                    up_len if side > 0 else face_len, False, False))
+        out.append(CornerSpec(index[("base", 0, side)], P, d_in, d_out, face_len if side > 0 else up_len,
+                              up_len if side > 0 else face_len))
     return out
 
 
@@ -103,8 +133,8 @@ def tip_specs(cnt, tip, *, index, geom, low_m):
         c_in, d_in = _chord_dir(cnt, ti, True, 2, 2 + a)
         c_out, d_out = _chord_dir(cnt, ti, False, 2, 2 + a)
         P = intersect(c_in, d_in, c_out, d_out)
-        out.append((index[("tip", 0, side)], cnt[ti] if P is None else P, d_in, d_out,
-                    down if side > 0 else 2 * R, 2 * R if side > 0 else down, False, False))
+        out.append(CornerSpec(index[("tip", 0, side)], cnt[ti] if P is None else P, d_in, d_out,
+                              down if side > 0 else 2 * R, 2 * R if side > 0 else down))
     return out
 
 
@@ -159,6 +189,6 @@ def slot_specs(cnt, mcnt, pairs_by_side, mouths, *, sgn, index, geom, low_m, raw
         face_b = outward(d_out)                 # out of the slot along the second face
         kinds = ("proximal", "distal") if side > 0 else ("distal", "proximal")
         dj = d[j - 1]
-        out.append((index[(kinds[0], j, side)], Pa, d_in, face_a, first_len, dj, False, True))
-        out.append((index[(kinds[1], j, side)], Pb, face_b, d_out, dj, second_len, True, False))
+        out.append(CornerSpec(index[(kinds[0], j, side)], Pa, d_in, face_a, first_len, dj, face_out=True))
+        out.append(CornerSpec(index[(kinds[1], j, side)], Pb, face_b, d_out, dj, second_len, face_in=True))
     return out

@@ -3,11 +3,12 @@
 Along the bridged outline, anticlockwise in the manipulator frame from the
 base: the right side's slots, the tip, the left side's slots. The tip
 corners are two convex ~90° corners ``2R`` apart with no slot between
-them. Slots are numbered from the base on each side (joints with
-``slot_sides = +1`` on the right, ``-1`` on the left); a side cut off by
-the image border at the tip is numbered from the base; a side with a
-missing slot is aligned by position along the side; a base outside the
-image with slots missing cannot be numbered. Nothing is guessed.
+them. Each side's slots (joints with ``slot_sides = +1`` on the right,
+``-1`` on the left) are numbered by agreement with the rigid-link chain
+(:mod:`.chain`), the base and tip corners as anchors where found: a missing
+slot, a spurious gap, a side cut off by the image border at either end cost
+only the slots they touch, and a slot whose number the chain does not fix
+gets none. Nothing is guessed.
 """
 
 from __future__ import annotations
@@ -18,9 +19,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .base import BaseEnd, image_side
-from .dims import joint_z
+from .chain import ChainTolerance, SideCandidates, number_side
 
-__all__ = ["Numbering", "number_slots", "orient_corner_pair"]
+__all__ = ["ChainInput", "Numbering", "number_slots", "orient_corner_pair"]
 
 
 @dataclass
@@ -37,12 +38,6 @@ class Numbering:
     messages : list of str
     mirror_conflict : bool
         The slot counts fit the opposite mirror flag.
-    unnumbered : bool
-        The base is outside the image and slots are missing: nothing can be
-        numbered from the base (no point is reported).
-    guessed : list of int
-        Points of slots numbered by their position along a side (a slot
-        missing): each must be confirmed by a rigid-link partner.
     """
 
     right: list
@@ -51,8 +46,6 @@ class Numbering:
     status: list
     messages: list = field(default_factory=list)
     mirror_conflict: bool = False
-    unnumbered: bool = False
-    guessed: list = field(default_factory=list)
 
 
 def orient_corner_pair(be: BaseEnd, mouths: dict, cnt) -> BaseEnd:
@@ -81,41 +74,60 @@ def _tip(cnt, convex, slots, pos, L_tube, dist, two_R, pair_tol):
     return (best[1], best[2]) if best is not None and best[0] <= pair_tol else None
 
 
-def _assign(found, joints, side, base_i, tip_i, *, cut_tip, cut_base, geom, mouths, N, status, index, msg):
-    """Slot regions ordered from the base -> joints of this side (ordered from the base)."""
+@dataclass(frozen=True)
+class ChainInput:
+    """Where the candidates' corners are, for numbering by the chain (:mod:`.chain`).
+
+    Attributes
+    ----------
+    mouth_corners : dict
+        Slot label -> (first, last) outer corner in outline order (plane, low-res px).
+    slack : dict
+        Slot label -> extra tolerance (a closed mouth: one point for both corners).
+    base : (ndarray or None, ndarray or None)
+        The base corners on the right and the left (plane, low-res px).
+    outline_plane : ndarray (N, 2)
+        The bridged outline in the plane (low-res px): the tip corners.
+    scale : float
+        Metres per plane unit.
+    tol : ChainTolerance
+    """
+
+    mouth_corners: dict
+    slack: dict
+    base: tuple
+    outline_plane: np.ndarray
+    scale: float
+    tol: ChainTolerance
+
+
+def _side_numbers(labels, side, chain: ChainInput, geom, tip, msg):
+    """(label, joint) pairs of one side's slots (``labels`` ordered from the base) by the chain."""
     name = "right" if side > 0 else "left"
-    if len(found) == len(joints):
-        return list(zip(found, joints))
-    if cut_base and len(found) < len(joints):
-        msg.append(f"{len(found)} slots on the {name} side, {len(joints)} expected, and the base is outside "
-                   "the image: the slots cannot be numbered from the base")
-        return []
-    if cut_tip and len(found) < len(joints):
-        return list(zip(found, joints[:len(found)]))
-    msg.append(f"{len(found)} slots on the {name} side, {len(joints)} expected")
-    if len(found) > len(joints) or tip_i is None:
-        return []
-    apos = lambda i, start: (i - start) % N
-    zj = joint_z(geom)
-    zf = np.array([(zj[j - 1] - geom.base_edge_z) / (geom.tip_z - geom.base_edge_z) for j in joints])
-    spacing = float(np.min(np.diff(zf))) if len(zf) > 1 else 1.0
-    span = max(apos(tip_i, base_i) if side > 0 else apos(base_i, tip_i), 1)
-    out, taken = [], {}
-    msg.append(f"the {name} side's slots numbered by their position")
-    for s in found:
-        ps = apos(mouths[s][0], base_i) if side > 0 else apos(base_i, mouths[s][0])
-        kk = int(np.argmin(np.abs(zf - ps / span)))
-        if abs(zf[kk] - ps / span) < 0.3 * spacing and kk not in taken:
-            taken[kk] = s
-            out.append((s, joints[kk]))
-        else:
-            for kind in ("proximal", "distal"):
-                status[index[(kind, joints[kk], side)]] = "ambiguous"
-    return out
+    corners = [chain.mouth_corners[s] for s in labels]
+    first = np.array([c[0] for c in corners]).reshape(-1, 2)
+    last = np.array([c[1] for c in corners]).reshape(-1, 2)
+    near, far = (first, last) if side > 0 else (last, first)      # the left side is traversed tip -> base
+    tip_pt = None if tip is None else chain.outline_plane[tip[0] if side > 0 else tip[1]]
+    cands = SideCandidates(side, near, far, chain.base[0 if side > 0 else 1], tip_pt,
+                           np.array([chain.slack.get(s, 0.0) for s in labels]))
+    res = number_side(cands, geom, chain.tol, scale=chain.scale)
+    n_side = sum(1 for v in geom.slot_sides if v == side)
+    if labels and not res.joints:
+        msg.append(f"the {name} side's {len(labels)} slots are not numbered: neither its base nor its tip corner "
+                   "agrees with them (hidden, cut off or off the drawing), and equal links could be one off")
+    elif res.unnumbered:
+        msg.append(f"{len(res.unnumbered)} of {len(labels)} slot-like gaps on the {name} side do not fit the "
+                   "rigid-link chain in one way only (a spurious gap, or a shift the visible links cannot "
+                   "rule out): not numbered")
+    elif len(labels) != n_side:
+        msg.append(f"{len(labels)} slots on the {name} side, {n_side} expected: numbered by agreement with "
+                   "the rigid-link chain")
+    return [(labels[k], j) for k, j in sorted(res.joints.items())]
 
 
-def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *, dist, two_R, pair_tol,
-                 base_at_border: bool) -> Numbering:
+def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dist, pair_tol,
+                 chain: ChainInput) -> Numbering:
     """Match the slots on the tube arc to joints and find the tip.
 
     Parameters
@@ -128,13 +140,15 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *
         From :func:`~notchfit.detection.outline.slot_mouths`.
     convex : list of int
         Convex corner candidates on the outline.
-    geom, lay : Geometry and its NotchLayout
-    dist : callable (i, j) -> distance [same unit as two_R]
-    base_at_border : bool
-        The base end is the image border (the tube enters from outside).
+    geom : Geometry
+    dist : callable (i, j) -> distance between outline points [plane units of ``chain``]
+    chain : ChainInput
+        The candidates' corners: each side's slots are numbered by agreement
+        with the rigid-link chain (:func:`~notchfit.detection.chain.number_side`).
     """
     N = len(cnt)
-    m = lay.n_points
+    m = geom.n_points
+    two_R = 2 * geom.outer_radius / chain.scale
     i_br, i_bl = be.i_right, be.i_left
     apos = lambda i, start: (i - start) % N
     L_tube = apos(i_bl, i_br)
@@ -162,17 +176,9 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, lay, *
         right, left, cut = [], [], True
     right_j = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == +1]
     left_j = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == -1]
-    index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
     status = ["occluded"] * m
     if not cut and len(right_j) != len(left_j) and len(right) == len(left_j) and len(left) == len(right_j):
         return Numbering([], [], tip, status, msg, mirror_conflict=True)
-    kw = dict(cut_tip=cut, cut_base=base_at_border, geom=geom, mouths=mouths, N=N, status=status,
-              index=index, msg=msg)
-    right_pairs = _assign(right, right_j, +1, i_br, tip[0] if tip else None, **kw)
-    left_pairs = _assign(left[::-1], left_j, -1, i_bl, tip[1] if tip else None, **kw)
-    lost = base_at_border and (len(right) < len(right_j) or len(left) < len(left_j))
-    by_position = cut is False or tip is not None        # a side cut off at the tip is numbered in order
-    guessed = [index[(kind, j, side)] for pairs, found, joints, side in ((right_pairs, right, right_j, +1),
-                                                                          (left_pairs, left, left_j, -1))
-               if len(found) != len(joints) and by_position for _, j in pairs for kind in ("proximal", "distal")]
-    return Numbering(right_pairs, left_pairs, tip, status, msg, unnumbered=lost, guessed=guessed)
+    right_pairs = _side_numbers(right, +1, chain, geom, tip, msg) if right_j else []
+    left_pairs = _side_numbers(left[::-1], -1, chain, geom, tip, msg) if left_j else []
+    return Numbering(right_pairs, left_pairs, tip, status, msg)

@@ -20,9 +20,14 @@ class DetectorOptions:
         2.2, the sRGB curve; 1: linear images, as the renders). A 50 %
         crossing in tone-mapped values is not the edge: with 2 px of blur and
         gamma 2.2 the corners are 0.008 mm rms off at 100 px/mm.
-    lowres_mm : float
-        Pixel size of the downsampled copy used to segment and parse [mm]
-        (calibrated images).
+    work_radius_px, work_slot_px : float
+        The downsampled copy used to segment and parse is chosen from the
+        tube's size in pixels, not from the file's: the block-averaging factor
+        is the largest that leaves the tube's radius at least about
+        ``work_radius_px`` and the narrowest slot at least about
+        ``work_slot_px`` pixels (rounded; 1 at most: full resolution). A 2 MP
+        phone photo of a large printed tube is then worked on as coarsely as
+        a 16 MP photograph of a thin wrist.
     lowres_long_side_px : int
         Long side of the downsampled copy when there is no calibration (the
         scale is not known before the tube is found) [px].
@@ -63,6 +68,14 @@ class DetectorOptions:
         ``link_abs_w`` slot widths, whichever is larger (a tube as built
         differs from its drawing by a few %; a slot numbered one off or a
         holder corner taken for a base point is off by a link).
+    chain_rel_tol, chain_abs_w, chain_abs_px, chain_play : float
+        Numbering by the rigid-link chain (:mod:`~notchfit.detection.chain`,
+        on the working copy): two corners on one link agree when their
+        distance matches the drawing within ``chain_rel_tol`` of it or
+        ``chain_abs_w`` narrowest slot widths or ``chain_abs_px`` working
+        pixels, whichever is largest; every joint between two corners adds
+        ``chain_play`` times what its bend can change the distance by
+        (:func:`~notchfit.detection.chain.joint_play`).
     scale_tol : float
         Relative tolerance of the measured base and tip widths (``2R``) in mm;
         beyond it the camera file is taken to be wrong.
@@ -109,7 +122,8 @@ class DetectorOptions:
     """
 
     tone_gamma: float = 1.0
-    lowres_mm: float = 0.06
+    work_radius_px: float = 13.0
+    work_slot_px: float = 6.5
     lowres_long_side_px: int = 750
     min_snr: float = 4.0
     segment_level: float = 0.35
@@ -124,6 +138,10 @@ class DetectorOptions:
     base_edge_tol: float = 0.25
     link_rel_tol: float = 0.15
     link_abs_w: float = 0.5
+    chain_rel_tol: float = 0.08
+    chain_abs_w: float = 0.25
+    chain_abs_px: float = 2.5
+    chain_play: float = 1.0
     scale_tol: float = 0.05
     max_shift_px: float = 10.0
     max_sigma_px: float = 0.3

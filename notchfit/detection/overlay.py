@@ -57,9 +57,10 @@ def draw_overlay(image, det: Detection, *, scale: float = 1.0, marker_scale: flo
     return img
 
 
-def _crop_box(det: Detection, shape, margin: float):
-    """``(u0, v0, u1, v1)`` [px]: the box of the detected corners (else the outline) enlarged by
-    ``margin`` of its size, inside the image; None when there is nothing to frame."""
+def _crop_box(det: Detection, shape, margin: float, max_aspect: float = 2.0):
+    """``(u0, v0, u1, v1)`` [px]: the box of the found corners (else the outline) enlarged by ``margin``
+    of its size and to at most ``max_aspect`` between its sides (a partial detection along a line
+    gives a view, not a sliver), inside the image; None when there is nothing to frame."""
     H, W = shape
     pts = det.points_px[np.isfinite(det.points_px).all(1)]
     if len(pts) < 2:
@@ -68,7 +69,9 @@ def _crop_box(det: Detection, shape, margin: float):
         return None
     lo, hi = pts.min(0), pts.max(0)
     ext = np.maximum(hi - lo, 20.0)
-    lo, hi = np.maximum(lo - margin * ext, 0), np.minimum(hi + margin * ext, [W - 1, H - 1])
+    ext = np.maximum(ext, ext.max() / max_aspect)
+    mid = 0.5 * (lo + hi)
+    lo, hi = np.maximum(mid - (0.5 + margin) * ext, 0), np.minimum(mid + (0.5 + margin) * ext, [W - 1, H - 1])
     return int(lo[0]), int(lo[1]), int(hi[0]) + 1, int(hi[1]) + 1
 
 

@@ -3,23 +3,144 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
 from ..geometry import notch_layout
 from .base import find_base, holder_masks, raw_base_corners
+from .chain import ChainTolerance
 from .corners import base_specs, slot_specs, tip_specs
 from .dims import slot_depths, slot_widths
 from .lines import unit
-from .numbering import number_slots, orient_corner_pair
+from .numbering import ChainInput, number_slots, orient_corner_pair
 from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_mouth_corners, slot_mouths, turn_angles,
                       turn_peaks)
 from .plane import finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
 
-__all__ = ["link_tolerance", "locate", "refine_and_finish", "refine_corners"]
+__all__ = ["Located", "Parsed", "PlaneInput", "Refinement", "link_tolerance", "locate", "refine_and_finish",
+           "refine_corners"]
+
+
+@dataclass(frozen=True)
+class Parsed:
+    """One cropped silhouette parsed (:func:`_parse`): its bridged outline, base end, slot numbers.
+
+    Attributes
+    ----------
+    ol : Outline
+    be : BaseEnd
+    num : Numbering
+    mouths : dict
+        Slot label -> (first, last, bridged) outline indices.
+    raw : (int or None, int or None) or None
+        The base corners on the unbridged outline.
+    full : callable
+        Low-res crop coordinates -> full-resolution pixels.
+    contour_px : ndarray (N, 2)
+        The bridged outline [px].
+    rawc : dict
+        Slot label -> its outer corners on the unbridged outline.
+    """
+
+    ol: object
+    be: object
+    num: object
+    mouths: dict
+    raw: tuple | None
+    full: object
+    contour_px: np.ndarray
+    rawc: dict
+
+    @property
+    def n_found(self) -> int:
+        """Slots numbered, and 1 for the tip."""
+        return len(self.num.right) + len(self.num.left) + (self.num.tip is not None)
+
+
+@dataclass(frozen=True)
+class Located:
+    """What stages 2-4 hand to the refinement besides the corner specs (:func:`locate`).
+
+    Attributes
+    ----------
+    contour_px : ndarray (N, 2)
+        The bridged outline [px] (overlays).
+    status : list of str (m,)
+    messages : list of str
+    side : str
+        The image side the base points to.
+    full : callable
+        Low-res crop coordinates -> full-resolution pixels.
+    tube_px : ndarray (T, 2)
+        The tube's part of the outline [px] (diameter stations).
+    """
+
+    contour_px: np.ndarray
+    status: list
+    messages: list
+    side: str
+    full: object
+    tube_px: np.ndarray
+
+
+@dataclass(frozen=True)
+class PlaneInput:
+    """The refined corners before stage 6, kept to map them again at another scale (no calibration)."""
+
+    pts_px: np.ndarray
+    ideal: np.ndarray
+    cov: np.ndarray
+    status: list
+    messages: list
+    blur: float
+    contour_px: np.ndarray
+    side: str
+
+
+@dataclass
+class Refinement:
+    """Stage 5's outcome for K corners (:func:`refine_corners`).
+
+    Attributes
+    ----------
+    pidx : ndarray (K,) int
+        Point index of each corner.
+    C, Xi : ndarray (K, 2)
+        Raw and ideal (undistorted) corners [px].
+    cov : ndarray (K, 2, 2)
+        Reported covariance of the ideal corners [px²] (before ``sigma_inflation``).
+    ok : ndarray (K,) bool
+    shift : ndarray (K,)
+        How far each corner moved during refinement [px].
+    blur : float
+        Edge blur σ [px].
+    sig_px : ndarray (K,)
+        The fit's standard uncertainty (inflated) [px]: decides ``ambiguous``.
+    specs : CornerSpecs
+    img, off : the image region refined and its offset (u0, v0) [px]
+    kf : float
+        Profile length factor.
+    plane_input : PlaneInput or None
+        Set by :func:`refine_and_finish`.
+    """
+
+    pidx: np.ndarray
+    C: np.ndarray
+    Xi: np.ndarray
+    cov: np.ndarray
+    ok: np.ndarray
+    shift: np.ndarray
+    blur: float
+    sig_px: np.ndarray
+    specs: CornerSpecs
+    img: np.ndarray
+    off: np.ndarray
+    kf: float
+    plane_input: PlaneInput | None = None
 
 
 def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
@@ -39,9 +160,35 @@ def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
     return out
 
 
+def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, to_plane) -> ChainInput:
+    """The slot candidates' outer corners and the base corners in the plane (low-res px), and the chain's
+    tolerances (options ``chain_rel_tol``, ``chain_abs_w``, ``chain_abs_px``, ``chain_play``)."""
+    cnt, mcnt = ol.contour, ol.raw_contour
+    N = len(cnt)
+    w = slot_widths(geom)
+    pts, slack = [], {}
+    for s, (i0, i1, bridged) in mouths.items():
+        if s in rawc:
+            pts += [mcnt[rawc[s][0]], mcnt[rawc[s][1]]]
+        elif bridged:
+            pts += [cnt[(i0 - 1) % N], cnt[(i1 + 1) % N]]
+        else:                                    # a closed mouth: one point for both corners
+            pts += [cnt[i0], cnt[i0]]
+            slack[s] = 0.5 * float(w.max()) / low_m
+    ends = [None if raw is None or raw[e] is None else mcnt[raw[e]] for e in (0, 1)]
+    pts += [e for e in ends if e is not None]
+    plane = to_plane(np.array(pts, float).reshape(-1, 2))                                # one call for all
+    corners = {s: (plane[2 * q], plane[2 * q + 1]) for q, s in enumerate(mouths)}
+    rest = iter(plane[2 * len(mouths):])
+    base = tuple(None if e is None else next(rest) for e in ends)
+    tol = ChainTolerance(opts.chain_rel_tol, max(opts.chain_abs_w * float(w.min()) / low_m, opts.chain_abs_px),
+                         opts.chain_play)
+    return ChainInput(corners, slack, base, plane_px, low_m, tol)
+
+
 def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
            exclude_holder, gray=None, dark=True):
-    """Bridge, base end, slot numbering on one cropped silhouette. Returns a dict, or (None, Detection)."""
+    """Bridge, base end, slot numbering on one cropped silhouette: (Parsed, None) or (None, Detection)."""
     lay = notch_layout(geom)
     m = lay.n_points
     R_lo = geom.outer_radius / low_m
@@ -86,17 +233,17 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     k = corner_window(r_close, R_lo)
     near_border = maximum_filter1d(ol.on_border.astype(np.uint8), size=2 * k + 3, mode="wrap").astype(bool)
     convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
-    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, lay, dist=dist, two_R=2 * R_lo,
-                       pair_tol=opts.pair_tol, base_at_border=be.kind == "border")
+    w_lo = float(slot_widths(geom).min()) / low_m
+    rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
+    chain = _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, low_m=low_m,
+                         to_plane=lambda p: camera.pixel_to_plane(full(p)) / low_m)
+    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, dist=dist, pair_tol=opts.pair_tol, chain=chain)
     if num.mirror_conflict:
         n_r = sum(1 for s in geom.slot_sides if s > 0)
         return None, empty_detection(
             m, "partial", f"the slot counts fit the opposite mirror flag ({n_r} right-side slots expected): "
                           "check `mirror` in experiment.toml", contour_px, status="ambiguous")
-    if num.unnumbered:
-        return None, empty_detection(m, "partial", "; ".join(["base outside the image"] + num.messages), contour_px)
-    return {"ol": ol, "be": be, "num": num, "mouths": mouths, "raw": raw, "full": full,
-            "contour_px": contour_px}, None
+    return Parsed(ol, be, num, mouths, raw, full, contour_px, rawc), None
 
 
 def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base, small=None, dark=True):
@@ -109,8 +256,8 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
 
     Returns
     -------
-    specs : list of corner specs (point, xy low-res, d_in, d_out, L_in m, L_out m, face_in, face_out)
-    context : dict (contour_px, status, messages, base side, full() mapping) or a Detection (failure)
+    specs : list of CornerSpec
+    context : Located, or a Detection (failure)
     """
     lay = notch_layout(geom)
     m = lay.n_points
@@ -133,16 +280,14 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
         if res is None:
             best = best or (None, fail)
             continue
-        n_found = len(res["num"].right) + len(res["num"].left) + (res["num"].tip is not None)
-        if best is None or best[0] is None or n_found > best[1]:
-            best = (res, n_found)
-        if n_found == geom.n_joints + 1:
+        if best is None or best[0] is None or res.n_found > best[1]:
+            best = (res, res.n_found)
+        if res.n_found == geom.n_joints + 1:
             break
     res = best[0]
     if res is None:
         return None, best[1]
-    ol, be, num, mouths, raw, full = (res[k] for k in ("ol", "be", "num", "mouths", "raw", "full"))
-    w_lo = float(slot_widths(geom).min()) / low_m
+    ol, be, num, mouths, raw, full = res.ol, res.be, res.num, res.mouths, res.raw, res.full
     cnt = ol.contour
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
     specs = []
@@ -156,12 +301,11 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
                             ("image border" if be.kind == "border" else "holder without a corner at the base edge"))
     if num.tip is not None:
         specs += tip_specs(cnt, num.tip, index=index, geom=geom, low_m=low_m)
-    rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
+    rawc = res.rawc
     specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
                         geom=geom, low_m=low_m, raw_corners=rawc)
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
-    return specs, {"contour_px": res["contour_px"], "status": num.status, "messages": num.messages,
-                   "side": be.side, "full": full, "tube_px": res["contour_px"][tube], "guessed": num.guessed}
+    return specs, Located(res.contour_px, num.status, num.messages, be.side, full, res.contour_px[tube])
 
 
 def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
@@ -180,7 +324,7 @@ def _curved_edges(pidx, geom, specs) -> np.ndarray:
     """(2K,) bool: the edges that are circular faces of the tube (slot faces, the tip face)."""
     lay = notch_layout(geom)
     K = len(specs)
-    out = np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool)
+    out = np.concatenate([[s.face_in for s in specs], [s.face_out for s in specs]]).astype(bool)
     for k, i in enumerate(pidx):
         if lay.kind[i] == "tip":              # tip-right: the outgoing edge is the tip face; tip-left: incoming
             out[K + k if lay.side[i] > 0 else k] = True
@@ -219,15 +363,14 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
 
     Returns
     -------
-    dict with pidx (K,), C (K,2) raw px, Xi (K,2) ideal px, cov (K,2,2), ok (K,), shift (K,),
-    blur [px], sig_px (K,), the CornerSpecs and the ROI (img, off).
+    Refinement
     """
     kf = max(1.0, f / 2.0)
-    pidx = np.array([s[0] for s in specs])
-    sp = CornerSpecs(full(np.array([s[1] for s in specs])), unit(np.array([s[2] for s in specs])),
-                     unit(np.array([s[3] for s in specs])), np.array([s[4] for s in specs]) * px_per_m,
-                     np.array([s[5] for s in specs]) * px_per_m,
-                     np.concatenate([[s[6] for s in specs], [s[7] for s in specs]]).astype(bool),
+    pidx = np.array([s.point for s in specs])
+    sp = CornerSpecs(full(np.array([s.xy for s in specs])), unit(np.array([s.d_in for s in specs])),
+                     unit(np.array([s.d_out for s in specs])), np.array([s.len_in for s in specs]) * px_per_m,
+                     np.array([s.len_out for s in specs]) * px_per_m,
+                     np.concatenate([[s.face_in for s in specs], [s.face_out for s in specs]]).astype(bool),
                      _curved_edges(pidx, geom, specs), _partners(pidx, geom), _holder_faces(pidx, geom))
     radius_px = geom.outer_radius * px_per_m
     C0 = sp.C.copy()
@@ -242,7 +385,7 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
         else:
             s0, s_end, h, lim = max(3.0, 3.0 * bl + 1.0), max(2.0, 2.5 * bl + 1.0), max(3.0, 3.0 * bl + 2.0), 0.1
             h_face = h
-        Cn, Xi, Ci, ok, bl_new, Din, Dout = refine_pass(
+        Cn, Xi, Ci, ok, bl_new, Din, Dout, Csys = refine_pass(
             img, off, camera, sp, sgn, s0=s0, s_end=s_end, h=h, step=opts.profile_step_px, lim=lim,
             min_points=opts.min_edge_points, contrast=contrast, h_face=h_face,
             blur_prior=bl if it > 0 else math.nan, radius_px=radius_px if it == opts.iterations else math.nan)
@@ -252,29 +395,30 @@ def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opt
         sp.Din, sp.Dout = Din, Dout
     shift = np.linalg.norm(sp.C - C0, axis=1)
     sig_px = np.sqrt(np.maximum(np.trace(Ci, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
-    return {"pidx": pidx, "C": sp.C, "Xi": Xi, "cov": Ci, "ok": ok, "shift": shift, "blur": bl,
-            "sig_px": sig_px, "specs": sp, "img": img, "off": off, "kf": kf}
+    # the reported covariance adds what the edges' own profiles show (two rims of a face seen from the side)
+    return Refinement(pidx, sp.C, Xi, Ci + Csys / opts.sigma_inflation ** 2, ok, shift, bl, sig_px, sp, img, off,
+                      kf)
 
 
-def statuses(ref, m, status, shape, opts):
+def statuses(ref: Refinement, m, status, shape, opts):
     """Per-point status, raw px, ideal px and covariance from the refinement."""
     H, W = shape
     pts_px = np.full((m, 2), np.nan)
     ideal = np.full((m, 2), np.nan)
     cov = np.full((m, 2, 2), np.nan)
-    C = ref["C"]
+    C = ref.C
     inimg = np.all((C >= 0) & (C <= np.array([W - 1.0, H - 1.0])), axis=1)
-    for q, i in enumerate(ref["pidx"]):
-        if not ref["ok"][q] or not inimg[q]:
+    for q, i in enumerate(ref.pidx):
+        if not ref.ok[q] or not inimg[q]:
             status[i] = "occluded"
-        elif ref["shift"][q] > opts.max_shift_px * ref["kf"] or not ref["sig_px"][q] <= opts.max_sigma_px:
+        elif ref.shift[q] > opts.max_shift_px * ref.kf or not ref.sig_px[q] <= opts.max_sigma_px:
             status[i] = "ambiguous"
             pts_px[i] = C[q]
         else:
             status[i] = "ok"
             pts_px[i] = C[q]
-            ideal[i] = ref["Xi"][q]
-            cov[i] = ref["cov"][q] * opts.sigma_inflation ** 2
+            ideal[i] = ref.Xi[q]
+            cov[i] = ref.cov[q] * opts.sigma_inflation ** 2
     return status, pts_px, ideal, cov
 
 
@@ -285,24 +429,25 @@ def link_tolerance(geom, opts):
     return opts.link_rel_tol, opts.link_abs_w * float(slot_widths(geom).min())
 
 
-def refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, *, f, px_per_m, sgn, extra=None, stations=None):
-    """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, refinement dict or None)."""
+def refine_and_finish(gray, seg, specs, ctx: Located, camera, geom, opts, *, f, px_per_m, sgn, extra=None,
+                      stations=None):
+    """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, Refinement or None)."""
     m = geom.n_points
     extra = extra or {}
-    status, msg = list(ctx["status"]), list(ctx["messages"])
+    status, msg = list(ctx.status), list(ctx.messages)
     ref = None
     pts_px, ideal, cov = np.full((m, 2), np.nan), np.full((m, 2), np.nan), np.full((m, 2, 2), np.nan)
     blur = math.nan
     if specs:
-        far = ctx["tube_px"] if stations else None
-        ref = refine_corners(gray, specs, camera, full=ctx["full"], px_per_m=px_per_m, sgn=sgn,
+        far = ctx.tube_px if stations else None
+        ref = refine_corners(gray, specs, camera, full=ctx.full, px_per_m=px_per_m, sgn=sgn,
                              contrast=seg.contrast, f=f, opts=opts, extra_px=far, geom=geom)
         status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
-        blur = ref["blur"]
-        ref["finish_args"] = (pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
-                              ctx["contour_px"], ctx["side"], ctx["guessed"])
-    det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx["contour_px"],
-                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx["side"],
-                 link_tol=link_tolerance(geom, opts), need_partner=ctx["guessed"], **extra)
+        blur = ref.blur
+        ref.plane_input = PlaneInput(pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
+                                     ctx.contour_px, ctx.side)
+    det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx.contour_px,
+                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx.side,
+                 link_tol=link_tolerance(geom, opts), **extra)
     return det, ref
 

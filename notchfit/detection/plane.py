@@ -118,16 +118,9 @@ def _drop_link_outliers(plane, sigma, status, msg, geom, link_tol, need_partner)
                 msg = [*msg, f"the {'right' if side > 0 else 'left'} side's slot numbering is doubtful: its slot "
                              "corners are not used"]
                 bad |= side_pts
+    # the slots' numbers come from their agreement with the rigid-link chain (numbering.py): a slot that
+    # the chain numbers in one way only keeps its number without an end link found whole
     drop = bad | unconf
-    # slots numbered from the base are only as good as the count: a link at either end (its base or tip
-    # corners and a slot corner, agreeing) must confirm where the numbering starts or ends
-    keep = ok & ~drop
-    ends = [link for link in (0, lay.link.max()) if np.any(keep & slot & (lay.link == link)) and
-            np.any(keep & ~slot & (lay.link == link))]
-    if np.any(keep & slot) and not ends:
-        msg = [*msg, "the slots' numbering is not confirmed at the base or the tip (neither end link was "
-                     "found whole): the slot corners are not used"]
-        drop |= keep & slot
     for i in np.nonzero(drop)[0]:
         status[i] = "ambiguous"
         plane[i] = np.nan

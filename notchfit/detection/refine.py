@@ -200,11 +200,9 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     return tc, valid, qa, q_lo
 
 
-def edge_blur(qa, valid, t, step) -> float:
-    """Gaussian σ of the edges from the 25 % -> 75 % rise of valid profiles (1.349 σ) [px]."""
-    qv = np.nan_to_num(qa[valid], nan=-1.0)
-    if len(qv) < 5:
-        return math.nan
+def _rise_widths(qa, t, step) -> np.ndarray:
+    """The 25 % -> 75 % rise of every profile [px] (NaN where it does not rise)."""
+    qv = np.nan_to_num(qa, nan=-1.0)
     rr = np.arange(len(qv))
     pos = []
     for lvl in (0.25, 0.75):
@@ -214,12 +212,48 @@ def edge_blur(qa, valid, t, step) -> float:
         with np.errstate(invalid="ignore", divide="ignore"):
             pos.append(t[i0] + np.where(a1 > a0, (lvl - a0) / (a1 - a0), 0.0) * step)
     wd = pos[1] - pos[0]
-    wd = wd[np.isfinite(wd) & (wd > 0)]
+    return np.where(np.isfinite(wd) & (wd > 0), wd, np.nan)
+
+
+def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1.25, widths=None) -> np.ndarray:
+    """Variance of each edge line's offset that its own profiles show beyond their noise [px²] (n_edges,).
+
+    A face seen a little from the side shows two edges a few pixels apart (its
+    near and far rims), a shadow or a reflection a second edge beside the
+    first: the profiles' rise is wider than that of the image's clean edges.
+    The 50 % crossing then lies anywhere between the two, an offset shared by
+    every profile of the edge that no line fit averages away. Where an edge's
+    median rise exceeds ``min_excess`` times the median over all edges, the
+    excess width ``Δ = sqrt(rise² - rise_all²)`` is taken as the spread of
+    two edges and ``Δ² / 12`` (a uniform offset over it) returned; 0 elsewhere.
+    ``widths``: the valid profiles' rise widths when already measured.
+    """
+    wd = np.full(len(qa), np.nan)
+    wd[valid] = _rise_widths(qa[valid], t, step) if widths is None else widths
+    per_edge = group_median(wd, edge, n_edges)
+    fin = wd[np.isfinite(wd)]
+    if len(fin) < 5:
+        return np.zeros(n_edges)
+    ref = float(np.median(fin))
+    excess2 = np.where(per_edge > min_excess * ref, per_edge ** 2 - ref ** 2, 0.0)
+    return np.nan_to_num(excess2, nan=0.0) / 12.0
+
+
+def edge_blur(qa, valid, t, step, widths=None) -> float:
+    """Gaussian σ of the edges from the 25 % -> 75 % rise of valid profiles (1.349 σ) [px] (``widths``: the
+    valid profiles' rises when already measured)."""
+    if valid.sum() < 5:
+        return math.nan
+    wd = _rise_widths(qa[valid], t, step) if widths is None else widths
+    wd = wd[np.isfinite(wd)]
     return float(np.median(wd)) / 1.349 if len(wd) else math.nan
 
 
-def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0):
+def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0, s2_edge=None):
     """Robust edge lines per group and their pairwise intersections with covariance.
+
+    ``s2_edge`` (2K,): a variance of each line's offset shared by all its
+    points (:func:`edge_spread`), added as it is (no fit averages it away).
 
     Returns X (K,2), cov (K,2,2), ok (K,), line centroids (2K,2), directions (2K,2), good edges (2K,),
     residual variance of each line before the floor (2K,).
@@ -248,6 +282,8 @@ def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0):
     with np.errstate(invalid="ignore", divide="ignore"):
         v1 = s2[k1] / np.maximum(n[k1], 1) + lev1 ** 2 * s2[k1] / np.where(stt[k1] > 0, stt[k1], np.inf)
         v2 = s2[k2] / np.maximum(n[k2], 1) + lev2 ** 2 * s2[k2] / np.where(stt[k2] > 0, stt[k2], np.inf)
+    if s2_edge is not None:
+        v1, v2 = v1 + s2_edge[k1], v2 + s2_edge[k2]
     D = np.zeros((K, 2, 2))
     D[:, 0, 0], D[:, 1, 1] = v1, v2
     cov = Ainv @ D @ np.swapaxes(Ainv, 1, 2)
@@ -465,7 +501,8 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     Returns
     -------
     raw corners (K,2), ideal corners (K,2), ideal covariance (K,2,2), ok (K,), blur [px],
-    new incoming and outgoing edge directions (K,2) x 2.
+    new incoming and outgoing edge directions (K,2) x 2, the covariance of the edges' own offsets
+    (:func:`edge_spread`) to add to the reported one (K,2,2).
     """
     K = len(sp.C)
     h_face = h if h_face is None else h_face
@@ -473,12 +510,14 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     pr = sample_profiles(img, off, sp, sgn, s0=s0, s_end=s_end, h=h, h_face=h_face, step=step, h_curved=h_curved)
     nan = np.full((K, 2), np.nan)
     if pr is None:
-        return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout
+        return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout, \
+            np.zeros((K, 2, 2))
     tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
                                          holder_face=sp.holder_face,
                                          extrapolate=bool(np.isfinite(blur_prior)))
     fp = sp.face[pr.edge]
-    blur = edge_blur(qa, valid & ~fp, pr.t, step)
+    rises = _rise_widths(qa[valid], pr.t, step)
+    blur = edge_blur(qa, valid & ~fp, pr.t, step, widths=rises[~fp[valid]])
     raw = pr.base[valid] + tc[valid, None] * pr.normal[valid] + off
     und = camera.undistort_pixels(raw)
     # floor on the crossing variance: image noise over the edge slope (a few crossings can scatter
@@ -490,6 +529,14 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         s2_floor = (sq * math.sqrt(2 * math.pi) * blur_prior) ** 2
     X, cov, okc, c, dd, good_e, s2_line = corner_lines(und, pr.edge[valid], K, min_points=min_points,
                                                         s2_floor=s2_floor)
+    # the offsets that an edge's own profiles show (two rims, a shadow's edge) add to the reported
+    # uncertainty, not to the fit's (which decides whether the corner is found)
+    cov_sys = np.zeros((K, 2, 2))
+    s2_edge = edge_spread(qa, valid, pr.t, step, pr.edge, 2 * K, widths=rises) if np.isfinite(radius_px) \
+        else np.zeros(2 * K)                 # the last pass's (the one whose corners are reported)
+    if s2_edge.any():
+        cov_sys = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor,
+                               s2_edge=s2_edge)[1] - cov
     # an arc shows as a face line's residuals well above the straight edges' (the noise): faces that are
     # straight lines within the noise are not fitted again
     straight = good_e & ~sp.curved if sp.curved is not None else good_e
@@ -503,4 +550,4 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])
     Din, Dout = _next_directions(camera, sp, c, dd, good_e, okc, Cn)
-    return Cn, X, cov, okc, blur, Din, Dout
+    return Cn, X, cov, okc, blur, Din, Dout, np.nan_to_num(cov_sys)

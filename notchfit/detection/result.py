@@ -24,7 +24,7 @@ class Detection:
     points : ndarray (m, 2)
         Notch points in the plane frame [m]; NaN unless the status is ``ok``.
         Without a calibration the plane frame is the image's, scaled to mm by
-        the tube's diameter: ``(u, -v) * scale``.
+        the tube's diameter: ``(u, v) * scale`` (x right, y down).
     points_px : ndarray (m, 2)
         The same in the raw image [px] (u = column, v = row); NaN when not
         found (kept for ``ambiguous`` points).

@@ -59,7 +59,8 @@ def downsample(gray, factor: int) -> np.ndarray:
 
 
 def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_points: int = 6000,
-            level: float = 0.5, rounds: int = 3, clear_snr: float = 5.0) -> Segmentation:
+            level: float = 0.5, rounds: int = 3, clear_snr: float = 5.0, opposite: float = 0.25,
+            opposite_snr: float = 6.0) -> Segmentation:
     """Object mask of a downsampled image.
 
     Parameters
@@ -85,6 +86,12 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
         The surface starts from an Otsu split; when that gives an object less
         than ``clear_snr * min_snr`` times the noise, from a trimmed fit too
         (a small object in an unevenly lit image), whichever is clearer.
+    opposite, opposite_snr : float
+        Pixels that differ from the background surface the *other* way by
+        more than ``opposite`` times the contrast and ``opposite_snr`` times
+        the noise are object too: a specular line along a polished tube,
+        brighter than the background, would cut the links apart if it were
+        taken for background.
 
     Returns
     -------
@@ -112,8 +119,12 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
     X = (np.arange(ws, dtype=np.float32) / ws - 0.5)[None, :]
     Y = (np.arange(hs, dtype=np.float32) / hs - 0.5)[:, None]
     c_ = coef.astype(np.float32)
-    thr = (c_[0] + level * contrast + c_[1] * X + c_[3] * X * X) + (c_[2] * Y + c_[5] * Y * Y) + c_[4] * (Y * X)
-    mask = ((small > thr) if contrast > 0 else (small < thr)).astype(np.uint8)
+    bg = (c_[0] + c_[1] * X + c_[3] * X * X) + (c_[2] * Y + c_[5] * Y * Y) + c_[4] * (Y * X)
+    dev = (small - bg) * np.float32(np.sign(contrast))
+    # the object side of the threshold, and what differs from the background as much the other way (a
+    # specular line brighter than the background along a dark tube is tube, not background)
+    other = max(opposite * abs(contrast), opposite_snr * noise)
+    mask = ((dev > level * abs(contrast)) | (dev < -other)).astype(np.uint8)
     return Segmentation(mask, contrast, noise, image=small)
 
 

@@ -181,13 +181,14 @@ def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: floa
 
 
 def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_range, filled=None,
-                min_slot_px: float = 2.0):
+                min_slot_px: float = 2.0, max_radius_px: float | None = None):
     """Tube radius of a silhouette [px] without knowing the scale: of the bands it shows
     (:func:`radius_candidates`), the one that holds the geometry's slots (:func:`slots_along`: most slots,
     up to the number of joints; the nearer count, then the wider band, on a tie); the thinnest band
     (:func:`rough_tube_radius`) where no band holds a slot. ``filled``: the silhouette with its holes
     filled (a streak's), for the bands' widths; the slots are counted on ``region``. Bands whose slots
-    would be narrower than ``min_slot_px`` or that are wider than a quarter of the image are not tried.
+    would be narrower than ``min_slot_px`` or whose radius exceeds ``max_radius_px`` (default: a quarter of
+    the region's smaller side; pass the image's when ``region`` is a crop) are not tried.
 
     Returns
     -------
@@ -199,7 +200,8 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
     best = None
     w_min = float(np.min(geom.slot_widths))
     for rc in radius_candidates(filled, max_close_px=max_close_px):
-        if w_min * rc / R < min_slot_px or rc > 0.25 * min(region.shape):
+        if w_min * rc / R < min_slot_px or rc > (0.25 * min(region.shape) if max_radius_px is None
+                                                  else max_radius_px):
             continue                     # slots too narrow to be seen at this scale, or a band too wide
         n = slots_along(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
                         area_range=area_range, pitch=(float(np.min(geom.pitches)), float(np.max(geom.pitches))),

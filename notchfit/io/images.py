@@ -6,20 +6,29 @@ corrupt file, a format OpenCV does not decode, or dimensions above
 :data:`MAX_IMAGE_PIXELS` (checked from the PNG or JPEG header before
 decoding, so a forged header cannot exhaust the memory). OpenCV's own log
 lines are silenced while decoding: the error message is the one line.
+
+A photograph's EXIF orientation tag (a phone or a DSLR held upright) is
+applied on load, so the pixels are those a photo viewer shows: ``base =
+"top"`` in experiment.toml and every pixel coordinate written refer to
+the picture as it is seen, not to the sensor's rows. :func:`image_orientation`
+says what was done (the detect log and ``detect_run.json`` report it).
 """
 
 from __future__ import annotations
 
+import io as _io
 import struct
 from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 from .errors import InputFileError, InputFileNotFoundError, read_input_bytes
 from .outputs import atomic_write
 
-__all__ = ["MAX_IMAGE_PIXELS", "image_info", "load_image", "write_image"]
+__all__ = ["EXIF_ORIENTATIONS", "MAX_IMAGE_PIXELS", "exif_orientation", "image_info", "image_orientation",
+           "load_image", "orient", "write_image"]
 
 #: Largest image accepted [pixels] (100 Mpx: above any camera of a bench set-up).
 MAX_IMAGE_PIXELS = 100_000_000
@@ -38,6 +47,58 @@ def _header_size(data: bytes) -> tuple[int, int] | None:
                 return w, h
             i += 2 + length
     return None
+
+
+#: What each EXIF orientation tag value (TIFF tag 0x0112) asks a viewer to do to the stored pixels.
+EXIF_ORIENTATIONS = {1: "", 2: "mirrored left-right", 3: "turned 180 degrees", 4: "mirrored top-bottom",
+                     5: "transposed", 6: "turned 90 degrees clockwise", 7: "transversed",
+                     8: "turned 90 degrees anticlockwise"}
+_EXIF_ORIENTATION_TAG = 0x0112
+
+
+def exif_orientation(data: bytes) -> int:
+    """The EXIF orientation tag (1..8) of an encoded image, 1 when it has none or it cannot be read.
+
+    Read by Pillow from the file's header (the pixels are not decoded).
+    """
+    try:
+        with Image.open(_io.BytesIO(data)) as im:
+            value = im.getexif().get(_EXIF_ORIENTATION_TAG, 1)
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError, struct.error, Image.DecompressionBombError,
+            KeyError, IndexError, TypeError):
+        return 1                          # a damaged or unknown header: no tag (the decoder says the rest)
+    return int(value) if value in EXIF_ORIENTATIONS else 1
+
+
+def orient(image: np.ndarray, orientation: int) -> np.ndarray:
+    """Stored pixels -> the picture a viewer shows for an EXIF ``orientation`` (1..8), as Pillow's
+    ``ImageOps.exif_transpose`` does it (a view of ``image``; 1 and unknown values: unchanged).
+
+    Parameters
+    ----------
+    image : ndarray (H, W) or (H, W, C)
+    orientation : int
+
+    Returns
+    -------
+    ndarray (H, W, ...) or (W, H, ...) for 5..8
+    """
+    ops = {2: lambda a: a[:, ::-1], 3: lambda a: a[::-1, ::-1], 4: lambda a: a[::-1],
+           5: lambda a: np.swapaxes(a, 0, 1), 6: lambda a: np.rot90(a, -1),
+           7: lambda a: np.swapaxes(a, 0, 1)[::-1, ::-1], 8: lambda a: np.rot90(a, 1)}
+    op = ops.get(int(orientation))
+    return image if op is None else op(image)
+
+
+def image_orientation(path) -> str:
+    """What :func:`load_image` did to ``path`` for its EXIF orientation tag, in words (empty: nothing)."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 17)       # the EXIF block is at the start (at most 64 KiB in JPEG)
+    except OSError:
+        return ""
+    return EXIF_ORIENTATIONS[exif_orientation(head)]
 
 
 def _decode(path: Path, data: np.ndarray, flags: int) -> np.ndarray | None:
@@ -66,6 +127,8 @@ def load_image(path, flags=None) -> np.ndarray:
     Returns
     -------
     ndarray, shape (H, W) or (H, W, C)
+        Upright as a photo viewer shows it: an EXIF orientation tag is applied
+        (:func:`orient`; :func:`image_orientation` says what was done).
 
     Raises
     ------
@@ -91,7 +154,8 @@ def load_image(path, flags=None) -> np.ndarray:
         raise InputFileError(f"corrupt or unreadable image (OpenCV cannot decode it): {path}", path=path)
     if img.shape[0] * img.shape[1] > MAX_IMAGE_PIXELS:
         raise InputFileError(f"image too large ({img.shape[1]} x {img.shape[0]} pixels): {path}", path=path)
-    return img
+    turn = exif_orientation(raw)
+    return img if turn == 1 else np.ascontiguousarray(orient(img, turn))
 
 
 def image_info(path) -> dict:

@@ -1,0 +1,170 @@
+"""Numbering by agreement with the rigid-link chain (issue 25, item 1): partial detections are normal,
+a spurious gap, a missing slot or a hidden end link cost only what they touch, and no number is ever
+wrong. First the chain solver on the drawn corner positions, then rendered wrists with a spurious gap
+cut into a link, a slot painted shut, and a wire leaving the tip for the image border.
+"""
+
+import cv2
+import numpy as np
+import pytest
+
+from notchfit.detection import detect_notches
+from notchfit.detection.chain import ChainTolerance, SideCandidates, joint_play, number_side
+from notchfit.geometry import Geometry, default_geometry, notch_layout
+from notchfit.render.scenes import Scene, render_scene, scene_camera
+
+WRIST = Geometry(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
+                 slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist", inner_radius=0.7e-3,
+                 tendons=("right",), tendon_path="lumen", r_x=None, r_z=None, cable_radius=None, channel_radius=None)
+TOL = ChainTolerance(rel_tol=0.08, abs_tol=0.2, per_joint=1.0)          # mm
+
+
+def _side(geom, side, joints, *, base=True, tip=True, extra=()):
+    """The drawn (straight) corners [mm] of ``joints`` on ``side``, with spurious candidates ``extra``
+    (near corners) inserted in order along the tube."""
+    lay = notch_layout(geom)
+    idx = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(lay.n_points)}
+    S = lay.straight * 1e3
+    near = [S[idx[("proximal", j, side)]] for j in joints] + [np.asarray(e, float) for e in extra]
+    far = [S[idx[("distal", j, side)]] for j in joints] + [np.asarray(e, float) + [0, 0.3] for e in extra]
+    order = np.argsort([p[1] for p in near])
+    return SideCandidates(side, np.array(near)[order].reshape(-1, 2), np.array(far)[order].reshape(-1, 2),
+                          S[idx[("base", 0, side)]] if base else None, S[idx[("tip", 0, side)]] if tip else None)
+
+
+@pytest.mark.parametrize("joints, base, tip, expect", [
+    ([1, 2, 3, 4, 5], True, True, [1, 2, 3, 4, 5]),
+    ([1, 2, 4, 5], True, True, [1, 2, 4, 5]),           # a missing slot costs only its corners
+    ([2, 3, 4, 5], False, True, [2, 3, 4, 5]),          # base hidden: numbered from the tip
+    ([1, 2, 3, 4], True, False, [1, 2, 3, 4]),          # tip cut off: numbered from the base
+    ([1, 2, 3, 4], False, False, []),                   # no end agrees: one off fits as well: nothing
+    ([2, 3, 4, 5], False, False, []),
+    ([1, 2, 3, 4, 5], False, False, [1, 2, 3, 4, 5]),   # every joint matched: the count fixes the numbers
+])
+def test_chain_numbers_one_sided_slots(joints, base, tip, expect):
+    res = number_side(_side(WRIST, +1, joints, base=base, tip=tip), WRIST, TOL, scale=1e-3)
+    assert [res.joints.get(k) for k in range(len(joints))] == (expect or [None] * len(joints))
+
+
+def test_a_complete_side_with_an_end_that_disagrees_is_not_numbered():
+    """Every joint matched, but the base corners found one link off (a mirrored view, the other side's
+    slots): the count alone is not trusted."""
+    cands = _side(WRIST, +1, [1, 2, 3, 4, 5], tip=False)
+    off = SideCandidates(+1, cands.near, cands.far, cands.base + [0.0, 1.6], None)
+    assert number_side(off, WRIST, TOL, scale=1e-3).joints == {}
+
+
+def test_a_spurious_gap_costs_only_itself():
+    """A slot-sized gap in the middle of link 2 (a highlight's edge, the chuck junction) fits no joint."""
+    cands = _side(WRIST, +1, [1, 2, 3, 4, 5], extra=[(0.81, 3.4)])
+    res = number_side(cands, WRIST, TOL, scale=1e-3)
+    spurious = int(np.argmin(np.abs(cands.near[:, 1] - 3.4)))
+    assert spurious in res.unnumbered and sorted(res.joints.values()) == [1, 2, 3, 4, 5]
+
+
+def test_alternating_sides_and_the_play_of_the_joints_between():
+    """The seed tube's right side: slots of joints 2, 4, ...; the left-side joint between two of them can
+    move them by R θ_close at most, less than the two links a shift would take."""
+    g = default_geometry()
+    play = joint_play(g, +1)
+    assert play[1] == pytest.approx(g.slot_widths[1]) and play[0] == pytest.approx(g.outer_radius * g.closure_angles[0])
+    right = [j for j in range(1, 28) if g.slot_sides[j - 1] > 0]
+    res = number_side(_side(g, +1, right[1:]), g, TOL, scale=1e-3)        # joint 2's slot hidden
+    assert [res.joints[k] for k in range(len(right) - 1)] == right[1:]
+    # the right side's slots offered as the left side's (a mirrored view): no number
+    lay = notch_layout(g)
+    idx = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(lay.n_points)}
+    wrong = _side(g, +1, right)
+    flipped = SideCandidates(-1, wrong.near * [-1, 1], wrong.far * [-1, 1], lay.straight[idx[("base", 0, -1)]] * 1e3,
+                             None)
+    assert number_side(flipped, g, TOL, scale=1e-3).joints == {}
+
+
+# ----------------------------------------------------------------------------- rendered wrists
+def _wrist(seed, **scene_kw):
+    th = np.array([0.2, 0.25, 0.3, 0.3, 0.25])
+    cam, plane = scene_camera(th, WRIST, image_size=(600, 560), mm_per_px=1 / 40, angle_deg=90, base_at=0.12)
+    r = render_scene(th, WRIST, cam, plane=plane, scene=Scene(holder="chuck", **scene_kw),
+                     rng=np.random.default_rng(seed))
+    return cam, r
+
+
+def _no_wrong_number(det, r, *, min_found):
+    ok = np.array(det.status) == "ok"
+    err = np.linalg.norm(det.points_px[ok] - r.points_px[ok], axis=1) / 40
+    assert err.max(initial=0) < 0.01, "a corner carries another corner's number"
+    assert ok.sum() >= min_found, det.message
+    return ok
+
+
+def _inward(r, a, b, depth_px):
+    """The quadrilateral from edge points a, b into the tube by ``depth_px`` (the darker side: the tube)."""
+    d = (b - a) / np.linalg.norm(b - a)
+    n = np.array([-d[1], d[0]])
+    mid = 0.5 * (a + b)
+    x0, y0 = (mid - 60).astype(int)
+    win = r.image[y0:y0 + 120, x0:x0 + 120]
+    yy, xx = np.nonzero(win < 0.5 * (float(np.median(r.image)) + _tube_level(r)))
+    n = n if np.dot(np.array([xx.mean() + x0, yy.mean() + y0]) - mid, n) > 0 else -n
+    return np.array([a, b, b + depth_px * n, a + depth_px * n])
+
+
+def _tube_level(r):
+    """The tube's grey level: the darkest few % of the image (the tube is a small part of it)."""
+    return int(np.percentile(r.image, 2))
+
+
+def test_spurious_gap_cut_into_a_link():
+    cam, r = _wrist(1)
+    img = r.image.copy()
+    a, b = r.points_px[5], r.points_px[6]                  # distal corner of joint 2, proximal of joint 3
+    mid, along = 0.5 * (a + b), (b - a) / np.linalg.norm(b - a)
+    gap = _inward(r, mid - 6 * along, mid + 6 * along, 0.9 * 40)
+    cv2.fillPoly(img, [np.round(gap).astype(np.int32)], int(np.median(img[:, -5:])))
+    det = detect_notches(img, cam, WRIST)
+    ok = _no_wrong_number(det, r, min_found=10)
+    assert ok[[0, 1, 2, 3, 8, 9, 10, 11]].all()            # the slots the gap does not touch
+
+
+def test_a_slot_painted_shut_costs_only_its_corners():
+    cam, r = _wrist(2)
+    img = r.image.copy()
+    a, b = r.points_px[6], r.points_px[7]                  # joint 3's mouth
+    along = (b - a) / np.linalg.norm(b - a)
+    shut = _inward(r, a - 2 * along, b + 2 * along, 1.4 * 40)
+    cv2.fillPoly(img, [np.round(shut).astype(np.int32)], _tube_level(r))
+    det = detect_notches(img, cam, WRIST)
+    ok = _no_wrong_number(det, r, min_found=8)
+    assert not ok[[6, 7]].any() and ok[[2, 3, 10, 11]].all()
+
+
+def test_a_wire_from_the_tip_to_the_image_border():
+    """A tendon leaving the tip and hanging to the bottom border: the tube now touches the border at its tip;
+    the base end still fixes the count."""
+    cam, r = _wrist(3)
+    img = r.image.copy()
+    tip_mid = 0.5 * (r.points_px[12] + r.points_px[13])
+    cv2.line(img, tuple(np.round(tip_mid).astype(int)), (int(tip_mid[0]) + 40, img.shape[0] - 1),
+             _tube_level(r), 6, cv2.LINE_AA)
+    det = detect_notches(img, cam, WRIST)
+    _no_wrong_number(det, r, min_found=10)
+
+
+def test_a_double_edge_widens_the_corner_uncertainty():
+    """A face seen a little from the side shows its near and far rims a few pixels apart: the profiles
+    rise in two steps. edge_spread gives that edge a shared offset variance (Δ²/12 of the excess rise
+    width Δ); clean edges get none."""
+    from math import erf, sqrt
+
+    from notchfit.detection.refine import edge_spread
+
+    t = np.arange(-12, 12.01, 0.5)
+    step = lambda x, s: 0.5 * (1 + np.vectorize(erf)(x / (sqrt(2) * s)))
+    clean = step(t, 1.0)
+    double = 0.5 * step(t + 2.5, 1.0) + 0.5 * step(t - 2.5, 1.0)           # two rims 5 px apart
+    rng = np.random.default_rng(4)
+    qa = np.vstack([clean + rng.normal(0, 0.01, (30, t.size)), double + rng.normal(0, 0.01, (10, t.size))])
+    edge = np.repeat([0, 1, 2, 3], 10)
+    var = edge_spread(qa, np.ones(len(qa), bool), t, 0.5, edge, 4)
+    assert np.all(var[:3] == 0.0)
+    assert 4.0 <= np.sqrt(12 * var[3]) <= 5.5                                  # Δ: about the 5 px between the rims
