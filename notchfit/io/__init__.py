@@ -12,6 +12,7 @@ module                 files
 :mod:`.images`         image files
 :mod:`.models`         geometry files, friction-model parameters, FEA reference
 :mod:`.outputs`        atomic writers, the output-run transaction, output files
+:mod:`.resume`         resumable output runs: finished items kept, a stopped run continued
 :mod:`.resources`      where the shipped ``datasets/`` and ``calibration/`` are
 =====================  ========================================================
 
@@ -36,13 +37,15 @@ _HOME = {
                     "points_from_table", "points_table", "read_angles_table", "read_experiment",
                     "read_experiment_toml", "read_points_table", "read_samples", "read_study", "scan_study",
                     "with_points", "write_experiment"),
-    "images": ("PNG_SETTINGS", "image_info", "load_image", "write_image"),
+    "images": ("PNG_SETTINGS", "encode_image", "image_info", "load_image", "write_image"),
     "models": ("load_fea_reference", "load_geometry", "load_params", "save_params"),
     "outputs": ("LOCK_NAME", "STAGE_PREFIX", "OutputLockedError", "OutputRun", "atomic_write",
                 "experiment_output_dir", "find_output", "prepare_output_dir", "provenance", "read_detections",
                 "read_diagnosis", "read_fits", "read_json", "read_pointwise", "read_simulation",
                 "write_json_atomic", "write_table_atomic", "write_text_atomic"),
     "resources": ("calibration_dir", "datasets_dir"),
+    "resume": ("NothingToResumeError", "RESUME_PREFIX", "ResumableRun", "file_sha256", "options_sha256",
+               "write_bytes_synced"),
     "tables": ("DETECTION_COLUMNS", "FITS_COLUMNS", "POINT_COLUMNS", "POINTWISE_COLUMNS", "SAMPLE_COLUMNS",
                "SIMULATION_COLUMNS", "read_csv_table"),
     "toml": ("TomlError", "TomlFileNotFoundError", "load_toml", "toml_dumps"),
