@@ -277,3 +277,27 @@ def test_failed_detect_leaves_nothing_behind(tmp_path, capsys):
     rc, _, err = run_main(["detect", exp, "--out", out], capsys)
     assert_one_line_error(rc, err, "camera.yml")
     assert not (tmp_path / "new").exists()
+
+
+def test_existing_outputs_and_the_lock_are_checked_before_the_study_is_read(tmp_path, capsys):
+    """Earlier detections without --force, or a live run's lock: exit 2 before anything is read or said
+    (this study would make detect say it has no camera file, and fail on its broken samples.csv)."""
+    exp = _write_experiment(tmp_path / "exp", [np.full((40, 60), 128, np.uint8)])
+    (exp / "experiment.toml").write_text('name = "exp"\ngeometry = "default"\n')
+    (exp / "samples.csv").write_text("sample,time_s\n1,x\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "detect_run.json").write_text("{}\n")
+    rc, stdout, err = run_main(["detect", exp, "--out", out], capsys)
+    assert_one_line_error(rc, err, "already holds outputs", "detect_run.json", "--force")
+    assert stdout == ""
+    (out / "detect_run.json").unlink()
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (out / io.LOCK_NAME).write_text(f"{holder.pid} {__import__('socket').gethostname()}\n")
+        rc, stdout, err = run_main(["detect", exp, "--out", out], capsys)
+        assert_one_line_error(rc, err, "another notchfit run", f"pid {holder.pid}")
+        assert stdout == ""
+    finally:
+        holder.kill()
+        holder.wait()
