@@ -8,7 +8,8 @@ Dask cluster (``distributed.LocalCluster``: a scheduler and two single-threaded 
 
 - peak RSS: the sum of the resident set sizes of every process of the run (the command, its
   worker processes, and for Dask the cluster's processes), sampled every 50 ms with psutil; pages
-  shared between forked processes are counted once per process (an upper bound);
+  shared between forked processes are counted once per process (an upper bound); the peaks of
+  the command's processes and of the cluster's are also given apart;
 - images per second: the command's own final line (the batch's images over its wall time,
   without the start-up of Python and the study scan), and the whole command's wall time;
 - the reference in the same run: one image's detection time in this process (``detect_one``, the
@@ -117,26 +118,31 @@ def single_image_s(exp: Path, n_renders: int) -> float:
 
 
 class PeakRSS:
-    """The peak over time of the summed RSS of ``roots`` and all their descendants [bytes]."""
+    """The peak over time of the summed RSS of ``roots`` and all their descendants [bytes]
+    (``peak``), and each root's own peak with its descendants (``peaks``)."""
 
     def __init__(self, roots, every_s: float = 0.05):
         self.roots, self.every_s, self.peak = roots, every_s, 0
+        self.peaks = [0] * len(roots)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
     def _run(self):
         while not self._stop.is_set():
             total = 0
-            for root in self.roots:
+            for k, root in enumerate(self.roots):
                 try:
                     procs = [root, *root.children(recursive=True)]
                 except psutil.Error:
                     continue
+                tree = 0
                 for p in procs:
                     try:
-                        total += p.memory_info().rss
+                        tree += p.memory_info().rss
                     except psutil.Error:
                         pass
+                self.peaks[k] = max(self.peaks[k], tree)
+                total += tree
             self.peak = max(self.peak, total)
             self._stop.wait(self.every_s)
 
@@ -175,7 +181,8 @@ def run_detect(exp: Path, out: Path, mode: str) -> dict:
     if proc.returncode != 0 or m is None:
         raise RuntimeError(f"detect exited {proc.returncode}: {stdout[-2000:]}")
     return {"wall_s": wall, "batch_s": float(m.group(1)), "images_per_s": float(m.group(2)),
-            "peak_rss_mb": rss.peak / 2 ** 20}
+            "peak_rss_mb": rss.peak / 2 ** 20, "command_mb": rss.peaks[0] / 2 ** 20,
+            "cluster_mb": rss.peaks[1] / 2 ** 20 if cluster else 0.0}
 
 
 def main():
@@ -205,7 +212,7 @@ def main():
                              "batch/reference": r["batch_s"] / ref, "load": os.getloadavg()[0]})
                 print(f"  {count:5d} images {mode:5s}: {r['images_per_s']:6.2f} images/s (batch {r['batch_s']:.1f} s, "
                       f"reference {ref:.1f} s, ratio {r['batch_s'] / ref:.2f}; command {r['wall_s']:.1f} s), "
-                      f"peak RSS {r['peak_rss_mb']:.0f} MB, load {os.getloadavg()[0]:.1f}", flush=True)
+                      f"peak RSS {r['peak_rss_mb']:.0f} MB (command {r['command_mb']:.0f}, cluster {r['cluster_mb']:.0f}), load {os.getloadavg()[0]:.1f}", flush=True)
                 shutil.rmtree(out, ignore_errors=True)
     df = pd.DataFrame(rows)
     print("\n" + df.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
