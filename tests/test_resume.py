@@ -301,3 +301,22 @@ def test_existing_outputs_and_the_lock_are_checked_before_the_study_is_read(tmp_
     finally:
         holder.kill()
         holder.wait()
+
+
+def test_stopped_while_writing_the_tables_resumes_without_detecting_again(study, tmp_path, capsys, monkeypatch):
+    """Every image done, then stopped while the tables are assembled: --resume detects nothing and
+    writes the outputs of the uninterrupted run."""
+    folder, ref = _copy(study, tmp_path)
+    out = tmp_path / "out"
+    real = detect_cmd._assemble
+
+    def stop(*a, **k):
+        raise KeyboardInterrupt
+    with monkeypatch.context() as m:
+        m.setattr(detect_cmd, "_assemble", stop)
+        rc, _, err = run_main(["detect", folder, "--out", out], capsys)
+    assert rc == 130 and f"{N_SAMPLES} of {N_SAMPLES} images finished are kept" in err
+    assert detect_cmd._assemble is real
+    rc, stdout, _ = run_main(["detect", folder, "--out", out, "--resume"], capsys)
+    assert rc == 0 and _resumed(stdout) == (N_SAMPLES, 0) and "images/s" not in stdout
+    _assert_same_outputs(out, ref)

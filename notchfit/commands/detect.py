@@ -262,10 +262,10 @@ def run(args) -> int:
                                            samples=summary, image_gamma_assumed=assumed, failures=failed,
                                            no_point=sorted(no_point), kept_from_interrupted_run=len(kept)),
                              run_.path("detect_run.json"))
-    rate = len(todo) / res.seconds if res.seconds > 0 else float("nan")
+    rate = f", {len(todo) / res.seconds:.3g} images/s" if todo and res.seconds > 0 else ""
     print(f"detect: {n_done} of {len(items.keys)} images processed ({n_all_ok} with every point ok"
           + (f", {len(kept)} kept from the interrupted run" if kept else "")
-          + f") in {res.seconds:.1f} s, {rate:.3g} images/s; outputs in {args.out}")
+          + f") in {res.seconds:.1f} s{rate}; outputs in {args.out}")
     list_failures(failed, limit=len(failed))
     if no_point:
         print(f"notchfit detect: {len(no_point)} of {len(items.keys)} images gave no point at all (their rows "
