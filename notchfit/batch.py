@@ -21,6 +21,14 @@ before the exception goes on, and a Dask run cancels its futures and closes
 its client: no orphan process is left (docs/reliability.md). Image batches load their images with :func:`notchfit.io.load_image`, which turns a
 missing or unreadable file into an exception with the reason.
 
+Streaming: with ``on_result`` the parent hands each item's result to that
+callback as soon as it arrives (in completion order) and keeps only its
+outcome, not its value, so memory stays flat in the number of items
+(``detect`` writes each image's detections to disk there, to resume an
+interrupted run). At most two items per worker are in flight at a time, in the
+pool and on a Dask cluster; Dask results are released as soon as they are
+read.
+
 Example (the image helper's ``detect`` calls it the same way)::
 
     res = run_batch(detect_one, image_paths, keys=[p.name for p in image_paths], jobs=4)
@@ -31,6 +39,7 @@ Example (the image helper's ``detect`` calls it the same way)::
 from __future__ import annotations
 
 import concurrent.futures as cf
+import dataclasses
 import multiprocessing
 import os
 import signal
@@ -182,7 +191,7 @@ def _mp_context(start_method: str | None = None):
 def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = None, jobs: int = 1,
               scheduler=None, desc: str | None = None, progress: bool | None = None,
               start_method: str | None = None, connect_timeout: float = 5.0,
-              unit: str = "items") -> BatchResult:
+              unit: str = "items", on_result: Callable[[int, ItemResult], None] | None = None) -> BatchResult:
     """Call ``func(item)`` for every item, isolating failures.
 
     Parameters
@@ -212,6 +221,12 @@ def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = N
     connect_timeout : float
         Seconds to wait for a Dask scheduler to answer before the run fails
         with ``ValueError`` naming the address [s].
+    on_result : callable, optional
+        ``on_result(index, item_result)``, called in this process as each item
+        finishes (completion order). The returned :class:`BatchResult` then
+        holds every item's outcome without its value (``value`` None): the
+        callback has consumed it. An exception it raises stops the run (the
+        workers are stopped as on an interrupt) and goes on.
 
     Returns
     -------
@@ -225,23 +240,38 @@ def run_batch(func: Callable, items: Sequence, *, keys: Sequence[str] | None = N
     if jobs is None or jobs <= 0:
         jobs = os.cpu_count() or 1
     t0 = time.perf_counter()
+    sink = _Results(keys, on_result)
     if scheduler is not None:
-        out = _run_dask(func, items, scheduler, desc, progress, connect_timeout, unit)
+        _run_dask(func, items, scheduler, sink, desc, progress, connect_timeout, unit)
     elif jobs == 1 or len(items) <= 1:
-        out = []
         with _progress(len(items), desc, progress, unit=unit) as bar:
-            for it in items:
-                out.append(_call(func, it))
+            for i, it in enumerate(items):
+                sink.put(i, _call(func, it))
                 bar.update(1)
     else:
-        out = _run_pool(func, items, min(jobs, len(items)), desc, progress, _mp_context(start_method), unit)
-    res = tuple(ItemResult(key=k, ok=o[0], value=o[1], error=o[2], seconds=o[3]) for k, o in zip(keys, out))
-    return BatchResult(items=res, seconds=time.perf_counter() - t0)
+        _run_pool(func, items, sink, min(jobs, len(items)), desc, progress, _mp_context(start_method), unit)
+    return BatchResult(items=tuple(sink.items), seconds=time.perf_counter() - t0)
 
 
-def _run_pool(func, items, jobs, desc, progress, ctx, unit="items"):
+class _Results:
+    """Where the runners put each item's outcome ``(ok, value, error, seconds)`` as it arrives."""
+
+    def __init__(self, keys, on_result=None):
+        self.keys = keys
+        self.on_result = on_result
+        self.items: list = [None] * len(keys)
+
+    def put(self, i: int, outcome) -> None:
+        ok, value, error, seconds = outcome
+        r = ItemResult(key=self.keys[i], ok=ok, value=value, error=error, seconds=seconds)
+        if self.on_result is not None:
+            self.on_result(i, r)
+            r = dataclasses.replace(r, value=None)
+        self.items[i] = r
+
+
+def _run_pool(func, items, sink, jobs, desc, progress, ctx, unit="items"):
     """Process pool with at most ``jobs`` items in flight, so a dead worker blames few items."""
-    out: list = [None] * len(items)
     todo = list(range(len(items)))[::-1]
     with _progress(len(items), desc, progress, jobs, unit) as bar:
         while todo:
@@ -257,13 +287,14 @@ def _run_pool(func, items, jobs, desc, progress, ctx, unit="items"):
                     for f in done:
                         i = inflight.pop(f)
                         try:
-                            out[i] = f.result()
+                            outcome = f.result()
                         except BrokenProcessPool:
                             broken = True
                             inflight[f] = i
                             break
                         except Exception as exc:  # pickling errors and the like
-                            out[i] = (False, None, _describe(exc), 0.0)
+                            outcome = (False, None, _describe(exc), 0.0)
+                        sink.put(i, outcome)
                         bar.update(1)
                     if broken:
                         break
@@ -276,11 +307,10 @@ def _run_pool(func, items, jobs, desc, progress, ctx, unit="items"):
                 # re-run each item that was in flight alone to find the one that kills its worker
                 for f, i in inflight.items():
                     if f.done() and not f.cancelled() and f.exception() is None:
-                        out[i] = f.result()
+                        sink.put(i, f.result())
                     else:
-                        out[i] = _run_isolated(func, items[i], ctx)
+                        sink.put(i, _run_isolated(func, items[i], ctx))
                     bar.update(1)
-    return out
 
 
 def _run_isolated(func, item, ctx):
@@ -297,7 +327,8 @@ def _run_isolated(func, item, ctx):
             raise
 
 
-def _run_dask(func, items, scheduler, desc, progress, connect_timeout: float = 5.0, unit="items"):
+def _run_dask(func, items, scheduler, sink, desc, progress, connect_timeout: float = 5.0, unit="items"):
+    """The items on a Dask cluster, two per worker thread in flight; each result released once read."""
     try:  # Dask is an optional extra, slow to import: only with a scheduler
         from distributed import Client, as_completed
     except ImportError:
@@ -308,28 +339,38 @@ def _run_dask(func, items, scheduler, desc, progress, connect_timeout: float = 5
     except Exception as exc:  # noqa: BLE001 - OSError/TimeoutError, or garbage from a non-Dask server
         raise ValueError(f"cannot connect to the Dask scheduler at {scheduler} (no answer within "
                          f"{connect_timeout:g} s): {_describe(exc)}") from None
-    futures = []
+    inflight: dict = {}            # future key -> (index, future)
     try:
-        futures = [client.submit(_call, func, it, pure=False) for it in items]
-        index = {f.key: i for i, f in enumerate(futures)}
-        out: list = [None] * len(items)
+        window = max(2, 2 * sum(client.nthreads().values()))
+        todo = list(range(len(items)))[::-1]
+        running = as_completed()
+
+        def submit():
+            i = todo.pop()
+            f = client.submit(_call, func, items[i], pure=False)
+            inflight[f.key] = (i, f)
+            running.add(f)
+
+        while todo and len(inflight) < window:
+            submit()
         with _progress(len(items), desc, progress, unit=unit) as bar:
-            for f in as_completed(futures):
-                i = index[f.key]
+            for f in running:
+                i, _ = inflight.pop(f.key)
                 try:
-                    out[i] = f.result()
+                    outcome = f.result()
                 except Exception as exc:  # a worker lost, a task that could not be deserialised
-                    out[i] = (False, None, _describe(exc), 0.0)
+                    outcome = (False, None, _describe(exc), 0.0)
+                f.release()
+                sink.put(i, outcome)
                 bar.update(1)
-        return out
+                if todo:
+                    submit()
     except BaseException:
         try:                        # interrupted: nothing of this run keeps running on the cluster
-            client.cancel(futures)
+            client.cancel([f for _, f in inflight.values()])
         except Exception:  # noqa: BLE001 - a lost scheduler: the original exception matters
             pass
         raise
     finally:
         if own:
             client.close()
-
-

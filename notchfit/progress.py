@@ -6,8 +6,11 @@ results:
 
 - on a terminal (stderr is a TTY) a tqdm bar that is removed when the stage ends;
 - otherwise (a log file, a pipe, a test) one line when the stage starts,
-  ``"detect: 162 images ..."``, so that a log says what is running (every
-  such line ends with ``" ..."``: a reader can tell them from messages).
+  ``"detect: 162 images ..."``, so that a log says what is running, and while a
+  counted stage runs, every :data:`PIPED_EVERY_S` seconds a line with the count,
+  the rate and the time left (``"detect: 40 of 162 images, 2.1 images/s, about
+  58 s left ..."``). Every such line ends with ``" ..."``: a reader can tell
+  them from messages.
 
 ``enabled=False`` silences a stage (a batch inside another stage's bar);
 ``enabled=True`` forces the bar.
@@ -21,10 +24,14 @@ a thread starts its worker processes by ``spawn`` instead of ``fork``
 from __future__ import annotations
 
 import sys
+import time
 
 from tqdm.auto import tqdm as _tqdm
 
-__all__ = ["Steps", "bar", "on_terminal", "say"]
+__all__ = ["PIPED_EVERY_S", "Steps", "bar", "duration", "on_terminal", "say"]
+
+#: Seconds between the progress lines of a counted stage when stderr is not a terminal.
+PIPED_EVERY_S = 30.0
 
 
 class _Bar(_tqdm):
@@ -47,8 +54,9 @@ def say(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
-def bar(total: int, desc: str | None, *, enabled: bool | None = None, unit: str = "items"):
-    """A progress bar over ``total`` steps (a tqdm object; use it as a context manager).
+def bar(total: int, desc: str | None, *, enabled: bool | None = None, unit: str = "items",
+        every_s: float = PIPED_EVERY_S):
+    """A progress bar over ``total`` steps (use it as a context manager; ``update(n)`` counts).
 
     Parameters
     ----------
@@ -56,17 +64,61 @@ def bar(total: int, desc: str | None, *, enabled: bool | None = None, unit: str 
     desc : str or None
         The stage's name; without one nothing is printed when piped.
     enabled : bool, optional
-        None: a bar on a terminal, else one line ``"desc: total unit ..."``
-        at the start; False: silent; True: the bar.
+        None: a bar on a terminal (with the rate and the time left), else one
+        line ``"desc: total unit ..."`` at the start and one line with the
+        count, rate and time left every ``every_s`` seconds; False: silent;
+        True: the bar.
     unit : str
-        What is counted, for the piped line (``"images"``, ``"experiments"``).
+        What is counted, for the piped lines (``"images"``, ``"experiments"``).
+    every_s : float
+        Seconds between the piped lines [s].
     """
     show = on_terminal() if enabled is None else bool(enabled)
     if not show and enabled is None and desc:
         what = unit[:-1] if total == 1 and unit.endswith("s") else unit
         say(f"{desc}: {total} {what} ...")
+        return _Lines(total, desc, unit, every_s)
     return _Bar(total=total, desc=desc, disable=not show, leave=False, file=sys.stderr,
                 dynamic_ncols=True)
+
+
+def duration(seconds: float) -> str:
+    """``"42 s"``, ``"3 min 05 s"``, ``"2 h 07 min"``: a time span in words for progress lines."""
+    s = int(round(max(seconds, 0.0)))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+
+
+class _Lines:
+    """The piped form of :func:`bar`: a line with the count, the rate and the time left every
+    ``every_s`` seconds (the time left assumes the rate so far holds)."""
+
+    def __init__(self, total: int, desc: str, unit: str, every_s: float):
+        self.total, self.desc, self.unit, self.every_s = total, desc, unit, every_s
+        self.n = 0
+        self.t0 = self.last = time.monotonic()
+
+    def update(self, n: int = 1) -> None:
+        self.n += n
+        now = time.monotonic()
+        if now - self.last < self.every_s or self.n >= self.total or now <= self.t0:
+            return
+        self.last = now
+        rate = self.n / (now - self.t0)
+        say(f"{self.desc}: {self.n} of {self.total} {self.unit}, {rate:.3g} {self.unit}/s, "
+            f"about {duration((self.total - self.n) / rate)} left ...")
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
 
 
 class Steps:

@@ -140,3 +140,49 @@ def test_dead_scheduler_is_reported_within_the_connect_timeout():
     with pytest.raises(ValueError, match=r"tcp://127\.0\.0\.1:9 \(no answer within 2 s\)"):
         run_batch(abs, [-1, -2], scheduler="tcp://127.0.0.1:9", connect_timeout=2.0)
     assert time.perf_counter() - t0 < 25.0          # the bound is the timeout, not a speed claim
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_on_result_streams_each_item_and_keeps_no_value(jobs):
+    """on_result sees every item once, as it finishes, with its value; the BatchResult keeps the
+    outcomes only (memory flat in the number of items). An exception in the callback stops the run."""
+    seen = {}
+    res = run_batch(_square_or_die, [0, 1, 2, 4, 5], jobs=jobs, on_result=lambda i, r: seen.setdefault(i, r))
+    assert sorted(seen) == [0, 1, 2, 3, 4] and [seen[i].value for i in range(5)] == [0, 1, 4, 16, 25]
+    assert res.n_ok == 5 and res.values() == [None] * 5
+
+    def full(i, r):
+        raise OSError(28, "No space left on device")
+    with pytest.raises(OSError, match="No space"):
+        run_batch(abs, [-1, -2, -3], jobs=jobs, on_result=full)
+
+
+def test_dask_streams_with_a_bounded_window(images):
+    """On a cluster at most two items per worker thread are in flight, and results reach on_result."""
+    distributed = pytest.importorskip("distributed")
+    seen, on_scheduler = [], []
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        def record(i, r):
+            seen.append((i, r.ok))
+            on_scheduler.append(len(cluster.scheduler.tasks))
+        res = run_batch(image_info, images * 3, scheduler=cluster.scheduler_address, on_result=record)
+    assert sorted(seen)[:5] == [(0, True), (1, False), (2, True), (3, False), (4, True)]
+    assert len(seen) == 15 and max(on_scheduler) <= 2
+    assert res.n_ok == 9 and res.values() == [None] * 15
+
+
+def test_piped_progress_gives_the_rate_and_the_time_left(capsys, monkeypatch):
+    """Piped, a counted stage says every `every_s` seconds how far it is, its rate and the time left."""
+    import notchfit.progress as progress
+
+    clock = iter([0.0, 10.0, 20.0, 30.0])
+    monkeypatch.setattr(progress.time, "monotonic", lambda: next(clock))
+    with progress.bar(4, "detect", unit="images", every_s=5.0) as b:
+        b.update(1)
+        b.update(1)
+        b.update(2)                                          # the end: no line
+    assert capsys.readouterr().err.splitlines() == [
+        "detect: 4 images ...", "detect: 1 of 4 images, 0.1 images/s, about 30 s left ...",
+        "detect: 2 of 4 images, 0.1 images/s, about 20 s left ..."]
+    assert progress.duration(3725) == "1 h 02 min" and progress.duration(185) == "3 min 05 s"

@@ -192,13 +192,15 @@ def _earlier_detect_outputs(out):
 def _wait_for_staged(out, pattern, proc, timeout=120):
     """Until the run has staged a file matching ``pattern`` (it is mid-way through its items)."""
     t0 = time.monotonic()
-    while not list(out.glob(f".notchfit-stage-*/{pattern}")):
+    while not list(out.glob(f".notchfit-stage-*/{pattern}")) + list(out.glob(f".notchfit-resume-*/stage/{pattern}")):
         assert proc.poll() is None, f"finished before staging {pattern}"
         assert time.monotonic() - t0 < timeout
         time.sleep(0.05)
 
 
 def _assert_interrupted(proc, lines, reader, sig, children, out, before):
+    """Exit 128+sig, one line, no orphan; earlier outputs byte-identical, no lock left; the images
+    finished before the signal are kept for --resume (the line says so), nothing else is added."""
     proc.wait(timeout=60)
     reader.join(timeout=10)
     assert proc.returncode == 128 + sig, lines
@@ -208,7 +210,11 @@ def _assert_interrupted(proc, lines, reader, sig, children, out, before):
     assert len(said) == 1 and f"interrupted ({signal.Signals(sig).name})" in said[0], text
     gone = psutil.wait_procs(children, timeout=10)[1]
     assert not gone, f"orphan workers: {gone}"
-    assert snapshot(out) == before           # no staging folder, no lock file, earlier outputs whole
+    now = snapshot(out)
+    kept = {k for k in now if k.startswith(".notchfit-resume-detect/")}
+    assert {k: v for k, v in now.items() if k not in kept} == before       # no lock, earlier outputs whole
+    assert not kept or ("finished are kept" in said[0] and "--resume" in said[0]), said
+    return now
 
 
 @pytest.mark.parametrize("sig,jobs", [(signal.SIGINT, 2), (signal.SIGTERM, 2), (signal.SIGINT, 1)],
@@ -229,7 +235,8 @@ def test_interrupted_detect(sig, jobs, image_study, tmp_path):
 def test_interrupted_detect_on_a_dask_cluster(image_study, tmp_path):
     """Ctrl-C of a --scheduler run: exit 130, one line; the run's tasks are cancelled on the cluster
     (none left on the scheduler), the cluster itself keeps running, and a task that was executing
-    when the run stopped writes nothing into --out afterwards (earlier outputs byte-identical)."""
+    when the run stopped writes nothing into --out afterwards (earlier outputs byte-identical, the
+    images kept for --resume as they were when the run stopped)."""
     distributed = pytest.importorskip("distributed")
     out = tmp_path / "out"
     before = _earlier_detect_outputs(out)
@@ -240,7 +247,7 @@ def test_interrupted_detect_on_a_dask_cluster(image_study, tmp_path):
         _wait_for_staged(out, "L045/overlays/*.jpg", proc)
         assert not psutil.Process(proc.pid).children(recursive=True)
         proc.send_signal(signal.SIGINT)
-        _assert_interrupted(proc, lines, reader, signal.SIGINT, [], out, before)
+        after = _assert_interrupted(proc, lines, reader, signal.SIGINT, [], out, before)
         t0 = time.monotonic()
         while client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks)):
             assert time.monotonic() - t0 < 30, "tasks of the interrupted run left on the scheduler"
@@ -249,7 +256,7 @@ def test_interrupted_detect_on_a_dask_cluster(image_study, tmp_path):
             assert time.monotonic() - t0 < 30, "a task of the interrupted run still executing"
             time.sleep(0.1)
         assert client.submit(sum, [1, 2]).result(timeout=30) == 3
-    assert snapshot(out) == before
+    assert snapshot(out) == after
 
 
 def test_interrupt_during_the_final_moves_is_held_until_they_are_done(tmp_path, monkeypatch):

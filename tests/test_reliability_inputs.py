@@ -385,7 +385,9 @@ def test_16_bit_and_rgba_images_are_processed(kind, base_study, tmp_path, capsys
            "rgb": cv2.cvtColor(base, cv2.COLOR_GRAY2BGR)}[kind]
     _image_experiment(exp, {1: img, 2: img})
     rc, out, err = run_main(["detect", exp, "--out", tmp_path / "out", "--no-overlays"], capsys)
-    assert rc in (0, 1) and "Traceback" not in err and messages(err) == [], (rc, out, err)
+    assert rc in (0, 1) and "Traceback" not in err, (rc, out, err)
+    said = messages(err)                     # only the images where no point was found (flat grey here)
+    assert not said or ("gave no point at all" in said[0] and all(ln.startswith("  ") for ln in said[1:])), err
 
 
 def test_calibrate_with_only_bad_images_and_bad_boards(tmp_path, capsys):

@@ -116,14 +116,19 @@ def error_exit(command: str, exc: BaseException, *, debug: bool = False) -> int:
     if debug:
         traceback.print_exception(exc)
     sig = _interrupt_signal(exc)
+    # a resumable run (notchfit.io.ResumableRun) notes on the exception what it kept
+    kept = "; ".join(getattr(exc, "__notes__", ()))
     if sig is not None:
         name = signal.Signals(sig).name
-        print(f"notchfit {command}: interrupted ({name}); the outputs of this run were discarded, "
-              "earlier outputs are unchanged", file=sys.stderr)
+        done = f"{kept};" if kept else "the outputs of this run were discarded,"
+        print(f"notchfit {command}: interrupted ({name}); {done} earlier outputs are unchanged", file=sys.stderr)
         return 128 + int(sig)
     if isinstance(exc, BrokenPipeError):
         return EXIT_BROKEN_PIPE
-    print(f"notchfit {command}: error: {_message(exc)}", file=sys.stderr)
+    text = _message(exc)
+    if kept:
+        text = text.replace("; nothing of this run was kept", "") + f"; {kept}"
+    print(f"notchfit {command}: error: {text}", file=sys.stderr)
     return EXIT_INPUT_ERROR
 
 

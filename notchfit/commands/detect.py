@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import sys
 from pathlib import Path
 
-import pandas as pd
+import numpy as np
 
 from .. import io
+from .._version import __version__
 from ..batch import run_batch
 from ..units import MM
 from ._common import EXIT_ITEMS_FAILED, InputError, add_batch_options, check_out_dir, list_failures
@@ -30,13 +33,19 @@ sample in overlays/NNNN.jpg (a crop around the tube, its longer side 1000 px, wi
 and the numbered corners coloured by status; --full-overlays adds the whole view beside it), and
 detect_run.json (per-sample image status and messages); for a study, into
 OUT/<experiment>/. A missing or corrupt image is reported and the other samples finish
-(exit code 1 listing them).
+(exit code 1 listing them); so is an image where no point at all was found (listed on
+stderr, its rows NaN).
+
+Each finished image is kept in OUT/.notchfit-resume-detect/ as it completes, so an
+interrupted or killed run (Ctrl-C, SIGKILL, a full disk) is continued with --resume: only
+the images not yet done, or whose file or options changed since, are detected again.
 
 Examples:
   notchfit detect study/ --out out/
   notchfit detect study/ct045 --out out_ct045/ --jobs 2
   notchfit detect study/ --out out/ --no-overlays --force
   notchfit detect study/L045 --out out_L045/ --full-overlays
+  notchfit detect study/ --out out/ --resume     (after an interrupted run)
 """
 
 #: JPEG quality of the overlays (they are looked at, never measured again: lossy is fine).
@@ -66,7 +75,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-overlays", action="store_true", help="skip the overlay images")
     parser.add_argument("--full-overlays", action="store_true",
                         help="overlays show the whole view beside the crop around the tube (larger files)")
-    parser.add_argument("--force", action="store_true", help="replace existing detections in --out")
+    parser.add_argument("--force", action="store_true", help="replace existing detections in --out "
+                        "(and start again over an interrupted run)")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue the interrupted run in --out: only the images not yet done, or changed "
+                             "since, are detected")
     parser.add_argument("--drop-review", action="store_true",
                         help="also remove the corrections of `notchfit review` (review.csv) of the experiments "
                              "detected again (kept by default, also with --force)")
@@ -79,25 +92,34 @@ def _camera(path: str):
 
 
 def detect_one(item: dict) -> dict:
-    """Detect the corners of one sample image (a batch item; module level so that it pickles)."""
+    """Detect the corners of one sample image (a batch item; module level so that it pickles).
+
+    The worker reads the image from its path and returns what the run writes:
+    the rows of ``detections.csv`` (CSV text without the header, bytes), the
+    overlay (JPEG bytes, or None), the image file's SHA-256 and the sample's
+    summary for ``detect_run.json``.
+    """
     # slow optional dependency: the detector and the overlay are OpenCV
     from ..detection import detect_notches, detections_table
     from ..figures.detection import detection_overlay
 
     img = io.load_image(item["image"])
+    digest = io.file_sha256(item["image"])
     cam = _camera(str(item["calibration"])) if item["calibration"] is not None else None
     det = detect_notches(img, cam, item["geometry"], mirror=item["mirror"], base=item["base"],
                          tone_gamma=item.get("tone_gamma", 1.0))
+    overlay = None
     if item["overlay"] is not None:
         ov = detection_overlay(img, det, item["sample"], full=item.get("full_overlay", False))
-        # the run made the folder in its staging area; no mkdir here: a task still running on a Dask
-        # worker after the run was interrupted must not bring back the staging folder it removed
-        io.write_image(item["overlay"], ov, jpeg_quality=OVERLAY_JPEG_QUALITY, make_folder=False)
-    return {"table": detections_table(item["sample"], det), "image_status": det.image_status,
-            "message": det.message, "n_ok": det.n_ok, "base_side": det.base_side,
-            "scale_mm_per_px": det.scale_mm_per_px, "scale_sigma_mm_per_px": det.scale_sigma,
-            "assumption": det.assumption or None, "image_gamma": item.get("tone_gamma", 1.0),
-            "exif_orientation": io.image_orientation(item["image"]) or None}
+        overlay = io.encode_image(ov, ".jpg", jpeg_quality=OVERLAY_JPEG_QUALITY, name=item["overlay"])
+    table = detections_table(item["sample"], det)
+    return {"table_csv": table.to_csv(index=False, header=False, lineterminator="\n").encode("utf-8"),
+            "overlay_jpg": overlay, "input_sha256": digest,
+            "summary": {"image_status": det.image_status, "message": det.message, "n_ok": det.n_ok,
+                        "n_found": int(np.isfinite(det.points[:, 0]).sum()), "base_side": det.base_side,
+                        "scale_mm_per_px": det.scale_mm_per_px, "scale_sigma_mm_per_px": det.scale_sigma,
+                        "assumption": det.assumption or None, "image_gamma": item.get("tone_gamma", 1.0),
+                        "exif_orientation": io.image_orientation(item["image"]) or None}}
 
 
 def _say_assumed_gamma(exps) -> list[str]:
@@ -113,13 +135,11 @@ def _say_assumed_gamma(exps) -> list[str]:
     return sorted(names)
 
 
-def run(args) -> int:
-    check_out_dir(args.out, args.input)
-    scan = io.scan_study(args.input, missing_images="keep")
-    exps, study = scan.experiments, scan.study
+def _plan(scan) -> tuple[list, dict]:
+    """The experiments to detect, and the failures (experiment name: reason) of the others."""
     failed: dict[str, str] = dict(scan.problems)
-    plan = []           # (experiment, items, keys)
-    for e in exps:
+    plan = []
+    for e in scan.experiments:
         if e.image_paths is None:
             failed[e.name] = "samples.csv has no image column"
             continue
@@ -138,52 +158,131 @@ def run(args) -> int:
             failed[e.name] = str(exc)
             continue
         plan.append(e)
-    assumed = _say_assumed_gamma(plan)
     if not plan:
         raise InputError("nothing to detect: " + "; ".join(f"{k}: {v}" for k, v in failed.items()))
-    outputs = ["detect_run.json"] + [str(io.experiment_output_dir("", e.name, study) / "detections.csv")
-                                     for e in plan]
+    return plan, failed
+
+
+@dataclasses.dataclass
+class _Items:
+    """The run's batch items (one per image) with their keys, experiments and options hashes."""
+
+    items: list
+    keys: list
+    owners: list
+    options: list
+
+
+def _items(plan, study: bool, args) -> _Items:
+    out = _Items([], [], [], [])
+    for e in plan:
+        sub = io.experiment_output_dir("", e.name, study)
+        # what shapes an experiment's results besides the image: a changed one redoes its images on --resume
+        exp_hash = io.options_sha256({
+            "notchfit": __version__, "geometry": dataclasses.asdict(e.geometry), "base": e.base,
+            "mirror": e.mirror, "camera": None if e.calibration_path is None else io.file_sha256(e.calibration_path)})
+        for s, img in zip(e.sample_ids, e.image_paths):
+            ov = None if args.no_overlays else str(sub / "overlays" / f"{int(s):04d}.jpg")
+            item = {"image": img, "calibration": e.calibration_path, "geometry": e.geometry, "base": e.base,
+                    "mirror": e.mirror, "sample": int(s), "overlay": ov, "full_overlay": args.full_overlays,
+                    "tone_gamma": image_gamma(e, img)[0]}
+            out.items.append(item)
+            out.keys.append(f"{e.name}/{int(s)}" if study else f"sample {int(s)}")
+            out.owners.append(e.name)
+            out.options.append(io.options_sha256({"experiment": exp_hash, **{k: item[k] for k in (
+                "sample", "overlay", "full_overlay", "tone_gamma")}}))
+    return out
+
+
+def _keeper(run_, items: _Items, todo: list[int]):
+    """The batch's ``on_result``: each finished image's rows, overlay and summary onto the disk at once."""
+    def keep(i: int, r) -> None:
+        if not r.ok:
+            return                     # failed items are not kept: a resumed run tries them again
+        k, v = todo[i], r.value
+        ov = items.items[k]["overlay"]
+        run_.keep(items.keys[k], input_sha256=v["input_sha256"], options_sha256=items.options[k],
+                  value=v["summary"], stage_files={ov: v["overlay_jpg"]} if ov is not None else None,
+                  own_files={".csv": v["table_csv"]})
+    return keep
+
+
+def _assemble(run_, plan, study: bool, items: _Items, failed: dict) -> dict:
+    """Write each experiment's detections.csv from the kept items (one at a time: memory stays flat);
+    returns the per-sample summaries for detect_run.json."""
+    header = (",".join(io.DETECTION_COLUMNS) + "\n").encode("utf-8")
     summary = {}
-    n_total = n_ok_images = 0
-    with io.OutputRun(args.out, outputs=outputs, force=args.force, name="detect") as run_:
-        items, keys, owners = [], [], []
-        for e in plan:
-            sub = io.experiment_output_dir("", e.name, study)
-            for s, img in zip(e.sample_ids, e.image_paths):
-                ov = None if args.no_overlays else run_.path(sub / "overlays" / f"{int(s):04d}.jpg")
-                items.append({"image": img, "calibration": e.calibration_path, "geometry": e.geometry,
-                              "base": e.base, "mirror": e.mirror, "sample": int(s), "overlay": ov,
-                              "full_overlay": args.full_overlays, "tone_gamma": image_gamma(e, img)[0]})
-                keys.append(f"{e.name}/{int(s)}" if study else f"sample {int(s)}")
-                owners.append(e.name)
-        res = run_batch(detect_one, items, keys=keys, jobs=args.jobs, scheduler=args.scheduler, desc="detect",
-                        unit="images")
-        n_total = len(items)
-        for e in plan:
-            sub = io.experiment_output_dir("", e.name, study)
-            rows = [r for r, o in zip(res.items, owners) if o == e.name]
-            tables = [r.value["table"] for r in rows if r.ok]
-            df = (pd.concat(tables, ignore_index=True) if tables
-                  else pd.DataFrame(columns=list(io.DETECTION_COLUMNS)))
-            io.write_table_atomic(df, run_.path(sub / "detections.csv"))
-            summary[e.name] = {r.key: ({k: v for k, v in r.value.items() if k != "table"} if r.ok
-                                       else {"error": r.error}) for r in rows}
-            n_ok_images += sum(1 for r in rows if r.ok and r.value["image_status"] == "ok")
+    for e in plan:
+        keys = [k for k, o in zip(items.keys, items.owners) if o == e.name]
+
+        def write(tmp, keys=keys):
+            with open(tmp, "wb") as fh:
+                fh.write(header)
+                for k in keys:
+                    if run_.record(k) is not None:
+                        fh.write(run_.own_file(k, ".csv").read_bytes())
+        io.atomic_write(run_.path(io.experiment_output_dir("", e.name, study) / "detections.csv"), write)
+        summary[e.name] = {k: (run_.record(k)["value"] if run_.record(k) is not None
+                               else {"error": failed.get(k, "not detected")}) for k in keys}
+    return summary
+
+
+def _no_point(run_, items: _Items) -> dict[str, str]:
+    """``{key: "file name: reason"}`` of the images where no point at all was found."""
+    out = {}
+    for k, item in zip(items.keys, items.items):
+        rec = run_.record(k)
+        if rec is not None and rec["value"]["n_found"] == 0:
+            out[k] = f"{Path(item['image']).name}: {rec['value']['message'] or 'no point found'}"
+    return out
+
+
+def run(args) -> int:
+    check_out_dir(args.out, args.input)
+    # the folder's lock and its earlier outputs are checked before the study is read or anything printed
+    earlier = ["detect_run.json"] + [str(Path(name) / "detections.csv")
+                                     for name in io.find_output(args.out, "detections.csv")]
+    with io.ResumableRun(args.out, name="detect", input_path=args.input, resume=args.resume, force=args.force,
+                         outputs=earlier, unit="images") as run_:
+        scan = io.scan_study(args.input, missing_images="keep")
+        plan, failed = _plan(scan)
+        assumed = _say_assumed_gamma(plan)
+        items = _items(plan, scan.study, args)
+        kept = run_.reconcile({k: (it["image"], h) for k, it, h in zip(items.keys, items.items, items.options)})
+        todo = [i for i, k in enumerate(items.keys) if k not in kept]
+        if args.resume:
+            print(f"  resuming the interrupted run: {len(kept)} of {len(items.keys)} images kept, "
+                  f"{len(todo)} to detect")
+        res = run_batch(detect_one, [items.items[i] for i in todo], keys=[items.keys[i] for i in todo],
+                        jobs=args.jobs, scheduler=args.scheduler, desc="detect", unit="images",
+                        on_result=_keeper(run_, items, todo))
         for r in res.failures:
             failed[r.key] = r.error
-        turned = [(r.key, r.value["exif_orientation"]) for r in res.items if r.ok and r.value.get("exif_orientation")]
+        summary = _assemble(run_, plan, scan.study, items, failed)
+        no_point = _no_point(run_, items)
+        n_done = len(run_.records)
+        n_all_ok = sum(run_.record(k)["value"]["image_status"] == "ok" for k in run_.records)
+        turned = [(k, run_.record(k)["value"].get("exif_orientation")) for k in run_.records
+                  if run_.record(k)["value"].get("exif_orientation")]
         if turned:
             print(f"  {len(turned)} images turned upright by their EXIF orientation tag (base and pixel coordinates "
                   f"refer to the picture as a photo viewer shows it), e.g. {turned[0][0]}: {turned[0][1]}")
         io.write_json_atomic(io.provenance("detect", args.input, experiments=[e.name for e in plan],
-                                           samples=summary, image_gamma_assumed=assumed, failures=failed),
+                                           samples=summary, image_gamma_assumed=assumed, failures=failed,
+                                           no_point=sorted(no_point), kept_from_interrupted_run=len(kept)),
                              run_.path("detect_run.json"))
-    n_done = sum(r.ok for r in res.items)
-    print(f"detect: {n_done} of {n_total} images processed ({n_ok_images} with every point ok) "
-          f"in {res.seconds:.1f} s; outputs in {args.out}")
-    _say_reviews(args, plan, study)
+    rate = f", {len(todo) / res.seconds:.3g} images/s" if todo and res.seconds > 0 else ""
+    print(f"detect: {n_done} of {len(items.keys)} images processed ({n_all_ok} with every point ok"
+          + (f", {len(kept)} kept from the interrupted run" if kept else "")
+          + f") in {res.seconds:.1f} s{rate}; outputs in {args.out}")
+    _say_reviews(args, plan, scan.study)
     list_failures(failed, limit=len(failed))
-    return EXIT_ITEMS_FAILED if failed else 0
+    if no_point:
+        print(f"notchfit detect: {len(no_point)} of {len(items.keys)} images gave no point at all (their rows "
+              "in detections.csv are NaN):", file=sys.stderr)
+        for k, why in no_point.items():
+            print(f"  {k}: {why}", file=sys.stderr)
+    return EXIT_ITEMS_FAILED if failed or no_point else 0
 
 
 def _say_reviews(args, plan, study) -> None:

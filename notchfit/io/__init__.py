@@ -13,6 +13,7 @@ module                 files
 :mod:`.models`         geometry files, friction-model parameters, FEA reference
 :mod:`.outputs`        atomic writers, the output-run transaction, output files
 :mod:`.results`        typed readers of result files (diagnosis.json, identify.json, run records, tables)
+:mod:`.resume`         resumable output runs: finished items kept, a stopped run continued
 :mod:`.resources`      where the shipped ``datasets/`` and ``calibration/`` are
 :mod:`.review`         ``review.csv``: a person's corrections of a detect run
 =====================  ========================================================
@@ -38,8 +39,8 @@ _HOME = {
                     "points_from_table", "points_table", "read_angles_table", "read_experiment",
                     "read_experiment_toml", "read_points_table", "read_samples", "read_study", "scan_study",
                     "with_points", "write_experiment"),
-    "images": ("EXIF_ORIENTATIONS", "PNG_SETTINGS", "exif_orientation", "image_info", "image_orientation", "load_image",
-               "orient", "write_image"),
+    "images": ("EXIF_ORIENTATIONS", "PNG_SETTINGS", "encode_image", "exif_orientation", "image_info",
+               "image_orientation", "load_image", "orient", "write_image"),
     "models": ("load_fea_reference", "load_geometry", "load_params", "params_from_mapping", "params_to_mapping",
                "save_params"),
     "outputs": ("LOCK_NAME", "STAGE_PREFIX", "OutputLockedError", "OutputRun", "atomic_write",
@@ -51,6 +52,8 @@ _HOME = {
                 "read_diagnosis_record", "read_identify", "read_run_records", "read_simulation_vs_measured"),
     "review": ("REVIEW_COLUMNS", "REVIEW_NAME", "REVIEW_STATUSES", "apply_review", "read_review", "review_path",
                "write_review"),
+    "resume": ("NothingToResumeError", "RESUME_PREFIX", "ResumableRun", "file_sha256", "options_sha256",
+               "write_bytes_synced"),
     "tables": ("DETECTION_COLUMNS", "FITS_COLUMNS", "POINT_COLUMNS", "POINTWISE_COLUMNS", "SAMPLE_COLUMNS",
                "SIMULATION_COLUMNS", "read_csv_table"),
     "toml": ("TomlError", "TomlFileNotFoundError", "load_toml", "toml_dumps"),

@@ -203,14 +203,35 @@ def write_image(path, image, *, png: str = "noisy", jpeg_quality: int = 85, make
     Path
     """
     path = Path(path)
-    ext = path.suffix.lower()
+    data = encode_image(image, path.suffix, png=png, jpeg_quality=jpeg_quality, name=path)
+    return atomic_write(path, lambda tmp: Path(tmp).write_bytes(data), make_folder=make_folder)
+
+
+def encode_image(image, ext: str, *, png: str = "noisy", jpeg_quality: int = 85, name=None) -> bytes:
+    """The bytes of an image file in the format of extension ``ext`` (what :func:`write_image` writes).
+
+    A batch worker encodes its overlay here and hands the bytes to the
+    process that writes the run's files (``notchfit detect``).
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+    ext : str
+        ``".png"``, ``".jpg"`` or ``".jpeg"``.
+    png, jpeg_quality
+        As for :func:`write_image`.
+    name : path, optional
+        The file the bytes are meant for, for the error messages.
+    """
+    ext = ext.lower()
+    what = f"{name}: " if name is not None else ""
     if ext == ".png":
         params = list(PNG_SETTINGS[png])
     elif ext in (".jpg", ".jpeg"):
         params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)]
     else:
-        raise ValueError(f"{path}: write_image writes .png or .jpg, not {ext or 'no extension'}")
+        raise ValueError(f"{what}write_image writes .png or .jpg, not {ext or 'no extension'}")
     ok, buf = cv2.imencode(ext, np.asarray(image), params)
     if not ok:
-        raise OSError(f"could not encode {path}")
-    return atomic_write(path, lambda tmp: Path(tmp).write_bytes(buf.tobytes()), make_folder=make_folder)
+        raise OSError(f"could not encode {name or 'an image'} as {ext}")
+    return buf.tobytes()

@@ -331,6 +331,13 @@ def acquire_output_lock(out_dir: Path) -> Path:
     raise OutputLockedError(f"{out_dir}: could not take the lock {lock}")
 
 
+def _make_folders(path: Path) -> list[Path]:
+    """Create folder ``path`` and its missing parents; returns those created, deepest first."""
+    made = [p for p in [path, *path.parents] if not p.exists()]
+    path.mkdir(parents=True, exist_ok=True)
+    return made
+
+
 def _release_lock(lock: Path | None) -> None:
     if lock is not None and _lock_holder(lock) == (os.getpid(), socket.gethostname()):
         lock.unlink(missing_ok=True)
@@ -347,7 +354,8 @@ class OutputRun:
     Nothing in ``out_dir`` changes until the block ends without an exception;
     then every staged file replaces its counterpart (``os.replace``, atomic
     per file). On an exception the staging folder is removed and the old
-    results stay as they were.
+    results stay as they were; an output folder the run created is removed
+    again when nothing is in it (a failed command leaves nothing behind).
 
     With ``whole_dirs=True`` each top-level folder of the run replaces its old
     counterpart as a whole (two renames), so no stale file of an earlier run
@@ -359,18 +367,33 @@ class OutputRun:
         out = Path(out_dir)
         if out.exists() and not out.is_dir():
             raise FileExistsError(f"{out}: exists and is not a folder")
-        out.mkdir(parents=True, exist_ok=True)
-        self.lock = acquire_output_lock(out)
-        try:
-            self.out_dir = prepare_output_dir(out, force=force, outputs=outputs)
-            self.stage = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{name}-{os.getpid()}-",
-                                               dir=self.out_dir))
-        except BaseException:
-            _release_lock(self.lock)
-            raise
+        self.out_dir = out
         self.force = force
         self.whole_dirs = whole_dirs
         self.committed: list[Path] = []
+        self.lock: Path | None = None
+        self._made = _make_folders(out)
+        try:
+            self.lock = acquire_output_lock(out)
+            self._open(name, outputs)
+        except BaseException:
+            self._release()
+            raise
+
+    def _open(self, name: str, outputs) -> None:
+        """Check the folder for outputs this run would replace, and make the staging folder."""
+        prepare_output_dir(self.out_dir, force=self.force, outputs=outputs)
+        self.stage = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{name}-{os.getpid()}-", dir=self.out_dir))
+
+    def _release(self) -> None:
+        """Release the folder's lock; remove the folders this run created if they stayed empty."""
+        _release_lock(self.lock)
+        self.lock = None
+        for d in self._made:                 # deepest first
+            try:
+                d.rmdir()
+            except OSError:
+                break
 
     def path(self, rel) -> Path:
         """The staging path of output ``rel`` (parent folders created)."""
@@ -421,11 +444,11 @@ class OutputRun:
                 shutil.rmtree(old, ignore_errors=True)
 
     def abort(self) -> None:
-        """Remove the staging folder (nothing in ``out_dir`` changes) and release the folder's lock."""
+        """Remove the staging folder (nothing in ``out_dir`` changes) and release the folder's lock;
+        a folder this run created is removed again when it holds nothing."""
         with deferred_interrupts():
             shutil.rmtree(self.stage, ignore_errors=True)
-            _release_lock(self.lock)
-            self.lock = None
+            self._release()
 
     def __enter__(self):
         return self
