@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..causes import REGISTRY
 from ..fitting import fit_experiment
 from ..friction import FrictionParams, simulate
 from ..notches import notch_points, to_plane
@@ -206,7 +207,7 @@ def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base)
     lo = np.array([s.x_bounds[0] for s in specs])
     hi = np.array([s.x_bounds[1] for s in specs])
     n_reg = 0
-    if "calibration_error" in model:
+    if any(REGISTRY[c].corrects_points for c in model):
         # centre the warp on the data: where a camera would be aimed
         allp = np.concatenate([p.measured[p.valid] for p in preps])
         c = np.nanmean(allp, axis=0)

@@ -15,6 +15,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..batch import run_batch
+from ..causes import REGISTRY
 from .calibration import Calibration, SimulationCache, calibrate, predict_points, reregister
 from .noise import noise_floor
 from .prepare import sample_mse
@@ -89,7 +90,7 @@ def run_fold(task: FoldTask) -> FoldResult:
         preds = {}
         for i in task.test:
             prep = task.preps[i]
-            T = reregister(prep, cal.values) if "calibration_error" in task.cause else None
+            T = reregister(prep, cal.values) if any(REGISTRY[c].corrects_points for c in task.cause) else None
             P, theta = predict_points(prep, cal.values, transform=T, cache=cache, base=task.base)
             preds[int(i)] = (P, theta, noise_floor(prep, cal.values, cache, seed=task.seed, base=task.base))
     return FoldResult(task.cause, tuple(task.test), cal, preds)

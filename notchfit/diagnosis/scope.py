@@ -36,6 +36,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..batch import run_batch
+from ..causes import REGISTRY, REQUIREMENTS
 from ..friction import default_params
 from .calibration import SimulationCache, calibrate, predict_points
 from .noise import noise_floor, pooled_mse
@@ -62,17 +63,21 @@ def base_model(preps):
 
 
 def applicable_causes(preps, causes) -> tuple[tuple, dict]:
-    """The candidate causes that apply to the study, and ``{cause: reason}`` for those skipped."""
+    """The candidate causes that apply to the study, and ``{cause: reason}`` for those skipped.
+
+    A cause applies when the study has what its record requires
+    (:attr:`notchfit.causes.Cause.requires`: notch points, a chain of joints on the axis).
+    """
+    lacks = set()
+    if preps[0].metric == "angles":
+        lacks.add("points")
+    if any(p.geom.backbone != "axis" or not np.all(p.geom.pitches == p.geom.pitches[0]) for p in preps):
+        lacks.add("axis_chain")
     skipped = {}
-    if "calibration_error" in causes and preps[0].metric == "angles":
-        skipped["calibration_error"] = ("the experiments are measured as joint angles: there is no "
-                                        "image-to-plane mapping for a calibration warp to correct")
-    off_axis = [p.name for p in preps
-                if p.geom.backbone != "axis" or not np.all(p.geom.pitches == p.geom.pitches[0])]
-    if "external_load" in causes and off_axis:
-        skipped["external_load"] = ("the tube's joints are off its axis or unequally spaced: the "
-                                    "simulator's tip-load torques (Eqs. 18-20) hold for the seed tube's "
-                                    "chain only")
+    for need in REQUIREMENTS:
+        for c in causes:
+            if need in lacks and need in REGISTRY[c].requires and c not in skipped:
+                skipped[c] = REGISTRY[c].requires[need]
     return tuple(c for c in causes if c not in skipped), skipped
 
 

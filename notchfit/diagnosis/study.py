@@ -8,6 +8,7 @@ from functools import partial
 
 import numpy as np
 
+from ..causes import REGISTRY
 from .calibration import calibrate
 from .crossval import folds_by_experiment, run_folds
 from .decision import decide, explain, hysteresis_shape, rank_candidates, score_candidate
@@ -91,7 +92,7 @@ def _masked_first(st: _Study, cands, held, kw, jobs, say):
     Returns ``(first, second, screened)`` (``(None, None, {})`` with fewer than two candidates).
     """
     pool = [c.cause for c in sorted(cands, key=lambda c: c.heldout_rms)
-            if c.cause in st.order and (c.cause != "static_friction" or c.significant)]
+            if c.cause in st.order and (not REGISTRY[c.cause].second_if_significant or c.significant)]
     if len(pool) < 2:
         return None, None, {}
     say(f"no single cause is significant: screening the {len(pool) * (len(pool) - 1) // 2} pairs of candidates")
