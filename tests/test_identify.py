@@ -20,8 +20,9 @@ import pytest
 from notchfit import io
 from notchfit.cli import main
 from notchfit.friction import default_params, load_params
-from notchfit.identify import default_free, identify, observe_study, parse_free, study_metric, zero_tension_samples
-from notchfit.identify.data import tube_labels
+from notchfit.estimation import choose_metric, observe_study
+from notchfit.identify import default_free, identify, parse_free, zero_tension_samples
+from notchfit.estimation import tube_labels
 from notchfit.identify.problem import standard_errors
 from notchfit.recipes import recipe_from_dict
 from notchfit.synth import generate_study
@@ -75,7 +76,7 @@ def test_identify_recovers_the_material_of_a_synthetic_wrist(one_wrist):
     and mu_d within 3 SE of the truth; each trial predicted by a model fitted on the other two within
     15 % of the 0.5 deg angle noise (pooled), and no trial worse than 1.5x the noise."""
     res = identify(one_wrist)
-    assert res.metric == "deg" and res.free == ("E_lin", "E_se", "strain_lower", "mu_d")
+    assert res.metric == "angles" and res.unit == "deg" and res.free == ("E_lin", "E_se", "strain_lower", "mu_d")
     assert res.tube_free == ("rest_angle", "slot_depth")
     for name, truth in TRUTH.items():
         assert abs(res.values[name] - truth) <= 3.0 * res.se[name], (name, res.values[name], res.se[name])
@@ -165,14 +166,14 @@ def test_free_names_defaults_and_tubes(geom):
 def test_metric_rest_samples_and_model_rest_angles(one_wrist, tmp_path):
     """One metric per study; the rest samples are the zero-tension ones before the first load; a model's
     rest angles (rest_angle_rad) round-trip through model.toml and must fit the tube."""
-    obs = observe_study(one_wrist)
+    obs = observe_study(one_wrist, prefer="angles")
     idx = zero_tension_samples(obs[0])
     assert idx.size >= 1 and np.all(obs[0].tension_right[idx] <= 3 * obs[0].tension_sigma)
     assert np.all(np.diff(idx) == 1) and idx[0] == 0
     mixed = [one_wrist[0], io.with_points(one_wrist[1].__class__(**{**one_wrist[1].__dict__, "angles": None}),
                                           np.zeros((one_wrist[1].n_samples, 14, 2)))]
     with pytest.raises(ValueError, match="one kind of measurement"):
-        study_metric(mixed)
+        choose_metric(mixed, prefer="angles", who="identify")
     p = default_params(one_wrist[0].geometry).replace(rest_angle=(0.01, 0.02, 0.0, -0.01, 0.03))
     io.save_params(p, tmp_path / "m.toml")
     assert load_params(tmp_path / "m.toml") == p

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .. import io
 from ..diagnosis import CAUSES, Diagnosis, choose_metric, diagnose
-from ..diagnosis.results import metric_unit
+from ..estimation.observations import metric_unit
 from ..figures.diagnosis import write_diagnosis_figures
 from ..friction import save_params
 from ..progress import Steps

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from .. import io
 from ..identify import identify
-from ..identify.data import tube_labels
+from ..identify import tube_labels
 from ..units import DEG, MM
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
                       check_points_dir, list_failures)
@@ -74,7 +74,7 @@ def _tube_file(tube: str) -> str:
 
 def _model_metadata(result, data: dict) -> dict:
     """The ``[metadata]`` of model.toml: source, metric, free parameters, standard errors, errors."""
-    meta = {"source": "notchfit identify", "metric": result.metric, "free": data["free"] + data["free_per_tube"],
+    meta = {"source": "notchfit identify", "metric": result.unit, "free": data["free"] + data["free_per_tube"],
             "se": data["se"],
             "train_rms": result.train_rms, "heldout_rms": result.heldout_rms, "tubes": list(result.tubes)}
     if len(meta["tubes"]) > 1:
@@ -140,7 +140,7 @@ def run(args) -> int:
 
 
 def _print_summary(result, data: dict, out) -> None:
-    unit = result.metric
+    unit = result.unit
     print(f"identify: {len(result.experiment_tubes)} experiments, {len(result.tubes)} tube(s), errors in {unit}")
     for key, v in data["params"].items():
         print(f"  {key:18s} = {v:.5g} ± {data['se'][key]:.2g}")

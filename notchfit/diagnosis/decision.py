@@ -20,7 +20,8 @@ import numpy as np
 from ..causes import REGISTRY
 from .crossval import HeldOut
 from .noise import paired_z, pooled_mse
-from .results import CandidateResult, Signature, metric_unit
+from ..estimation.observations import metric_unit
+from .results import CandidateResult, Signature
 from .specs import CANDIDATES, as_model, model_key, specs_for
 
 __all__ = ["decide", "explain", "fmt_err", "hysteresis_shape", "rank_candidates", "score_candidate"]

@@ -32,7 +32,7 @@ from .calibration import SimulationCache, calibrate, predict_points
 from .crossval import HeldOut
 from .decision import fmt_err, score_candidate
 from .noise import paired_z, pooled_mse, pooled_rms
-from .prepare import sample_mse
+from ..estimation.observations import sample_mse
 from .results import Contribution
 from .signatures import signatures
 from .specs import CANDIDATES, PAPER_START, model_key

@@ -11,18 +11,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..friction import FrictionParams
-from ..units import MM, UNIT_SIZE
+from ..units import MM
 from .calibration import Calibration
-from .prepare import METRICS
+from ..estimation.observations import metric_unit
 from .specs import BASELINE_MU_EXCESS, WARP_RADIUS, model_key, model_params
 
 __all__ = ["CandidateResult", "Contribution", "Diagnosis", "Gain", "Signature", "metric_unit"]
-
-
-def metric_unit(metric: str = "points") -> tuple[str, float]:
-    """File unit and its size in SI of a metric: ``("mm", MM)`` for points, ``("deg", DEG)`` for angles."""
-    u = METRICS["angles" if metric == "angles" else "points"]
-    return u, UNIT_SIZE[u]
 
 
 @dataclass(frozen=True)

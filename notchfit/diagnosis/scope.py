@@ -13,7 +13,7 @@
   tensions hardly tell a step from a ramp. The baseline is calibrated on
   every experiment with a step, and its mean squared error compared with its
   own noise floor (the load-cell noise pushed through that protocol,
-  :func:`notchfit.diagnosis.noise.noise_floor`). Within ``1 + none_tol`` of
+  :func:`notchfit.estimation.noise.noise_floor`). Within ``1 + none_tol`` of
   the floor the step is kept: nothing in the data asks for more. Beyond it
   (and up to ``ramp_cutoff`` times the floor) the baseline is calibrated with
   ramps too, and a ramp is taken only when it brings the error within the
@@ -39,8 +39,10 @@ from ..batch import run_batch
 from ..causes import REGISTRY, REQUIREMENTS
 from ..friction import default_params
 from .calibration import SimulationCache, calibrate, predict_points
-from .noise import noise_floor, pooled_mse
-from .prepare import sample_mse
+from ..estimation.noise import noise_floor
+from .noise import pooled_mse
+from .specs import model_params
+from ..estimation.observations import sample_mse
 
 __all__ = ["applicable_causes", "base_model", "resolve_protocol"]
 
@@ -91,7 +93,8 @@ def _fit_ramp(args):
         cal = calibrate(preps, None, None, scales=scales, base=base, cache=cache, **kw)
         pred = [predict_points(p, cal.values, cache=cache, base=base)[0] for p in preps]
         ms = pooled_mse([sample_mse(p, q) for p, q in zip(preps, pred)])
-        floor = pooled_mse([noise_floor(p, cal.values, cache, seed=seed, base=base) for p in preps])
+        params = model_params(cal.values, base)[0]
+        floor = pooled_mse([noise_floor(p, params, cache, seed=seed) for p in preps])
     return ramp, cal, ms, floor
 
 

@@ -1,7 +1,23 @@
-"""The estimation core under ``identify`` and ``diagnose``: parameter specs, observations, least squares."""
+"""The estimation core under ``identify`` and ``diagnose`` (docs/architecture.md, "Estimation").
 
+* :mod:`~notchfit.estimation.specs` — fitted parameters (:class:`ParamSpec`), the
+  study's scales and the baselines of both engines;
+* :mod:`~notchfit.estimation.observations` — one :class:`Observations` type per
+  measured experiment, one metric vocabulary (``"points"`` in mm, ``"angles"`` in
+  degrees at the file boundary) and one rule for the load-cell noise;
+* :mod:`~notchfit.estimation.problem` — one least-squares problem assembled from
+  parameter blocks (shared, per tube, per experiment), with probe starts,
+  standard errors and the leave-one-out splits.
+
+It returns objects and writes nothing; it sits below :mod:`notchfit.identify`
+and :mod:`notchfit.diagnosis` and imports neither.
+"""
+
+from .observations import (METRICS, Observations, angle_residuals, choose_metric, metric_unit, observe,
+                           observe_study, peak_regimes, sample_mse, tension_sigma, tube_labels, zero_tension_samples)
 from .specs import (BASELINE, BASELINE_MU_EXCESS, CAPSTAN_MU, MATERIAL, MATERIAL_BASELINE, ParamSpec, StudyScales,
                     baseline_specs)
 
-__all__ = ["BASELINE", "BASELINE_MU_EXCESS", "CAPSTAN_MU", "MATERIAL", "MATERIAL_BASELINE", "ParamSpec",
-           "StudyScales", "baseline_specs"]
+__all__ = ["BASELINE", "BASELINE_MU_EXCESS", "CAPSTAN_MU", "MATERIAL", "MATERIAL_BASELINE", "METRICS", "Observations",
+           "ParamSpec", "StudyScales", "angle_residuals", "baseline_specs", "choose_metric", "metric_unit", "observe",
+           "observe_study", "peak_regimes", "sample_mse", "tension_sigma", "tube_labels", "zero_tension_samples"]

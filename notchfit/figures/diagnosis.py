@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from ..causes import REGISTRY
-from ..diagnosis.results import metric_unit
+from ..estimation.observations import metric_unit
 from ..shapes import line_fit
 from ..units import MM
 from . import new_figure, save_png, write_csv

@@ -13,7 +13,8 @@ from ..batch import run_batch
 from ..friction import FrictionParams
 from ..friction_params import PARAM_KEYS
 from ..units import MM
-from .data import metric_unit, observe_study
+from ..estimation.observations import METRICS, metric_unit, observe_study
+from ..estimation.solve import se_values
 from .problem import Solution, errors, make_problem, predict, solve, with_values
 from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free,
                     parse_free, specs_for)
@@ -33,7 +34,7 @@ class TubeFit:
     Attributes
     ----------
     name : str
-        Tube label (:func:`notchfit.identify.data.tube_labels`).
+        Tube label (:func:`notchfit.estimation.observations.tube_labels`).
     experiments : tuple of str
     rest_angles, rest_se : ndarray (n,) [rad]
         Rest angles used (identified, or the geometry's) and their standard errors (NaN: not identified).
@@ -67,13 +68,13 @@ class TubeFit:
 class Identification:
     """The identified model of a study and how well it predicts experiments it never saw.
 
-    Errors are in the metric's unit: degrees (joint angles) or millimetres
+    Errors are in the metric's file unit (:attr:`unit`): degrees (joint angles) or millimetres
     (notch-point distances); an rms is over every measured value it covers
     (the "rms per notch" of the real-tube literature for angles).
 
     Attributes
     ----------
-    metric : {"deg", "mm"}
+    metric : {"angles", "points"}
     free : tuple of str
         The scalar free parameters (FrictionParams field names), in fit order.
     values, se : dict
@@ -119,6 +120,11 @@ class Identification:
     heldout_by_tube: dict = field(default_factory=dict)
     solution: Solution | None = field(default=None, repr=False)
 
+    @property
+    def unit(self) -> str:
+        """The file unit of the errors: ``"deg"`` (joint angles) or ``"mm"`` (notch points)."""
+        return METRICS[self.metric]
+
     def as_dict(self) -> dict:
         """The ``identify.json`` mapping (docs/data-formats.md): file keys with units, per-tube values."""
         key = PARAM_KEYS
@@ -131,7 +137,7 @@ class Identification:
             "free_per_tube": [tube_keys[f] for f in self.tube_free],
             "params": {key[f]: self.values[f] for f in self.free},
             "se": {key[f]: self.se[f] for f in self.free},
-            "metric": self.metric, "train_rms": self.train_rms, "heldout_rms": self.heldout_rms,
+            "metric": self.unit, "train_rms": self.train_rms, "heldout_rms": self.heldout_rms,
             "heldout": dict(self.heldout), "train": dict(self.train),
             "heldout_by_geometry": dict(self.heldout_by_tube),
             "tubes": {t: f.as_dict() for t, f in self.tubes.items()},
@@ -259,7 +265,7 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     -------
     Identification
     """
-    obs = observe_study(exps)
+    obs = observe_study(exps, prefer="angles", who="identify")
     base = _base_models(obs, model)
     free = parse_free(free) if free is not None else default_free(list(base.values()), [o.geom for o in obs])
     first = next(iter(base.values()))
@@ -298,9 +304,9 @@ def _tube_fits(obs, pb, sol, fitted) -> dict:
 def _result(obs, base, free, excess, tasks, outs) -> Identification:
     """Collect the full fit and the held-out predictions."""
     pb, sol, fitted, _ = outs[0]
-    unit = metric_unit(obs[0].metric)
+    _, unit = metric_unit(obs[0].metric)
     vals = pb.values(sol.x)
-    se = {s.name: (vals[s.name] * sol.se[i] if s.log else sol.se[i]) for i, s in enumerate(pb.specs)}
+    se = se_values(pb, sol.x, sol.se)
     tubes = _tube_fits(obs, pb, sol, fitted)
     train_err = {o.name: errors(o, predict(o, fitted[o.tube])) for o in obs}
     held, by_tube = {}, {}
