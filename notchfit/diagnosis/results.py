@@ -237,6 +237,16 @@ class Diagnosis:
         """Key of the extended model's held-out predictions in :attr:`heldout` (``"baseline"`` if none)."""
         return model_key(self.extended.cause) if self.extended is not None else "baseline"
 
+    def summary(self) -> str:
+        """What ``notchfit diagnose`` prints: the named cause(s) and the held-out rms of the baseline and the
+        extended model, in the metric's file unit."""
+        u, f = metric_unit(self.metric)
+        g = self.gain
+        causes = f" (causes: {', '.join(self.causes)})" if len(self.causes) > 1 else ""
+        return (f"cause: {self.cause}{causes}\n"
+                f"held-out rms: baseline {g.baseline / f:.3f} {u}, extended {g.extended / f:.3f} {u} "
+                f"({g.reduction_pct:.1f}% lower)")
+
     def to_dict(self, *, extended_model_file: str | None = None, figures=None) -> dict:
         """The content of ``diagnosis.json`` (docs/data-formats.md).
 

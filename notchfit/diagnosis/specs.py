@@ -14,6 +14,7 @@ from __future__ import annotations
 from ..causes import CAUSES, REGISTRY
 from ..estimation.specs import (BASELINE, BASELINE_MU_EXCESS, MATERIAL_BASELINE, ParamSpec, StudyScales,
                                 baseline_specs)
+from ..estimation.problem import with_values
 from ..friction import FrictionParams
 
 __all__ = [
@@ -88,5 +89,5 @@ def model_params(values: dict, base: FrictionParams | None = None) -> tuple[Fric
     warp = {k: v.pop(k) for k in WARP_PARAMS if k in v}
     excess = v.pop("mu_s_excess", BASELINE_MU_EXCESS)
     base = base or FrictionParams()
-    v["mu_s"] = v.get("mu_d", base.mu_d) + excess
-    return base.replace(**v), warp
+    v.setdefault("mu_d", base.mu_d)
+    return with_values(base, v, excess), warp

@@ -12,9 +12,9 @@ from threadpoolctl import threadpool_limits
 from ..batch import run_batch
 from ..friction import FrictionParams
 from ..friction_params import PARAM_KEYS
-from ..units import MM
+from ..units import DEG, MM
 from ..estimation.observations import METRICS, metric_unit, observe_study
-from ..estimation.solve import se_values
+from ..estimation.solve import folds, se_values, tube_folds
 from .problem import Solution, errors, make_problem, predict, solve, with_values
 from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free,
                     parse_free, specs_for)
@@ -125,6 +125,25 @@ class Identification:
         """The file unit of the errors: ``"deg"`` (joint angles) or ``"mm"`` (notch points)."""
         return METRICS[self.metric]
 
+    def summary(self) -> str:
+        """What ``notchfit identify`` prints: the identified values with their standard errors, each tube's
+        per-notch values, and the training and held-out errors (in :attr:`unit`)."""
+        unit, data = self.unit, self.as_dict()
+        lines = [f"identify: {len(self.experiment_tubes)} experiments, {len(self.tubes)} tube(s), errors in {unit}"]
+        lines += [f"  {key:18s} = {v:.5g} ± {data['se'][key]:.2g}" for key, v in data["params"].items()]
+        for tube, fit in self.tubes.items():
+            if REST in self.tube_free:
+                lines.append(f"  {tube}: rest angles [deg] " + ", ".join(f"{v / DEG:.2f}" for v in fit.rest_angles))
+            if DEPTH in self.tube_free:
+                lines.append(f"  {tube}: cut depths [mm] " + ", ".join(f"{v / MM:.4f}" for v in fit.slot_depths))
+        held = "" if math.isnan(self.heldout_rms) else (f"; held-out rms {self.heldout_rms:.3f} {unit} "
+                                                        "(each experiment predicted by a model fitted without it)")
+        lines.append(f"train rms {self.train_rms:.3f} {unit}{held}")
+        lines += [f"  {name:12s} held out {v:.3f} {unit}" for name, v in self.heldout.items()]
+        lines += [f"  tube {tube}: predicted from the other tubes' fit {v:.3f} {unit}"
+                  for tube, v in self.heldout_by_tube.items()]
+        return "\n".join(lines)
+
     def as_dict(self) -> dict:
         """The ``identify.json`` mapping (docs/data-formats.md): file keys with units, per-tube values."""
         key = PARAM_KEYS
@@ -212,16 +231,18 @@ def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool
     idx = tuple(range(len(obs)))
     rest = (base, free, start, excess, options)
     keys, tasks = ["all"], [_Task("all", obs, idx, (), *rest)]
+
+    def held_out(kind, test):
+        test = tuple(int(i) for i in test)
+        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, *rest)
+
     if heldout and len(obs) > 1:
-        for i, o in enumerate(obs):
-            keys.append(f"without {o.name}")
-            tasks.append(_Task("experiment", obs, tuple(j for j in idx if j != i), (i,), *rest))
-    tubes = list(dict.fromkeys(o.tube for o in obs))
-    if by_tube and len(tubes) > 1:
-        for t in tubes:
-            keys.append(f"without tube {t}")
-            tasks.append(_Task("tube", obs, tuple(j for j in idx if obs[j].tube != t),
-                               tuple(j for j in idx if obs[j].tube == t), *rest))
+        for f in folds(len(obs)):
+            keys.append(f"without {obs[f[0]].name}")
+            tasks.append(held_out("experiment", f))
+    for t, f in (tube_folds(obs) if by_tube else {}).items():
+        keys.append(f"without tube {t}")
+        tasks.append(held_out("tube", f))
     return keys, tasks
 
 
