@@ -215,17 +215,31 @@ def test_standard_errors_of_a_linear_problem(rng):
     assert se == pytest.approx(ols, rel=0.25)            # the jackknife agrees for homoscedastic noise
 
 
-def test_simulate_angles_is_simulate_theta(one_wrist):
-    """The identification's inner loop, friction.simulate_angles, returns simulate's angles bit for bit
-    (Sec. IV-B, fast and reference solvers, with solver options)."""
-    from notchfit.friction import simulate, simulate_angles
-    e = one_wrist[0]
-    p = default_params(e.geometry).replace(mu_d=0.1, mu_s=0.11, slot_depth_offset=(0.0, 5e-6, 0.0, -5e-6, 0.0))
-    for kw in ({}, {"dtheta_max": 2e-3}, {"method": "reference", "dt": 2e-4}):
-        a = simulate_angles(e.time, None, e.tension_right, p, e.geometry, **kw)
-        assert np.array_equal(a, simulate(e.time, None, e.tension_right, p, e.geometry, **kw).theta)
+@pytest.mark.parametrize("name", ["wrist_asymmetric", "default"])
+def test_simulate_angles_rests_where_the_frictionless_statics_put_it(name):
+    """The identification's inner loop against a closed form: without friction every sample of a step
+    protocol rests where each joint's spring balances its tendon torques, τ_j(θ_j − θ0_j) = a_R,j T_R −
+    a_L,j T_L (docs/models.md, "Real tubes: mechanics"), solved by inverting the piecewise-linear spring
+    (PiecewiseLinearSpring.angle), not by the time-stepping solver; for a one-tendon wrist and the seed tube."""
+    from notchfit.cables import LEFT, RIGHT
+    from notchfit.friction import simulate_angles
+    geom = io.load_geometry(io.datasets_dir() / "geometry" / f"{name}.toml")
+    p = default_params(geom).replace(mu_d=0.0, mu_s=0.0)
+    peak = 2.5 if geom.backbone == "section" else 20.0
+    t = np.arange(1.0, 12.0) * 5.0
+    TR = np.r_[np.linspace(0.0, peak, 6), np.linspace(peak, 0.0, 6)[1:]]
+    TL = np.full_like(TR, 0.5) if "left" in geom.tendons else None
+    theta = simulate_angles(t, TL, TR, p, geom)
+    torque = np.outer(TR, np.abs(geom.moment_arms(RIGHT)))
+    if TL is not None:
+        torque -= np.outer(TL, np.abs(geom.moment_arms(LEFT)))
+    spring = p.joint_spring(geom)
+    expected = p.rest_angles(geom) + spring.angle(torque)
+    np.testing.assert_allclose(theta, expected, rtol=0, atol=1e-12)
+    # the loads pass the spring's first break: its plateau is checked, not only its linear part
+    assert np.all(np.abs(expected - p.rest_angles(geom)).max(axis=0) > np.atleast_2d(spring.breaks)[:, 0])
     with pytest.raises(TypeError, match="unknown option"):
-        simulate_angles(e.time, None, e.tension_right, p, e.geometry, tension_tol=0.1)
+        simulate_angles(t, TL, TR, p, geom, tension_tol=0.1)
 
 
 def test_model_file_fixes_what_is_not_free(one_wrist, tmp_path):
