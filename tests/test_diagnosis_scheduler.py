@@ -14,7 +14,7 @@ from notchfit.synth import generate_study, load_recipe
 
 # as tests/test_diagnosis_hidden.py: 4 experiments, 9 + 11 samples each, two folds
 SMALL = dict(n_experiments=4, n_up=8, n_down=10)
-ARGS = ["--no-figures", "--max-folds", "2", "--causes", "proximal_friction,external_load"]
+ARGS = ["--no-figures", "--max-folds", "2", "--causes", "proximal_friction", "--one-cause"]
 
 
 @pytest.fixture(scope="module")

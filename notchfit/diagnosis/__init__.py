@@ -23,13 +23,16 @@ Given measured experiments (tensions, and notch points or joint angles),
    overall and per regime.
 
 The analysis returns a :class:`Diagnosis` and writes nothing; it never reads
-a study's ``truth.json``. Modules:
+a study's ``truth.json``. It runs on the estimation core
+(:mod:`notchfit.estimation`: the experiments' observations, the least-squares
+problem, standard errors, folds, the noise floor), which ``identify`` shares;
+each candidate cause is one record of :mod:`notchfit.causes`. Modules:
 
 =================  ==========================================================
-``specs``          candidate causes and their fitted parameters
+``specs``          the models (baseline plus causes) and their fitted parameters
 ``scope``          the study's base model, applicable candidates, protocol
 ``calibration``    predicted measurements, model calibration
-``noise``          noise floor, paired significance, pooled rms
+``noise``          paired significance, pooled rms
 ``crossval``       folds and the (model × fold) fan-out (processes or Dask)
 ``signatures``     what the held-out baseline gets wrong
 ``decision``       ranking, decision rule, explanation
