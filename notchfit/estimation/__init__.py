@@ -13,11 +13,18 @@ It returns objects and writes nothing; it sits below :mod:`notchfit.identify`
 and :mod:`notchfit.diagnosis` and imports neither.
 """
 
+from .noise import noise_floor
 from .observations import (METRICS, Observations, angle_residuals, choose_metric, metric_unit, observe,
                            observe_study, peak_regimes, sample_mse, tension_sigma, tube_labels, zero_tension_samples)
+from .problem import Block, Problem, Simulations, measure_registered, predict, whitened, with_values
+from .solve import (Solution, best_probe_starts, folds, forward_jacobian, grid_starts, se_values, solve,
+                    standard_errors, tube_folds)
 from .specs import (BASELINE, BASELINE_MU_EXCESS, CAPSTAN_MU, MATERIAL, MATERIAL_BASELINE, ParamSpec, StudyScales,
                     baseline_specs)
 
-__all__ = ["BASELINE", "BASELINE_MU_EXCESS", "CAPSTAN_MU", "MATERIAL", "MATERIAL_BASELINE", "METRICS", "Observations",
-           "ParamSpec", "StudyScales", "angle_residuals", "baseline_specs", "choose_metric", "metric_unit", "observe",
-           "observe_study", "peak_regimes", "sample_mse", "tension_sigma", "tube_labels", "zero_tension_samples"]
+__all__ = ["BASELINE", "BASELINE_MU_EXCESS", "CAPSTAN_MU", "MATERIAL", "MATERIAL_BASELINE", "METRICS", "Block",
+           "Observations", "ParamSpec", "Problem", "Simulations", "Solution", "StudyScales", "angle_residuals",
+           "baseline_specs", "best_probe_starts", "choose_metric", "folds", "forward_jacobian", "grid_starts",
+           "measure_registered", "metric_unit", "noise_floor", "observe", "observe_study", "peak_regimes", "predict",
+           "sample_mse", "se_values", "solve", "standard_errors", "tension_sigma", "tube_folds", "whitened",
+           "with_values", "zero_tension_samples"]
