@@ -39,9 +39,9 @@ def main(argv=None) -> int:
     ap.add_argument("after", type=Path)
     ap.add_argument("script")
     ap.add_argument("--rounds", type=int, default=2)
-    ap.add_argument("args", nargs=argparse.REMAINDER)
-    a = ap.parse_args(argv)
-    extra = a.args[1:] if a.args[:1] == ["--"] else a.args
+    argv = list(sys.argv[1:] if argv is None else argv)
+    extra = argv[argv.index("--") + 1:] if "--" in argv else []
+    a = ap.parse_args(argv[:argv.index("--")] if "--" in argv else argv)
     trees = {"before": a.before.resolve(), "after": a.after.resolve()}
     totals = {k: [] for k in trees}
     for r in range(a.rounds):
