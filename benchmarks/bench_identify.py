@@ -33,7 +33,8 @@ from scipy.optimize import least_squares
 
 from notchfit import io
 from notchfit.friction import simulate
-from notchfit.identify import default_free, identify, make_problem, observe_study
+from notchfit.estimation import observe_study
+from notchfit.identify import default_free, identify, make_problem
 from notchfit.identify.problem import whitened
 from notchfit.identify.specs import base_model, specs_for
 from notchfit.identify.study import FIT_SOLVER
@@ -58,7 +59,7 @@ def reference_fit(exps):
     """The same unknowns (4 scalars, 5 rest angles, 5 cut depths, the same prior) fitted the straightforward
     way: scipy least_squares with its own 2-point differences, one start, friction.simulate with its default
     options and every output built, no cache."""
-    obs = observe_study(exps)
+    obs = observe_study(exps, prefer="angles")
     base = {o.tube: base_model(o.geom) for o in obs}
     specs = specs_for(default_free(list(base.values()), [o.geom for o in obs]), list(base.values()))
     pb = make_problem(obs, base, specs, rest=True, depth=True, excess=0.01)
@@ -98,7 +99,7 @@ def main(argv=None):
               f"{t_ref / t_one:.2f}; per evaluation {t_one / r1.solution.nfev * 1e3:.2f} vs "
               f"{t_ref / nfev * 1e3:.2f} ms; reference E_se {ref_vals['E_se']:.4g}")
         err = 0.0
-        for o in observe_study(exps):
+        for o in observe_study(exps, prefer="angles"):
             a = simulate(o.time, None, o.tension_right, r1.model, o.geom).theta
             b = simulate(o.time, None, o.tension_right, r1.model, o.geom, **FIT_SOLVER).theta
             err = max(err, float(np.abs(a - b).max()))

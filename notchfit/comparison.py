@@ -18,8 +18,9 @@ comparison is in angle space (:func:`compare_angles`): the residual
 ``θ_sim − θ_meas`` of every measured joint and sample, its rms per sample, per
 joint and overall, and the shape summary ``a``, ``b`` of the measured angles
 (the linear model fitted to them, :func:`notchfit.fitting.fit_angles`).
-:func:`angle_residuals` and :func:`angle_rms` are the one home of the angle
-residual and its rms (``simulate``, ``identify``; the diagnosis on angle data).
+:func:`angle_residuals` (the estimation core's, :mod:`notchfit.estimation`, which
+``identify`` and ``diagnose`` fit with) and :func:`angle_rms` are the one home of the
+angle residual and its rms.
 
 Returns objects and writes nothing; :func:`comparison_table` and
 :func:`angle_comparison_table` are the ``simulation_vs_measured.csv`` and
@@ -33,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from .estimation.observations import angle_residuals
 from .fitting import PlaneTransform, fit_angles, fit_experiment
 from .notches import notch_points
 from .shapes import line_fit
@@ -144,22 +146,6 @@ def comparison_table(comp: SimulationComparison, result) -> pd.DataFrame:
         "tension_right_N": np.asarray(result.input_right), "regime": np.asarray(result.regime).astype(str),
         "a_meas": comp.a_meas, "b_meas": comp.b_meas, "a_sim": comp.a_sim, "b_sim": comp.b_sim,
         "point_rms_mm": comp.point_rms / MM, "point_max_mm": comp.point_max / MM})
-
-
-def angle_residuals(theta_pred, theta_meas) -> np.ndarray:
-    """``θ_pred − θ_meas`` [rad] (..., n), NaN where the angle was not measured.
-
-    Parameters
-    ----------
-    theta_pred : array_like, shape (..., n) [rad]
-    theta_meas : array_like, shape (..., n) [rad]
-        NaN = not measured.
-    """
-    pred = np.asarray(theta_pred, dtype=float)
-    meas = np.asarray(theta_meas, dtype=float)
-    if pred.shape != meas.shape:
-        raise ValueError(f"predicted and measured angles differ in shape: {pred.shape} vs {meas.shape}")
-    return np.where(np.isfinite(meas), pred - meas, np.nan)
 
 
 def angle_rms(residuals, axis=None):

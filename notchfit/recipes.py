@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .causes import REGISTRY
 from .friction import FrictionParams
 from .io import TomlError, datasets_dir, load_toml
 from .paper import FRICTION_K_LIN, FRICTION_K_MID, MU_D, MU_S
@@ -43,25 +44,14 @@ __all__ = [
 ]
 
 #: Cause ids of docs/data-formats.md and the recipe/truth fields of each law that can produce the
-#: effect (the first is the cause's default). Joint hysteresis: the play of the candidate family
-#: (``hysteresis_torque``; with ``hysteresis_onset`` and ``hysteresis_yield`` the whole family), or
-#: the generator's laws that no candidate fits: Bouc-Wen loops and a two-branch superelastic plateau.
-EFFECT_LAWS = {
-    "none": ((),),
-    "proximal_friction": (("proximal_beta",),),
-    "static_friction": (("mu_s_excess",),),
-    "joint_hysteresis": (("hysteresis_torque",), ("hysteresis_torque", "hysteresis_onset", "hysteresis_yield"),
-                         ("bouc_wen_torque", "bouc_wen_stiffness"), ("superelastic_gap",)),
-    "external_load": (("tip_force_x", "tip_force_z"),),
-    "stiffness_gradient": (("stiffness_gradient",),),
-    "calibration_error": (("scale_error", "k_radial"),),
-}
+#: effect (the first is the cause's default): :attr:`notchfit.causes.Cause.laws`.
+EFFECT_LAWS = {"none": ((),), **{c.id: c.laws for c in REGISTRY.values()}}
 #: Each cause's default law's fields.
 EFFECT_FIELDS = {c: laws[0] for c, laws in EFFECT_LAWS.items()}
 CAUSES = tuple(c for c in EFFECT_FIELDS if c != "none")
 #: Effect fields that are :class:`notchfit.friction.FrictionParams` fields of the truth.
-_MODEL_EFFECTS = ("proximal_beta", "hysteresis_torque", "hysteresis_onset", "hysteresis_yield", "bouc_wen_torque",
-                  "bouc_wen_stiffness", "superelastic_gap", "tip_force_x", "tip_force_z", "stiffness_gradient")
+_MODEL_EFFECTS = tuple(dict.fromkeys(k for laws in EFFECT_LAWS.values() for law in laws for k in law
+                                    if k in {f.name for f in dataclasses.fields(FrictionParams)}))
 _BASE_FIELDS = ("k_lin", "k_mid", "mu_d", "E_lin", "E_se", "strain_lower")
 #: Old names of effect fields, still read (recipe files and :meth:`Recipe.replace`).
 EFFECT_ALIASES = {"static_excess": "mu_s_excess"}

@@ -75,6 +75,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -105,6 +106,7 @@ __all__ = [
     "SynthStudy",
     "bend_unbend_protocol",
     "generate_study",
+    "render_study_images",
     "list_recipes",
     "load_recipe",
     "recipe_from_dict",
@@ -477,7 +479,7 @@ def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool
     Parameters
     ----------
     images : bool, optional
-        Render one image per sample of the true shape (:func:`notchfit.render.render_study_images`,
+        Render one image per sample of the true shape (:func:`render_study_images`,
         one camera for the study, ``OUT/calibration/camera.yml``); default: the recipe's
         ``[images] render``. The experiments then hold images and no ``notch_points.csv``:
         their points are what ``notchfit detect`` finds. Not available with a
@@ -550,10 +552,75 @@ def _study_geometry_files(study: SynthStudy) -> dict[str, str]:
 
 def _render_images(study: SynthStudy, run, *, jobs: int = 1) -> str:
     """Render every sample's image; returns the calibration path relative to an experiment folder."""
-    from . import render  # slow optional dependency: the renderer imports cv2
+    return render_study_images(study, run.path("calibration"), experiment_dir=lambda name: run.path(name),
+                               jobs=jobs, **study.recipe.image_options)
 
-    return render.render_study_images(study, run.path("calibration"), experiment_dir=lambda name: run.path(name),
-                                      jobs=jobs, **study.recipe.image_options)
+
+def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_per_px: float = 0.03,
+                        seed: int | None = None, **render_kw) -> str:
+    """Render one image per sample of a synthetic study (for ``notchfit synth``).
+
+    One camera serves the whole study (its plane frame is the study's plane
+    frame): :func:`notchfit.render.camera_for_shapes` over every sample's true
+    shape and plane transform. (Here, above the file I/O, not in the renderer:
+    vision sits below I/O and writes nothing.) Writes ``calib_dir/camera.yml`` and
+    ``experiment_dir(name)/images/NNNN.png`` per sample.
+
+    Parameters
+    ----------
+    study : notchfit.synth.SynthStudy
+    calib_dir : path
+    experiment_dir : callable name -> path
+    jobs : int
+        Worker processes.
+    mm_per_px : float
+    seed : int, optional
+        Noise seed (default: the study's seed).
+    **render_kw : passed to :func:`notchfit.render.render_manipulator` (blur_sigma, noise, ...).
+
+    Returns
+    -------
+    str
+        The camera file's path relative to an experiment folder
+        (``../calibration/camera.yml`` for the synth layout).
+    """
+    from .render import camera_for_shapes, pivot_closure_angles  # slow optional dependency: cv2
+
+    geom = study.geometry
+    thetas, planes, keys = [], [], []
+    for e in study.experiments:
+        pl = (e.plane["tx"], e.plane["ty"], e.plane["phi"], e.plane["mirror"])
+        for s, th in zip(e.samples["sample"], e.theta):
+            thetas.append(th)
+            planes.append(pl)
+            keys.append((e.name, int(s)))
+    closure = pivot_closure_angles(geom)
+    clip = np.clip(np.asarray(thetas, float), -closure, closure)
+    cam, _ = camera_for_shapes(clip, geom, mm_per_px=mm_per_px, planes=planes)
+    calib_dir = Path(calib_dir)
+    calib_dir.mkdir(parents=True, exist_ok=True)
+    io.write_camera(cam, calib_dir / "camera.yml")
+    base = int(study.seed if seed is None else seed)
+    items = []
+    for k, ((name, s), th, pl) in enumerate(zip(keys, clip, planes)):
+        out = Path(experiment_dir(name)) / "images" / f"{s:04d}.png"
+        items.append((th, geom, cam, pl, [base, k], out, render_kw))
+    res = run_batch(_render_one, items, keys=[f"{n}/{s}" for n, s in keys], jobs=jobs, desc="render",
+                    unit="images")
+    if res.failures:
+        raise ValueError("rendering failed: " + "; ".join(f"{r.key}: {r.error}" for r in res.failures[:5]))
+    return Path(os.path.relpath(calib_dir / "camera.yml", Path(experiment_dir(keys[0][0])))).as_posix() \
+        if keys else str(calib_dir / "camera.yml")
+
+
+def _render_one(item):
+    """Render and write one sample's image (a batch item)."""
+    from .render import render_manipulator
+
+    th, geom, cam, pl, seed, out, kw = item
+    r = render_manipulator(th, geom, cam, plane=pl, rng=np.random.default_rng(seed), **kw)
+    io.write_image(out, r.image, png="noisy")       # lossless; noise-dominated: Huffman only
+    return str(out)
 
 
 def generate_study(recipe, out_dir, *, seed: int | None = None, force: bool = False, jobs: int = 1,

@@ -19,7 +19,19 @@ PHYSICS = ("geometry", "kinematics", "notches", "cables", "springs", "statics", 
            "_friction_kernels", "_hysteresis_kernels", "_spring_kernels", "friction_params", "predictor", "shapes",
            "units", "validation", "paper", "polygon", "section")
 #: analysis: returns objects, writes nothing.
-ANALYSIS = ("fitting", "diagnosis", "identify")
+ANALYSIS = ("fitting", "estimation", "causes", "comparison", "diagnosis", "identify")
+#: the estimation core, one floor below both engines (identify, diagnosis).
+ESTIMATION = ("estimation",)
+ENGINES = ("identify", "diagnosis")
+#: vision: cameras, images, rendering and detection, below the file I/O (they read and write no files).
+VISION = ("camera", "imaging", "render", "detection", "warp")
+#: what vision and the estimation core must not import: the file I/O and everything above it.
+ABOVE_ANALYSIS = ("notchfit.io", "notchfit.batch", "notchfit.commands", "notchfit.cli", "notchfit.figures",
+                  "notchfit.report", "notchfit.synth", "notchfit.recipes")
+MAX_MODULE_LINES = 800
+#: modules that may exceed the module length limit: the numba kernels of the friction solvers
+#: (each time loop kept whole for the compiler, with the helpers it inlines).
+LONG_MODULES_ALLOWED = ("_friction_kernels",)
 #: modules whose functions may exceed the length limit: the numba kernels (one
 #: time loop each, kept whole for the compiler).
 LONG_FUNCTIONS_ALLOWED = ("_friction_kernels",)
@@ -144,6 +156,46 @@ def test_analysis_writes_nothing():
     for m, deps in _layer_members(ANALYSIS).items():
         bad = sorted(d for d in deps if any(d == a or d.startswith(a + ".") for a in above))
         assert not bad, f"{m} (analysis) imports {bad}"
+
+
+def _bad(deps, forbidden) -> list[str]:
+    return sorted(d for d in deps if any(d == a or d.startswith(a + ".") for a in forbidden))
+
+
+def test_estimation_sits_below_both_engines():
+    """The estimation core imports neither engine nor anything above the analysis; both engines build on it
+    and neither imports the other."""
+    engines = tuple(f"notchfit.{e}" for e in ENGINES)
+    for m, deps in _layer_members(ESTIMATION).items():
+        bad = _bad(deps, engines + ABOVE_ANALYSIS + ("notchfit.causes", "notchfit.comparison"))
+        assert not bad, f"{m} (estimation core) imports {bad}"
+    for engine in ENGINES:
+        members = _layer_members((engine,))
+        uses = {d for deps in members.values() for d in deps if d.startswith("notchfit.estimation")}
+        assert uses, f"notchfit.{engine} does not build on notchfit.estimation"
+        other = tuple(f"notchfit.{e}" for e in ENGINES if e != engine)
+        for m, deps in members.items():
+            assert not _bad(deps, other), f"{m} imports the other engine: {_bad(deps, other)}"
+
+
+def test_vision_sits_below_file_io():
+    """Cameras, rendering and detection import no file I/O, batch runner or anything above them."""
+    for m, deps in _layer_members(VISION).items():
+        bad = _bad(deps, ABOVE_ANALYSIS)
+        assert not bad, f"{m} (vision) imports {bad}"
+
+
+def test_layer_checks_catch_a_violation():
+    """The layer helpers see a forbidden edge (a check that could not fail would prove nothing)."""
+    assert _bad({"notchfit.io.outputs", "notchfit.geometry"}, ABOVE_ANALYSIS) == ["notchfit.io.outputs"]
+    assert _bad({"notchfit.iota"}, ("notchfit.io",)) == []
+
+
+def test_no_module_longer_than_the_limit():
+    long = [f"{name}: {n} lines" for name, path in all_modules().items()
+            if name.rpartition(".")[2] not in LONG_MODULES_ALLOWED
+            and (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES]
+    assert not long, "modules over the limit: " + "; ".join(long)
 
 
 def test_commands_do_not_import_the_cli():

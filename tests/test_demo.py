@@ -1,4 +1,9 @@
-"""`notchfit demo` end to end (issue 7 item 6) and what a researcher sees of it (issue 17), at the small size."""
+"""`notchfit demo` end to end (issue 7 item 6) and what a researcher sees of it (issue 17), at the small size.
+
+Slow job: the demo runs a whole study (synthesis, fits, simulations, a diagnosis against every
+candidate, the report), about 100 s on a shared 2-core machine; the default job covers its parts
+(tests/test_diagnosis_hidden.py, tests/test_report.py, tests/test_cli_pipeline.py).
+"""
 import contextlib
 import io
 import re
@@ -8,6 +13,8 @@ from test_report import b_signs, check_self_standing, sections
 from test_report_wrists import check_in_browser, needs_chromium
 
 from notchfit.cli import main
+
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")

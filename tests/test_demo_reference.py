@@ -11,6 +11,8 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import pytest
+
 
 SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "compare_demo.py"
 
@@ -35,6 +37,7 @@ def test_comparison_detects_a_changed_number(tmp_path):
     assert mod.compare_trees(ref, ref, 1e-9) == []
 
 
+@pytest.mark.slow
 def test_small_demo_reproduces_the_reference(tmp_path):
     mod = _module()
     out = tmp_path / "demo"

@@ -8,12 +8,13 @@ import pytest
 
 from notchfit.cli import main
 from notchfit.diagnosis import noise_floor, prepare_experiment
+from notchfit.friction import FrictionParams
 from notchfit.io import read_study
 from notchfit.synth import generate_study, load_recipe
 
 # as tests/test_diagnosis_hidden.py: 4 experiments, 9 + 11 samples each, two folds
 SMALL = dict(n_experiments=4, n_up=8, n_down=10)
-ARGS = ["--no-figures", "--max-folds", "2", "--causes", "proximal_friction,external_load"]
+ARGS = ["--no-figures", "--max-folds", "2", "--causes", "proximal_friction", "--one-cause"]
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +57,7 @@ def test_dask_cluster_gives_the_serial_diagnosis(study, tmp_path):
 def test_seed_reaches_the_noise_floor(study):
     prep = prepare_experiment(read_study(study)[0])
     assert prep.tension_sigma > 0
-    vals = {"k_lin": 0.4829, "k_mid": 0.25, "mu_d": 0.29}
+    vals = FrictionParams().replace(k_lin=0.4829, k_mid=0.25, mu_d=0.29)
     f0 = noise_floor(prep, vals, seed=0)
     np.testing.assert_array_equal(f0, noise_floor(prep, vals, seed=0))
     assert not np.array_equal(f0, noise_floor(prep, vals, seed=1))

@@ -182,7 +182,7 @@ def test_recorded_protocol_is_used_and_missing_one_is_said():
 
 def test_angle_metric_in_the_file():
     from notchfit.diagnosis import CandidateResult, Gain
-    from notchfit.diagnosis.prepare import choose_metric
+    from notchfit.estimation import choose_metric
     from notchfit.units import DEG
 
     d = CandidateResult("joint_hysteresis", {}, 3, DEG, 2 * DEG, 0.0, 4.0, 0.5, True).to_dict("angles")

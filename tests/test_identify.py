@@ -19,10 +19,10 @@ import pytest
 
 from notchfit import io
 from notchfit.cli import main
+from notchfit.estimation import choose_metric, observe_study, tube_labels
 from notchfit.friction import default_params
+from notchfit.identify import default_free, identify, parse_free, zero_tension_samples
 from notchfit.io import load_params
-from notchfit.identify import default_free, identify, observe_study, parse_free, study_metric, zero_tension_samples
-from notchfit.identify.data import tube_labels
 from notchfit.identify.problem import standard_errors
 from notchfit.recipes import recipe_from_dict
 from notchfit.synth import generate_study
@@ -76,7 +76,7 @@ def test_identify_recovers_the_material_of_a_synthetic_wrist(one_wrist):
     and mu_d within 3 SE of the truth; each trial predicted by a model fitted on the other two within
     15 % of the 0.5 deg angle noise (pooled), and no trial worse than 1.5x the noise."""
     res = identify(one_wrist)
-    assert res.metric == "deg" and res.free == ("E_lin", "E_se", "strain_lower", "mu_d")
+    assert res.metric == "angles" and res.unit == "deg" and res.free == ("E_lin", "E_se", "strain_lower", "mu_d")
     assert res.tube_free == ("rest_angle", "slot_depth")
     for name, truth in TRUTH.items():
         assert abs(res.values[name] - truth) <= 3.0 * res.se[name], (name, res.values[name], res.se[name])
@@ -166,14 +166,14 @@ def test_free_names_defaults_and_tubes(geom):
 def test_metric_rest_samples_and_model_rest_angles(one_wrist, tmp_path):
     """One metric per study; the rest samples are the zero-tension ones before the first load; a model's
     rest angles (rest_angle_rad) round-trip through model.toml and must fit the tube."""
-    obs = observe_study(one_wrist)
+    obs = observe_study(one_wrist, prefer="angles")
     idx = zero_tension_samples(obs[0])
     assert idx.size >= 1 and np.all(obs[0].tension_right[idx] <= 3 * obs[0].tension_sigma)
     assert np.all(np.diff(idx) == 1) and idx[0] == 0
     mixed = [one_wrist[0], io.with_points(one_wrist[1].__class__(**{**one_wrist[1].__dict__, "angles": None}),
                                           np.zeros((one_wrist[1].n_samples, 14, 2)))]
     with pytest.raises(ValueError, match="one kind of measurement"):
-        study_metric(mixed)
+        choose_metric(mixed, prefer="angles", who="identify")
     p = default_params(one_wrist[0].geometry).replace(rest_angle=(0.01, 0.02, 0.0, -0.01, 0.03))
     io.save_params(p, tmp_path / "m.toml")
     assert load_params(tmp_path / "m.toml") == p
@@ -215,17 +215,31 @@ def test_standard_errors_of_a_linear_problem(rng):
     assert se == pytest.approx(ols, rel=0.25)            # the jackknife agrees for homoscedastic noise
 
 
-def test_simulate_angles_is_simulate_theta(one_wrist):
-    """The identification's inner loop, friction.simulate_angles, returns simulate's angles bit for bit
-    (Sec. IV-B, fast and reference solvers, with solver options)."""
-    from notchfit.friction import simulate, simulate_angles
-    e = one_wrist[0]
-    p = default_params(e.geometry).replace(mu_d=0.1, mu_s=0.11, slot_depth_offset=(0.0, 5e-6, 0.0, -5e-6, 0.0))
-    for kw in ({}, {"dtheta_max": 2e-3}, {"method": "reference", "dt": 2e-4}):
-        a = simulate_angles(e.time, None, e.tension_right, p, e.geometry, **kw)
-        assert np.array_equal(a, simulate(e.time, None, e.tension_right, p, e.geometry, **kw).theta)
+@pytest.mark.parametrize("name", ["wrist_asymmetric", "default"])
+def test_simulate_angles_rests_where_the_frictionless_statics_put_it(name):
+    """The identification's inner loop against a closed form: without friction every sample of a step
+    protocol rests where each joint's spring balances its tendon torques, τ_j(θ_j − θ0_j) = a_R,j T_R −
+    a_L,j T_L (docs/models.md, "Real tubes: mechanics"), solved by inverting the piecewise-linear spring
+    (PiecewiseLinearSpring.angle), not by the time-stepping solver; for a one-tendon wrist and the seed tube."""
+    from notchfit.cables import LEFT, RIGHT
+    from notchfit.friction import simulate_angles
+    geom = io.load_geometry(io.datasets_dir() / "geometry" / f"{name}.toml")
+    p = default_params(geom).replace(mu_d=0.0, mu_s=0.0)
+    peak = 2.5 if geom.backbone == "section" else 20.0
+    t = np.arange(1.0, 12.0) * 5.0
+    TR = np.r_[np.linspace(0.0, peak, 6), np.linspace(peak, 0.0, 6)[1:]]
+    TL = np.full_like(TR, 0.5) if "left" in geom.tendons else None
+    theta = simulate_angles(t, TL, TR, p, geom)
+    torque = np.outer(TR, np.abs(geom.moment_arms(RIGHT)))
+    if TL is not None:
+        torque -= np.outer(TL, np.abs(geom.moment_arms(LEFT)))
+    spring = p.joint_spring(geom)
+    expected = p.rest_angles(geom) + spring.angle(torque)
+    np.testing.assert_allclose(theta, expected, rtol=0, atol=1e-12)
+    # the loads pass the spring's first break: its plateau is checked, not only its linear part
+    assert np.all(np.abs(expected - p.rest_angles(geom)).max(axis=0) > np.atleast_2d(spring.breaks)[:, 0])
     with pytest.raises(TypeError, match="unknown option"):
-        simulate_angles(e.time, None, e.tension_right, p, e.geometry, tension_tol=0.1)
+        simulate_angles(t, TL, TR, p, geom, tension_tol=0.1)
 
 
 def test_model_file_fixes_what_is_not_free(one_wrist, tmp_path):

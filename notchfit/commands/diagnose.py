@@ -7,7 +7,6 @@ from pathlib import Path
 
 from .. import io
 from ..diagnosis import CAUSES, Diagnosis, choose_metric, diagnose
-from ..diagnosis.results import metric_unit
 from ..figures.diagnosis import write_diagnosis_figures
 from ..io import save_params
 from ..progress import Steps
@@ -135,12 +134,8 @@ def run(args) -> int:
                         second_cause=not args.one_cause, estimate_protocol=not args.assume_step,
                         progress=steps)
         steps("writing diagnosis.json and the figures")
-        data = write_diagnosis(diag, run_.stage, figures=not args.no_figures)
-    g = data["gain"]
-    unit, _ = metric_unit(diag.metric)
-    print(f"cause: {data['cause']}" + (f" (causes: {', '.join(data['causes'])})" if len(data["causes"]) > 1 else ""))
-    print(f"held-out rms: baseline {g['baseline']:.3f} {unit}, extended {g['extended']:.3f} {unit} "
-          f"({g['reduction_pct']:.1f}% lower)")
+        write_diagnosis(diag, run_.stage, figures=not args.no_figures)
+    print(diag.summary())
     print(f"protocol: {diag.protocol['text']}", file=sys.stderr)
     print(f"wrote {Path(args.out) / 'diagnosis.json'}")
     if unread:

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from .. import io
 from ..batch import run_batch
 from ..figures.fitting import experiment_figures, fig12_sample_index
-from ..fitting import (angle_fits_table, failed_fits, fit_angles, fit_experiment, fit_summary, fits_table,
+from ..fitting import (StudyFit, angle_fits_table, failed_fits, fit_angles, fit_experiment, fits_table,
                        jointwise_table, pointwise_table)
 from ..progress import bar as progress_bar
 from ..shapes import get_model
@@ -210,20 +209,12 @@ def _write_angle_fits(value, run_, sub, name, bad_samples) -> None:
 
 
 def _print_summary(res, n_total, failed, bad_samples, out):
-    frames = [r.value["fits"] for r in res.items if r.ok and "fits" in r.value]
-    if frames:
-        for row in fit_summary(pd.concat(frames, ignore_index=True)).itertuples(index=False):
-            print(f"  {row.model:12s} rms {row.rms_mm:.4f} mm, max {row.max_mm:.4f} mm "
-                  f"over {row.n_samples} samples")
-    frames = [r.value["angle_fits"] for r in res.items if r.ok and "angle_fits" in r.value]
-    if frames:
-        df = pd.concat(frames, ignore_index=True)
-        for model, g in df[df["success"]].groupby("model", sort=False):
-            rms = float(np.sqrt(np.mean(g["rms_deg"].to_numpy(float) ** 2)))
-            print(f"  {model:12s} rms {rms:.3f} deg, max {g['max_deg'].max():.3f} deg over {len(g)} samples "
-                  "(measured angles)")
-    n_ok = sum(r.ok for r in res.items)
-    print(f"fit: {n_ok} of {n_total} experiments fitted in {res.seconds:.1f} s; outputs in {out}")
+    def rows(key):
+        frames = [r.value[key] for r in res.items if r.ok and key in r.value]
+        return pd.concat(frames, ignore_index=True) if frames else None
+
+    study = StudyFit(rows("fits"), rows("angle_fits"), sum(r.ok for r in res.items), n_total, res.seconds)
+    print(f"{study.summary()}; outputs in {out}")
     list_failures(failed, limit=len(failed))
     for s in bad_samples[:20]:
         print(f"  FAILED {s}")

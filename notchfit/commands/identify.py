@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import math
 import re
 from pathlib import Path
 
 from .. import io
-from ..identify import identify
-from ..identify.data import tube_labels
-from ..units import DEG, MM
+from ..identify import identify, tube_labels
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
                       check_points_dir, list_failures)
 from ._points import MISSING_HINT, lookup_points
@@ -74,7 +71,7 @@ def _tube_file(tube: str) -> str:
 
 def _model_metadata(result, data: dict) -> dict:
     """The ``[metadata]`` of model.toml: source, metric, free parameters, standard errors, errors."""
-    meta = {"source": "notchfit identify", "metric": result.metric, "free": data["free"] + data["free_per_tube"],
+    meta = {"source": "notchfit identify", "metric": result.unit, "free": data["free"] + data["free_per_tube"],
             "se": data["se"],
             "train_rms": result.train_rms, "heldout_rms": result.heldout_rms, "tubes": list(result.tubes)}
     if len(meta["tubes"]) > 1:
@@ -140,20 +137,5 @@ def run(args) -> int:
 
 
 def _print_summary(result, data: dict, out) -> None:
-    unit = result.metric
-    print(f"identify: {len(result.experiment_tubes)} experiments, {len(result.tubes)} tube(s), errors in {unit}")
-    for key, v in data["params"].items():
-        print(f"  {key:18s} = {v:.5g} ± {data['se'][key]:.2g}")
-    for tube, fit in result.tubes.items():
-        if "rest_angle" in result.tube_free:
-            print(f"  {tube}: rest angles [deg] " + ", ".join(f"{v / DEG:.2f}" for v in fit.rest_angles))
-        if "slot_depth" in result.tube_free:
-            print(f"  {tube}: cut depths [mm] " + ", ".join(f"{v / MM:.4f}" for v in fit.slot_depths))
-    held = "" if math.isnan(result.heldout_rms) else f"; held-out rms {result.heldout_rms:.3f} {unit} " \
-                                                      "(each experiment predicted by a model fitted without it)"
-    print(f"train rms {result.train_rms:.3f} {unit}{held}")
-    for name, v in result.heldout.items():
-        print(f"  {name:12s} held out {v:.3f} {unit}")
-    for tube, v in result.heldout_by_tube.items():
-        print(f"  tube {tube}: predicted from the other tubes' fit {v:.3f} {unit}")
+    print(result.summary())
     print(f"wrote {Path(out) / 'model.toml'} and {Path(out) / 'identify.json'}")

@@ -23,14 +23,16 @@ Given measured experiments (tensions, and notch points or joint angles),
    overall and per regime.
 
 The analysis returns a :class:`Diagnosis` and writes nothing; it never reads
-a study's ``truth.json``. Modules:
+a study's ``truth.json``. It runs on the estimation core
+(:mod:`notchfit.estimation`: the experiments' observations, the least-squares
+problem, standard errors, folds, the noise floor), which ``identify`` shares;
+each candidate cause is one record of :mod:`notchfit.causes`. Modules:
 
 =================  ==========================================================
-``specs``          candidate causes and their fitted parameters
-``prepare``        measured experiments registered and summarised once
+``specs``          the models (baseline plus causes) and their fitted parameters
 ``scope``          the study's base model, applicable candidates, protocol
 ``calibration``    predicted measurements, model calibration
-``noise``          noise floor, paired significance, pooled rms
+``noise``          paired significance, pooled rms
 ``crossval``       folds and the (model × fold) fan-out (processes or Dask)
 ``signatures``     what the held-out baseline gets wrong
 ``decision``       ranking, decision rule, explanation
@@ -43,13 +45,18 @@ a study's ``truth.json``. Modules:
 from .calibration import Calibration, SimulationCache, calibrate, predict_points, reregister
 from .crossval import HeldOut, folds_by_experiment, run_folds
 from .decision import rank_candidates
-from .noise import noise_floor, paired_z, pooled_rms
-from .prepare import Prepared, choose_metric, peak_regimes, prepare_experiment
+from ..estimation.noise import noise_floor
+from .noise import paired_z, pooled_rms
+from ..estimation.observations import Observations, choose_metric, peak_regimes
+from ..estimation.observations import observe as prepare_experiment
 from .results import CandidateResult, Contribution, Diagnosis, Gain, Signature
 from .signatures import loading_stalls
 from .specs import (BASELINE, BASELINE_MU_EXCESS, CANDIDATES, CAUSES, MATERIAL_BASELINE, REGISTRATION_BOUNDS,
                     WARP_CENTER_RANGE, WARP_RADIUS, ParamSpec, StudyScales)
 from .study import diagnose
+
+#: The experiment type of the diagnosis (the estimation core's, :class:`notchfit.estimation.Observations`).
+Prepared = Observations
 
 __all__ = [
     "BASELINE",
@@ -67,6 +74,7 @@ __all__ = [
     "Gain",
     "HeldOut",
     "ParamSpec",
+    "Observations",
     "Prepared",
     "Signature",
     "SimulationCache",

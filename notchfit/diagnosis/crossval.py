@@ -15,10 +15,12 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..batch import run_batch
+from ..causes import REGISTRY
+from ..estimation.noise import noise_floor
+from ..estimation.solve import folds
 from .calibration import Calibration, SimulationCache, calibrate, predict_points, reregister
-from .noise import noise_floor
-from .prepare import sample_mse
-from .specs import PAPER_START, StudyScales, as_model, model_key
+from ..estimation.observations import sample_mse
+from .specs import PAPER_START, StudyScales, as_model, model_key, model_params
 
 __all__ = ["FoldTask", "HeldOut", "folds_by_experiment", "run_fold", "run_folds"]
 
@@ -27,8 +29,7 @@ def folds_by_experiment(n: int, max_folds: int = 6) -> list[np.ndarray]:
     """Held-out experiment indices of each fold: leave-one-out up to ``max_folds``, else k-fold."""
     if n < 2:
         raise ValueError("diagnosis needs at least two experiments (train and held out)")
-    k = min(n, max_folds)
-    return [np.arange(n)[i::k] for i in range(k)]
+    return folds(n, max_folds)
 
 
 @dataclass(frozen=True)
@@ -48,7 +49,7 @@ class FoldTask:
     calibrate_kw : dict
         Passed to :func:`notchfit.diagnosis.calibration.calibrate`.
     seed : int
-        Seed of the noise floor's draws (:func:`notchfit.diagnosis.noise.noise_floor`).
+        Seed of the noise floor's draws (:func:`notchfit.estimation.noise.noise_floor`).
     scales : StudyScales
         The whole study's scales (every fold fits in the same units).
     base : FrictionParams or None
@@ -85,13 +86,14 @@ def run_fold(task: FoldTask) -> FoldResult:
         # first cause's) optimum are also fitted from the paper's values (specs.PAPER_START)
         paper = task.cause[-1] in PAPER_START if task.cause else False
         cal = calibrate(train, task.cause, task.start, cache=cache, scales=task.scales, base=task.base,
-                        paper_start=paper, **task.calibrate_kw)
+                        paper_start=paper, errors=False, **task.calibrate_kw)
         preds = {}
         for i in task.test:
             prep = task.preps[i]
-            T = reregister(prep, cal.values) if "calibration_error" in task.cause else None
+            T = reregister(prep, cal.values) if any(REGISTRY[c].corrects_points for c in task.cause) else None
             P, theta = predict_points(prep, cal.values, transform=T, cache=cache, base=task.base)
-            preds[int(i)] = (P, theta, noise_floor(prep, cal.values, cache, seed=task.seed, base=task.base))
+            floor = noise_floor(prep, model_params(cal.values, task.base)[0], cache, seed=task.seed)
+            preds[int(i)] = (P, theta, floor)
     return FoldResult(task.cause, tuple(task.test), cal, preds)
 
 
@@ -130,7 +132,7 @@ class HeldOut:
         return cls(as_model(cause), predicted, theta, floor, tuple(r.calibration for r in results))
 
     def mean_floor(self) -> float:
-        """Mean noise floor over every held-out sample [m²] (:func:`notchfit.diagnosis.noise.noise_floor`)."""
+        """Mean noise floor over every held-out sample [m²] (:func:`notchfit.estimation.noise.noise_floor`)."""
         return float(np.nanmean(np.concatenate([self.floor[i] for i in sorted(self.floor)])))
 
     def mean_values(self) -> dict:
@@ -140,7 +142,7 @@ class HeldOut:
 
     def sample_mse(self, preps) -> list[np.ndarray]:
         """Per experiment, the mean squared error of each sample [m² or rad²] (S,)
-        (:func:`notchfit.diagnosis.prepare.sample_mse`)."""
+        (:func:`notchfit.estimation.observations.sample_mse`)."""
         return [sample_mse(p, self.predicted[i]) for i, p in enumerate(preps)]
 
 

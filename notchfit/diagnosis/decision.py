@@ -17,9 +17,11 @@ import math
 
 import numpy as np
 
+from ..causes import REGISTRY
 from .crossval import HeldOut
 from .noise import paired_z, pooled_mse
-from .results import CandidateResult, Signature, metric_unit
+from ..estimation.observations import metric_unit
+from .results import CandidateResult, Signature
 from .specs import CANDIDATES, as_model, model_key, specs_for
 
 __all__ = ["decide", "explain", "fmt_err", "hysteresis_shape", "rank_candidates", "score_candidate"]
@@ -40,8 +42,10 @@ def _signature_values(sigs) -> dict:
 def rank_candidates(sigs, noise_rms: float) -> list[tuple[str, float, str]]:
     """Order the candidate causes by how well the signatures point to each.
 
-    A heuristic score per cause from the signatures (the weights below); it
-    orders the search and the explanation, the held-out test decides.
+    A heuristic score per cause from the signatures (each cause's
+    :attr:`notchfit.causes.Cause.signature`); it orders the search and the
+    explanation, the held-out test decides. Equal scores keep the causes'
+    ``rank_tie`` order.
 
     Parameters
     ----------
@@ -55,25 +59,7 @@ def rank_candidates(sigs, noise_rms: float) -> list[tuple[str, float, str]]:
         Highest score first.
     """
     s = _signature_values(sigs)
-    hold = s.get("unloading_hold", 0.0)
-    loop = s.get("loop_area_ratio", 1.0)
-    spat = s.get("spatial_pattern", 1.0)
-    asym = abs(s.get("direction_asymmetry", 0.0))
-    bend = s.get("residual_bend", 0.0)
-    bl = s.get("b_loading_error", 0.0)
-    stalls = s.get("loading_stalls", 0.0)
-    out = [
-        ("calibration_error", 3.0 * max(spat - 1.2, 0.0),
-         "free-θ fits leave a spatial residual pattern"),
-        ("external_load", 400.0 * asym, "the error does not mirror between pull directions"),
-        ("joint_hysteresis", 50.0 * max(bend, 0.0) + 0.2 * max(hold, 0.0),
-         "a bend remains after unloading"),
-        ("proximal_friction", 0.5 * max(hold, 0.0) + 0.5 * max(loop - 1.0, 0.0),
-         "the shape holds longer while unloading and the loop is wider"),
-        ("static_friction", 0.4 * max(hold, 0.0) + 0.5 * max(loop - 1.0, 0.0) + 20.0 * stalls,
-         "the shape stalls on some loading steps: the cables stick longer than μ_s ≈ μ_d allows"),
-        ("stiffness_gradient", 200.0 * abs(bl), "the shape differs along the backbone while loading"),
-    ]
+    out = [(c.id, c.score(s), c.reason) for c in sorted(REGISTRY.values(), key=lambda c: c.rank_tie)]
     return sorted(out, key=lambda t: -t[1])
 
 
@@ -130,24 +116,6 @@ def decide(within_noise: bool, cands) -> str:
     if best is not None and best.significant:
         return best.cause
     return "unexplained"
-
-
-_PHYSICS = {
-    "proximal_friction": "Physically: friction between the load cell and the manipulator base (sheath, "
-                         "pulleys) means the tension reaching the base lags the measured one: a capstan "
-                         "band that sticks until the measured tension has changed by a factor e^β.",
-    "static_friction": "Physically: the cables stick in their channels longer than μ_s ≈ μ_d allows; a "
-                       "larger static coefficient holds the shape while the tension falls.",
-    "joint_hysteresis": "Physically: the superelastic Nitinol flexures are hysteretic; each joint holds "
-                        "its angle until the torque on it changes by the loop's width.",
-    "external_load": "Physically: a steady force acts on the end effector (payload, gravity, contact); it "
-                     "bends both pull directions the same way, breaking the model's mirror symmetry.",
-    "stiffness_gradient": "Physically: the joint stiffness varies along the backbone (slot dimensions or "
-                          "material), changing the shape's base-to-tip distribution even without friction.",
-    "calibration_error": "Physically: the image-to-plane mapping is wrong (scale or lens distortion); a "
-                         "warp correction fitted across all samples removes a residual pattern that no "
-                         "joint configuration can.",
-}
 
 
 def hysteresis_shape(values: dict, angle_scale: float = 1.0, *, onset_min: float = 0.15,
@@ -237,4 +205,4 @@ def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_
             f"experiments, {cause} lowers the held-out rms to {fmt_err(c.heldout_rms, metric)} "
             f"(z = {c.z:.1f} for the per-sample improvement with serial correlation accounted for, "
             f"{100 * c.excess_removed:.0f}% of the excess over noise removed)." + sec
-            + " " + _PHYSICS[cause])
+            + " " + REGISTRY[cause].explanation)

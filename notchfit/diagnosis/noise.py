@@ -1,11 +1,8 @@
-"""The noise floor and the statistics of held-out errors.
+"""The statistics of held-out errors (the noise floor is the estimation core's,
+:func:`notchfit.estimation.noise.noise_floor`).
 
-The noise floor is the squared point error a perfect model would leave:
-``2 σ_p²`` from the point uncertainty plus the load-cell uncertainty ``σ_T``
-propagated through the model (with the paper's ±0.11 N load cells it
-dominates: about 0.1 mm). Improvements of held-out errors are tested per
-sample, with the serial correlation of one experiment's samples accounted
-for (docs/diagnosis.md).
+Improvements of held-out errors are tested per sample, with the serial
+correlation of one experiment's samples accounted for (docs/diagnosis.md).
 """
 
 from __future__ import annotations
@@ -14,70 +11,7 @@ import math
 
 import numpy as np
 
-from ..friction import simulate
-from ..notches import notch_points
-from .calibration import SimulationCache
-from .prepare import Prepared
-from .specs import model_params
-
-__all__ = ["noise_floor", "paired_z", "pooled_mse", "pooled_rms"]
-
-
-def _frame_free(prep: Prepared, theta) -> np.ndarray:
-    """What is compared, in a frame that does not depend on the registration: notch points in the
-    manipulator frame (a rigid registration keeps distances) or the joint angles."""
-    return theta if prep.metric == "angles" else notch_points(theta, prep.geom)
-
-
-def noise_floor(prep: Prepared, values: dict, cache: SimulationCache | None = None, *,
-                draws: int = 4, seed: int = 0, base=None) -> np.ndarray:
-    """Expected squared error of a perfect model, per sample [m² per point or rad² per angle] (S,).
-
-    Point noise gives ``2 σ_p²`` (angle noise ``σ_θ²``). Load-cell noise ``σ_T`` enters through the
-    model's input: the tensions the simulator is driven with are the noisy
-    measured ones. Its effect is estimated by Monte Carlo: the experiment is
-    re-simulated ``draws`` times with independent Gaussian noise of standard
-    deviation ``σ_T`` added to every measured tension, and the mean squared
-    change of the predicted points is added. Independent per-sample noise
-    matters more than a common offset: a small spurious reversal of the
-    tension makes cables stick and changes the friction history.
-
-    Parameters
-    ----------
-    prep : Prepared
-    values : dict
-        Model parameters by name.
-    cache : SimulationCache, optional
-    draws : int
-        Monte Carlo draws (0: point noise only).
-    seed : int
-        Seed of the draws: ``numpy.random.default_rng([seed, S, round(1e6 σ_T)])``.
-    base : FrictionParams, optional
-        The model the values change (default: the paper's).
-
-    Returns
-    -------
-    ndarray, shape (S,) [m² or rad²]
-    """
-    floor = np.full(len(prep.time), prep.point_factor * prep.sigma**2)
-    if not prep.tension_sigma or draws < 1:
-        return floor
-    params, _ = model_params(values, base)
-    ref = _frame_free(prep, (cache or SimulationCache()).theta(prep, params))
-    rng = np.random.default_rng([seed, len(prep.time), int(1e6 * prep.tension_sigma)])
-    acc = np.zeros(len(prep.time))
-    # a tendon the tube lacks carries no tension, with or without noise
-    has = {side: side in prep.geom.tendons for side in ("left", "right")}
-    for _ in range(draws):
-        tl = np.maximum(prep.tension_left + rng.normal(0.0, prep.tension_sigma, len(prep.time)), 0.0)
-        tr = np.maximum(prep.tension_right + rng.normal(0.0, prep.tension_sigma, len(prep.time)), 0.0)
-        th = simulate(prep.time, tl if has["left"] else None, tr if has["right"] else None, params, prep.geom,
-                      method="fast", ramp_time=prep.ramp_time).theta
-        d = _frame_free(prep, th) - ref
-        d2 = np.sum(d**2, axis=-1) if prep.metric == "points" else d**2
-        d2[~prep.valid] = np.nan
-        acc += np.nanmean(d2, axis=1)
-    return floor + acc / draws
+__all__ = ["paired_z", "pooled_mse", "pooled_rms"]
 
 
 def _effective_n(x: np.ndarray) -> float:

@@ -27,40 +27,25 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..batch import run_batch
+from ..causes import REGISTRY
 from .calibration import SimulationCache, calibrate, predict_points
 from .crossval import HeldOut
 from .decision import fmt_err, score_candidate
 from .noise import paired_z, pooled_mse, pooled_rms
-from .prepare import sample_mse
+from ..estimation.observations import sample_mse
 from .results import Contribution
 from .signatures import signatures
 from .specs import CANDIDATES, PAPER_START, model_key
 
 __all__ = ["contributions", "pair_sentence", "screen_pairs", "second_candidates", "second_step"]
 
-#: Per cause, the signatures whose change says which discrepancy it removes:
-#: (name, value a perfect model gives, words).
-TARGETS = {
-    "proximal_friction": (("unloading_hold", 0.0, "the extra tension the shape holds while unloading [N]"),
-                          ("loop_area_ratio", 1.0, "the loop area, measured over predicted")),
-    "static_friction": (("loading_stalls", 0.0, "the stalls on the upper loading ramp"),),
-    "joint_hysteresis": (("residual_bend", 0.0, "the bend left after unloading [rad]"),
-                         ("loop_area_ratio", 1.0, "the loop area, measured over predicted")),
-    "external_load": (("direction_asymmetry", 0.0, "the tip-angle error common to both pull directions [rad]"),
-                      ("residual_bend", 0.0, "the bend left after unloading [rad]")),
-    "stiffness_gradient": (("b_loading_error", 0.0, "the base-to-tip slope b of the loading shapes [rad]"),
-                           ("backbone_residual", 0.0, "the error of the base third against the tip third "
-                                                      "[rad]")),
-    "calibration_error": (),
-}
-
-
 def second_candidates(c1: str, cands, *, max_second: int = 4) -> list[str]:
     """Second causes worth fitting with ``c1``: the other single candidates, best held-out first, at
-    most ``max_second``; static friction only when it was significant alone (its break-away
-    decisions are otherwise decided by the load-cell noise, docs/diagnosis.md). A candidate that
+    most ``max_second``; a cause marked ``second_if_significant`` (static friction: its break-away
+    decisions are otherwise decided by the load-cell noise, docs/diagnosis.md) only when it was
+    significant alone. A candidate that
     did worse than the baseline alone stays in: a dominant first effect can mask it."""
-    pool = [c for c in cands if c.cause != c1 and (c.cause != "static_friction" or c.significant)]
+    pool = [c for c in cands if c.cause != c1 and (not REGISTRY[c.cause].second_if_significant or c.significant)]
     pool.sort(key=lambda c: c.heldout_rms)
     return [c.cause for c in pool[:max_second]]
 
@@ -209,7 +194,7 @@ def _removes(cause: str, without: HeldOut, final: HeldOut, preps, noise: float, 
     s0 = {s.name: s.value for s in signatures(preps, without, noise)}
     s1 = {s.name: s.value for s in signatures(preps, final, noise)}
     parts = []
-    for name, ideal, words in TARGETS[cause]:
+    for name, ideal, words in REGISTRY[cause].targets:
         if name in s0 and name in s1 and abs(s1[name] - ideal) < 0.7 * abs(s0[name] - ideal):
             parts.append(f"{words} from {s0[name]:+.4g} to {s1[name]:+.4g}")
     m0, m1 = without.sample_mse(preps), final.sample_mse(preps)

@@ -11,18 +11,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..friction import FrictionParams
-from ..units import MM, UNIT_SIZE
+from ..units import MM
 from .calibration import Calibration
-from .prepare import METRICS
+from ..estimation.observations import metric_unit
 from .specs import BASELINE_MU_EXCESS, WARP_RADIUS, model_key, model_params
 
 __all__ = ["CandidateResult", "Contribution", "Diagnosis", "Gain", "Signature", "metric_unit"]
-
-
-def metric_unit(metric: str = "points") -> tuple[str, float]:
-    """File unit and its size in SI of a metric: ``("mm", MM)`` for points, ``("deg", DEG)`` for angles."""
-    u = METRICS["angles" if metric == "angles" else "points"]
-    return u, UNIT_SIZE[u]
 
 
 @dataclass(frozen=True)
@@ -242,6 +236,16 @@ class Diagnosis:
     def extended_key(self) -> str:
         """Key of the extended model's held-out predictions in :attr:`heldout` (``"baseline"`` if none)."""
         return model_key(self.extended.cause) if self.extended is not None else "baseline"
+
+    def summary(self) -> str:
+        """What ``notchfit diagnose`` prints: the named cause(s) and the held-out rms of the baseline and the
+        extended model, in the metric's file unit."""
+        u, f = metric_unit(self.metric)
+        g = self.gain
+        causes = f" (causes: {', '.join(self.causes)})" if len(self.causes) > 1 else ""
+        return (f"cause: {self.cause}{causes}\n"
+                f"held-out rms: baseline {g.baseline / f:.3f} {u}, extended {g.extended / f:.3f} {u} "
+                f"({g.reduction_pct:.1f}% lower)")
 
     def to_dict(self, *, extended_model_file: str | None = None, figures=None) -> dict:
         """The content of ``diagnosis.json`` (docs/data-formats.md).

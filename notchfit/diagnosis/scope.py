@@ -13,7 +13,7 @@
   tensions hardly tell a step from a ramp. The baseline is calibrated on
   every experiment with a step, and its mean squared error compared with its
   own noise floor (the load-cell noise pushed through that protocol,
-  :func:`notchfit.diagnosis.noise.noise_floor`). Within ``1 + none_tol`` of
+  :func:`notchfit.estimation.noise.noise_floor`). Within ``1 + none_tol`` of
   the floor the step is kept: nothing in the data asks for more. Beyond it
   (and up to ``ramp_cutoff`` times the floor) the baseline is calibrated with
   ramps too, and a ramp is taken only when it brings the error within the
@@ -36,10 +36,13 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..batch import run_batch
+from ..causes import REGISTRY, REQUIREMENTS
 from ..friction import default_params
 from .calibration import SimulationCache, calibrate, predict_points
-from .noise import noise_floor, pooled_mse
-from .prepare import sample_mse
+from ..estimation.noise import noise_floor
+from .noise import pooled_mse
+from .specs import model_params
+from ..estimation.observations import sample_mse
 
 __all__ = ["applicable_causes", "base_model", "resolve_protocol"]
 
@@ -62,17 +65,21 @@ def base_model(preps):
 
 
 def applicable_causes(preps, causes) -> tuple[tuple, dict]:
-    """The candidate causes that apply to the study, and ``{cause: reason}`` for those skipped."""
+    """The candidate causes that apply to the study, and ``{cause: reason}`` for those skipped.
+
+    A cause applies when the study has what its record requires
+    (:attr:`notchfit.causes.Cause.requires`: notch points, a chain of joints on the axis).
+    """
+    lacks = set()
+    if preps[0].metric == "angles":
+        lacks.add("points")
+    if any(p.geom.backbone != "axis" or not np.all(p.geom.pitches == p.geom.pitches[0]) for p in preps):
+        lacks.add("axis_chain")
     skipped = {}
-    if "calibration_error" in causes and preps[0].metric == "angles":
-        skipped["calibration_error"] = ("the experiments are measured as joint angles: there is no "
-                                        "image-to-plane mapping for a calibration warp to correct")
-    off_axis = [p.name for p in preps
-                if p.geom.backbone != "axis" or not np.all(p.geom.pitches == p.geom.pitches[0])]
-    if "external_load" in causes and off_axis:
-        skipped["external_load"] = ("the tube's joints are off its axis or unequally spaced: the "
-                                    "simulator's tip-load torques (Eqs. 18-20) hold for the seed tube's "
-                                    "chain only")
+    for need in REQUIREMENTS:
+        for c in causes:
+            if need in lacks and need in REGISTRY[c].requires and c not in skipped:
+                skipped[c] = REGISTRY[c].requires[need]
     return tuple(c for c in causes if c not in skipped), skipped
 
 
@@ -86,7 +93,8 @@ def _fit_ramp(args):
         cal = calibrate(preps, None, None, scales=scales, base=base, cache=cache, **kw)
         pred = [predict_points(p, cal.values, cache=cache, base=base)[0] for p in preps]
         ms = pooled_mse([sample_mse(p, q) for p, q in zip(preps, pred)])
-        floor = pooled_mse([noise_floor(p, cal.values, cache, seed=seed, base=base) for p in preps])
+        params = model_params(cal.values, base)[0]
+        floor = pooled_mse([noise_floor(p, params, cache, seed=seed) for p in preps])
     return ramp, cal, ms, floor
 
 

@@ -8,12 +8,13 @@ from functools import partial
 
 import numpy as np
 
+from ..causes import REGISTRY
 from .calibration import calibrate
 from .crossval import folds_by_experiment, run_folds
 from .decision import decide, explain, hysteresis_shape, rank_candidates, score_candidate
 from .noise import pooled_mse, pooled_rms
 from .pairs import contributions, pair_sentence, screen_pairs, second_candidates, second_step
-from .prepare import choose_metric, prepare_experiment
+from ..estimation.observations import choose_metric, observe_study
 from .results import Diagnosis, Gain
 from .scope import applicable_causes, base_model, resolve_protocol
 from .signatures import signatures, skipped_signatures
@@ -71,7 +72,7 @@ def _setup(experiments, causes, metric, estimate_protocol, kw, jobs, say, *, non
     """Measurements, base model, scales, protocol and the candidates that apply."""
     metric = choose_metric(experiments, metric)
     say(f"registering measurements and fitting measured shapes ({metric})")
-    preps = tuple(prepare_experiment(e, metric=metric) for e in experiments)
+    preps = observe_study(experiments, metric)
     base = base_model(preps)
     scales = StudyScales.of(preps, base)
     recorded = {e.name: e.ramp_time for e in experiments}
@@ -91,7 +92,7 @@ def _masked_first(st: _Study, cands, held, kw, jobs, say):
     Returns ``(first, second, screened)`` (``(None, None, {})`` with fewer than two candidates).
     """
     pool = [c.cause for c in sorted(cands, key=lambda c: c.heldout_rms)
-            if c.cause in st.order and (c.cause != "static_friction" or c.significant)]
+            if c.cause in st.order and (not REGISTRY[c.cause].second_if_significant or c.significant)]
     if len(pool) < 2:
         return None, None, {}
     say(f"no single cause is significant: screening the {len(pool) * (len(pool) - 1) // 2} pairs of candidates")
@@ -194,7 +195,7 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     progress : callable, optional
         Called with a short message at each stage.
     metric : {"auto", "points", "angles"}
-        What is compared (:func:`notchfit.diagnosis.prepare.choose_metric`).
+        What is compared (:func:`notchfit.estimation.observations.choose_metric`).
     second_cause : bool
         Look for a second cause after the first.
     max_second : int

@@ -12,7 +12,7 @@ where ``notchfit report`` embeds them:
 * ``diagnosis_cause_<id>`` — one per named cause: the held-out prediction
   without that cause (the baseline, or the other cause's model) against the
   extended model and the measurement, in the view that shows what it removes
-  (:data:`CAUSE_VIEWS`).
+  (:attr:`notchfit.causes.Cause.figure`).
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..diagnosis.results import metric_unit
-from ..identify.data import tube_labels
+from ..causes import REGISTRY
+from ..estimation.observations import metric_unit, tube_labels
 from ..shapes import line_fit
 from ..units import MM
 from . import new_figure, save_png, write_csv
@@ -276,18 +276,16 @@ def _view_plane(diag, contrib, fig) -> dict:
     return rows
 
 
-#: The view that makes each cause's case.
-CAUSE_VIEWS = {"proximal_friction": _view_loop, "static_friction": _view_loop, "joint_hysteresis": _view_loop,
-               "external_load": _view_asymmetry, "stiffness_gradient": _view_backbone,
-               "calibration_error": _view_plane}
+#: The views a cause's figure can take, by kind (:attr:`notchfit.causes.Cause.figure`).
+VIEWS = {"loop": _view_loop, "asymmetry": _view_asymmetry, "backbone": _view_backbone, "plane": _view_plane}
 
 
 def plot_cause(diag, contrib, out_dir) -> list[Path]:
     """``diagnosis_cause_<id>.png`` and ``.csv``: the held-out prediction without the cause against the
-    extended model and the measurement, in the cause's view (:data:`CAUSE_VIEWS`)."""
+    extended model and the measurement, in the view of the cause's kind (:data:`VIEWS`)."""
     out_dir = Path(out_dir)
     fig = new_figure(11, 3.8)
-    rows = CAUSE_VIEWS[contrib.cause](diag, contrib, fig)
+    rows = VIEWS[REGISTRY[contrib.cause].figure](diag, contrib, fig)
     fig.suptitle(f"{contrib.cause}: {contrib.gain_pct:.0f}% lower held-out rms when added "
                  f"({100 * contrib.share:.0f}% of the removed discrepancy)", fontsize=9)
     name = f"diagnosis_cause_{contrib.cause}"

@@ -83,7 +83,7 @@ from .angles import AngleFit, ModelAngleFit, angle_fits_table, fit_angles, joint
 from .core import fit_experiment, fit_sample, fit_samples, fit_transform
 from .first_pass import estimate_angles, initial_transform
 from .results import ExperimentFit, PlaneTransform, SampleFit
-from .tables import compare_models, failed_fits, fit_summary, fits_table, pointwise_table
+from .tables import StudyFit, compare_models, failed_fits, fit_summary, fits_table, pointwise_table
 
 __all__ = [
     "AngleFit",
@@ -92,6 +92,7 @@ __all__ = [
     "angle_fits_table",
     "PlaneTransform",
     "SampleFit",
+    "StudyFit",
     "compare_models",
     "estimate_angles",
     "failed_fits",

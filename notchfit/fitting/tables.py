@@ -7,6 +7,7 @@ result objects they are built from hold SI values (m, rad).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -15,7 +16,7 @@ from ..shapes import get_model
 from ..units import MM
 from .results import ExperimentFit
 
-__all__ = ["compare_models", "failed_fits", "fit_summary", "fits_table", "pointwise_table"]
+__all__ = ["StudyFit", "compare_models", "failed_fits", "fit_summary", "fits_table", "pointwise_table"]
 
 
 def fits_table(result: ExperimentFit, *, include_theta: bool = True) -> pd.DataFrame:
@@ -148,6 +149,44 @@ def fit_summary(fits: pd.DataFrame) -> pd.DataFrame:
         rows.append({"model": model, "rms_mm": float(np.sqrt(np.mean(r ** 2))),
                      "max_mm": float(g["max_mm"].max()), "n_samples": len(g)})
     return pd.DataFrame(rows, columns=["model", "rms_mm", "max_mm", "n_samples"])
+
+
+@dataclass(frozen=True)
+class StudyFit:
+    """The shape fits of a study (``notchfit fit``): the rows of every fitted experiment.
+
+    Attributes
+    ----------
+    point_fits : DataFrame or None
+        ``fits.csv`` rows of the experiments fitted to notch points (:func:`fits_table`).
+    angle_fits : DataFrame or None
+        ``angle_fits.csv`` rows of those fitted to measured joint angles (``rms_deg``, ``max_deg``).
+    n_fitted, n_total : int
+        Experiments fitted, and asked for.
+    seconds : float
+        Wall time of the fits [s].
+    """
+
+    point_fits: pd.DataFrame | None
+    angle_fits: pd.DataFrame | None
+    n_fitted: int
+    n_total: int
+    seconds: float
+
+    def summary(self) -> str:
+        """Per model the rms and largest error over the successful fits, then the count."""
+        lines = []
+        if self.point_fits is not None:
+            lines += [f"  {r.model:12s} rms {r.rms_mm:.4f} mm, max {r.max_mm:.4f} mm over {r.n_samples} samples"
+                      for r in fit_summary(self.point_fits).itertuples(index=False)]
+        if self.angle_fits is not None:
+            df = self.angle_fits
+            for model, g in df[df["success"]].groupby("model", sort=False):
+                rms = float(np.sqrt(np.mean(g["rms_deg"].to_numpy(float) ** 2)))
+                lines.append(f"  {model:12s} rms {rms:.3f} deg, max {g['max_deg'].max():.3f} deg over {len(g)} "
+                             "samples (measured angles)")
+        lines.append(f"fit: {self.n_fitted} of {self.n_total} experiments fitted in {self.seconds:.1f} s")
+        return "\n".join(lines)
 
 
 def failed_fits(fits: pd.DataFrame) -> pd.DataFrame:

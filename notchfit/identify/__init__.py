@@ -6,8 +6,8 @@ and — for tubes cut from one stock — new tubes from their geometry alone
 (docs/models.md, "Identification"). :func:`identify`:
 
 1. reduces every experiment to its inputs and observations
-   (:mod:`notchfit.identify.data`: one metric per study, degrees for measured
-   angles, millimetres for notch points; experiments that share a geometry
+   (:class:`notchfit.estimation.Observations`: one metric per study, joint
+   angles preferred, else notch points; experiments that share a geometry
    are one tube);
 2. fits the free parameters (:mod:`notchfit.identify.specs`: by default the
    material law's ``E_lin``, ``E_se``, ``strain_lower`` or the seed tube's
@@ -27,10 +27,13 @@ identify`` writes ``model.toml`` and ``identify.json``.
 
 from __future__ import annotations
 
-from .data import METRICS, Observed, observe_study, study_metric, zero_tension_samples
+from ..estimation.observations import METRICS, Observations, tube_labels, zero_tension_samples
 from .problem import Problem, Solution, make_problem, solve
 from .specs import DEPTH, MATERIAL, REST, SPECS, default_free, parse_free, specs_for
 from .study import Identification, TubeFit, identify
+
+#: The experiment type of an identification (the estimation core's :class:`notchfit.estimation.Observations`).
+Observed = Observations
 
 __all__ = [
     "DEPTH",
@@ -39,6 +42,7 @@ __all__ = [
     "REST",
     "SPECS",
     "Identification",
+    "Observations",
     "Observed",
     "Problem",
     "Solution",
@@ -46,10 +50,9 @@ __all__ = [
     "default_free",
     "identify",
     "make_problem",
-    "observe_study",
     "parse_free",
     "solve",
     "specs_for",
-    "study_metric",
+    "tube_labels",
     "zero_tension_samples",
 ]

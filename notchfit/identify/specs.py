@@ -1,6 +1,6 @@
 """The parameters ``notchfit identify`` can fit: bounds and starts from physics, the defaults.
 
-Every fitted parameter is a :class:`notchfit.diagnosis.specs.ParamSpec` (bounds,
+Every fitted parameter is a :class:`notchfit.estimation.ParamSpec` (bounds,
 start, log scale, probe values for the multi-start search). The seed tube's
 (``spring_law = "rates"``) are the diagnosis baseline's: ``k_lin``, ``k_mid`` and
 ``μ_d`` (docs/models.md, "The baseline of the diagnosis"). A real tube's
@@ -39,7 +39,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..diagnosis.specs import BASELINE, CANDIDATES, ParamSpec
+from ..causes import REGISTRY
+from ..estimation.specs import BASELINE, CAPSTAN_MU, MATERIAL, ParamSpec
 from ..friction_params import PARAM_KEYS, FrictionParams, default_params
 
 __all__ = ["DEPTH", "DEPTH_COMMON", "DEPTH_RANGE", "DEPTH_TOLERANCE", "MATERIAL",
@@ -62,14 +63,6 @@ DEPTH_COMMON = 2e-6
 TUBE_FREE = {REST: REST, "rest_angle_rad": REST, DEPTH: DEPTH, "slot_depth_offset": DEPTH,
              "slot_depth_offset_m": DEPTH}
 
-#: Material of superelastic nitinol (module docstring).
-MATERIAL = (
-    ParamSpec("E_lin", 15e9, 150e9, 50e9, log=True, probes=(35e9, 70e9)),
-    ParamSpec("E_se", 0.2e9, 30e9, 4e9, log=True, probes=(1.5e9, 6e9)),
-    ParamSpec("strain_lower", 0.004, 0.04, 0.012, log=True, probes=(0.008, 0.018)),
-)
-_CAPSTAN_MU = ParamSpec("mu_d", 0.0, 0.8, 0.1, probes=(0.03, 0.2))
-
 #: Every scalar parameter identify may fit, by FrictionParams field name.
 SPECS = {
     **{s.name: s for s in BASELINE},
@@ -78,7 +71,7 @@ SPECS = {
     "theta_mid": ParamSpec("theta_mid", 0.005, 0.5, 0.07, log=True),
     "theta_stop": ParamSpec("theta_stop", 0.01, 1.0, 0.14, log=True),
     "stop_ratio": ParamSpec("stop_ratio", 2.0, 500.0, 20.7, log=True),
-    **{s.name: s for c in ("proximal_friction", "joint_hysteresis", "stiffness_gradient") for s in CANDIDATES[c]},
+    **{s.name: s for c in REGISTRY.values() if c.identifiable for s in c.params},
 }
 
 
@@ -163,7 +156,7 @@ def specs_for(free, models, *, start: FrictionParams | None = None) -> tuple[Par
                              f"(they use {', '.join(sorted(laws))}), so {name} has no effect")
         if name in (REST, DEPTH):
             continue
-        spec = _CAPSTAN_MU if (name == "mu_d" and capstan) else SPECS[name]
+        spec = CAPSTAN_MU if (name == "mu_d" and capstan) else SPECS[name]
         if start is not None:
             v = min(max(float(getattr(start, name)), spec.lower), spec.upper)
             spec = dataclasses.replace(spec, start=v)

@@ -12,8 +12,9 @@ from threadpoolctl import threadpool_limits
 from ..batch import run_batch
 from ..friction import FrictionParams
 from ..friction_params import PARAM_KEYS
-from ..units import MM
-from .data import metric_unit, observe_study
+from ..units import DEG, MM
+from ..estimation.observations import METRICS, metric_unit, observe_study
+from ..estimation.solve import folds, se_values, tube_folds
 from .problem import Solution, errors, make_problem, predict, solve, with_values
 from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free,
                     parse_free, specs_for)
@@ -33,7 +34,7 @@ class TubeFit:
     Attributes
     ----------
     name : str
-        Tube label (:func:`notchfit.identify.data.tube_labels`).
+        Tube label (:func:`notchfit.estimation.observations.tube_labels`).
     experiments : tuple of str
     rest_angles, rest_se : ndarray (n,) [rad]
         Rest angles used (identified, or the geometry's) and their standard errors (NaN: not identified).
@@ -67,13 +68,13 @@ class TubeFit:
 class Identification:
     """The identified model of a study and how well it predicts experiments it never saw.
 
-    Errors are in the metric's unit: degrees (joint angles) or millimetres
+    Errors are in the metric's file unit (:attr:`unit`): degrees (joint angles) or millimetres
     (notch-point distances); an rms is over every measured value it covers
     (the "rms per notch" of the real-tube literature for angles).
 
     Attributes
     ----------
-    metric : {"deg", "mm"}
+    metric : {"angles", "points"}
     free : tuple of str
         The scalar free parameters (FrictionParams field names), in fit order.
     values, se : dict
@@ -119,6 +120,30 @@ class Identification:
     heldout_by_tube: dict = field(default_factory=dict)
     solution: Solution | None = field(default=None, repr=False)
 
+    @property
+    def unit(self) -> str:
+        """The file unit of the errors: ``"deg"`` (joint angles) or ``"mm"`` (notch points)."""
+        return METRICS[self.metric]
+
+    def summary(self) -> str:
+        """What ``notchfit identify`` prints: the identified values with their standard errors, each tube's
+        per-notch values, and the training and held-out errors (in :attr:`unit`)."""
+        unit, data = self.unit, self.as_dict()
+        lines = [f"identify: {len(self.experiment_tubes)} experiments, {len(self.tubes)} tube(s), errors in {unit}"]
+        lines += [f"  {key:18s} = {v:.5g} ± {data['se'][key]:.2g}" for key, v in data["params"].items()]
+        for tube, fit in self.tubes.items():
+            if REST in self.tube_free:
+                lines.append(f"  {tube}: rest angles [deg] " + ", ".join(f"{v / DEG:.2f}" for v in fit.rest_angles))
+            if DEPTH in self.tube_free:
+                lines.append(f"  {tube}: cut depths [mm] " + ", ".join(f"{v / MM:.4f}" for v in fit.slot_depths))
+        held = "" if math.isnan(self.heldout_rms) else (f"; held-out rms {self.heldout_rms:.3f} {unit} "
+                                                        "(each experiment predicted by a model fitted without it)")
+        lines.append(f"train rms {self.train_rms:.3f} {unit}{held}")
+        lines += [f"  {name:12s} held out {v:.3f} {unit}" for name, v in self.heldout.items()]
+        lines += [f"  tube {tube}: predicted from the other tubes' fit {v:.3f} {unit}"
+                  for tube, v in self.heldout_by_tube.items()]
+        return "\n".join(lines)
+
     def as_dict(self) -> dict:
         """The ``identify.json`` mapping (docs/data-formats.md): file keys with units, per-tube values."""
         key = PARAM_KEYS
@@ -131,7 +156,7 @@ class Identification:
             "free_per_tube": [tube_keys[f] for f in self.tube_free],
             "params": {key[f]: self.values[f] for f in self.free},
             "se": {key[f]: self.se[f] for f in self.free},
-            "metric": self.metric, "train_rms": self.train_rms, "heldout_rms": self.heldout_rms,
+            "metric": self.unit, "train_rms": self.train_rms, "heldout_rms": self.heldout_rms,
             "heldout": dict(self.heldout), "train": dict(self.train),
             "heldout_by_geometry": dict(self.heldout_by_tube),
             "tubes": {t: f.as_dict() for t, f in self.tubes.items()},
@@ -206,16 +231,18 @@ def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool
     idx = tuple(range(len(obs)))
     rest = (base, free, start, excess, options)
     keys, tasks = ["all"], [_Task("all", obs, idx, (), *rest)]
+
+    def held_out(kind, test):
+        test = tuple(int(i) for i in test)
+        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, *rest)
+
     if heldout and len(obs) > 1:
-        for i, o in enumerate(obs):
-            keys.append(f"without {o.name}")
-            tasks.append(_Task("experiment", obs, tuple(j for j in idx if j != i), (i,), *rest))
-    tubes = list(dict.fromkeys(o.tube for o in obs))
-    if by_tube and len(tubes) > 1:
-        for t in tubes:
-            keys.append(f"without tube {t}")
-            tasks.append(_Task("tube", obs, tuple(j for j in idx if obs[j].tube != t),
-                               tuple(j for j in idx if obs[j].tube == t), *rest))
+        for f in folds(len(obs)):
+            keys.append(f"without {obs[f[0]].name}")
+            tasks.append(held_out("experiment", f))
+    for t, f in (tube_folds(obs) if by_tube else {}).items():
+        keys.append(f"without tube {t}")
+        tasks.append(held_out("tube", f))
     return keys, tasks
 
 
@@ -259,7 +286,7 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     -------
     Identification
     """
-    obs = observe_study(exps)
+    obs = observe_study(exps, prefer="angles", who="identify")
     base = _base_models(obs, model)
     free = parse_free(free) if free is not None else default_free(list(base.values()), [o.geom for o in obs])
     first = next(iter(base.values()))
@@ -298,9 +325,9 @@ def _tube_fits(obs, pb, sol, fitted) -> dict:
 def _result(obs, base, free, excess, tasks, outs) -> Identification:
     """Collect the full fit and the held-out predictions."""
     pb, sol, fitted, _ = outs[0]
-    unit = metric_unit(obs[0].metric)
+    _, unit = metric_unit(obs[0].metric)
     vals = pb.values(sol.x)
-    se = {s.name: (vals[s.name] * sol.se[i] if s.log else sol.se[i]) for i, s in enumerate(pb.specs)}
+    se = se_values(pb, sol.x, sol.se)
     tubes = _tube_fits(obs, pb, sol, fitted)
     train_err = {o.name: errors(o, predict(o, fitted[o.tube])) for o in obs}
     held, by_tube = {}, {}

@@ -7,7 +7,8 @@ module                 files
 :mod:`.interrupts`     Ctrl-C/SIGTERM as an exception; sections they cannot cut
 :mod:`.tables`         the CSV core: validated tables, column layouts
 :mod:`.toml`           the TOML loader (errors name file and line), the writer
-:mod:`.experiments`    experiment folders and studies, notch-point and joint-angle tables
+:mod:`.experiments`    experiment folders (``experiment.toml``) and studies
+:mod:`.measurements`   an experiment's tables: samples, notch points, joint angles
 :mod:`.camera`         camera files (YAML) and calibration-board definitions
 :mod:`.images`         image files
 :mod:`.models`         geometry files, friction-model parameters, FEA reference
@@ -34,11 +35,11 @@ import importlib
 _HOME = {
     "camera": ("load_board", "read_camera", "write_camera"),
     "errors": ("InputFileError", "InputFileNotFoundError"),
-    "experiments": ("ANGLE_COLUMNS", "Experiment", "PointsLookup", "StudyScan", "angles_from_table", "angles_table",
-                    "find_points", "has_own_points", "is_experiment_dir", "load_detected_points",
-                    "points_from_table", "points_table", "read_angles_table", "read_experiment",
-                    "read_experiment_toml", "read_points_table", "read_samples", "read_study", "scan_study",
-                    "with_points", "write_experiment"),
+    "experiments": ("Experiment", "PointsLookup", "StudyScan", "find_points", "has_own_points",
+                    "is_experiment_dir", "load_detected_points", "read_experiment", "read_experiment_toml",
+                    "read_study", "scan_study", "with_points", "write_experiment"),
+    "measurements": ("ANGLE_COLUMNS", "angles_from_table", "angles_table", "points_from_table", "points_table",
+                     "read_angles_table", "read_points_table", "read_samples"),
     "images": ("EXIF_ORIENTATIONS", "PNG_SETTINGS", "encode_image", "exif_orientation", "image_info",
                "image_orientation", "load_image", "orient", "write_image"),
     "models": ("load_fea_reference", "load_geometry", "load_params", "params_from_mapping", "params_to_mapping",

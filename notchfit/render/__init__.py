@@ -34,17 +34,13 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ..batch import run_batch
 from ..camera import Board, CameraModel
 from ..geometry import Geometry
-from ..io import write_camera, write_image
 from ..kinematics import chain, link_origins
 from ..notches import notch_points, to_plane
 from ..units import MM
@@ -59,7 +55,6 @@ __all__ = [
     "polygon_coverage",
     "render_board",
     "render_manipulator",
-    "render_study_images",
     "union_coverage",
 ]
 
@@ -597,64 +592,3 @@ def camera_for_shapes(theta_list, geom: Geometry, *, mm_per_px: float = 0.03, ma
     else:
         raise ValueError("camera_for_shapes: could not fit the shapes in the image (extreme tilt or distortion?)")
     return cam, planes0
-
-
-def render_study_images(study, calib_dir, *, experiment_dir, jobs: int = 1, mm_per_px: float = 0.03,
-                        seed: int | None = None, **render_kw) -> str:
-    """Render one image per sample of a synthetic study (for ``notchfit synth``).
-
-    One camera serves the whole study (its plane frame is the study's plane
-    frame): :func:`camera_for_shapes` over every sample's true shape and plane
-    transform. Writes ``calib_dir/camera.yml`` and
-    ``experiment_dir(name)/images/NNNN.png`` per sample.
-
-    Parameters
-    ----------
-    study : notchfit.synth.SynthStudy
-    calib_dir : path
-    experiment_dir : callable name -> path
-    jobs : int
-        Worker processes.
-    mm_per_px : float
-    seed : int, optional
-        Noise seed (default: the study's seed).
-    **render_kw : passed to :func:`render_manipulator` (blur_sigma, noise, ...).
-
-    Returns
-    -------
-    str
-        The camera file's path relative to an experiment folder
-        (``../calibration/camera.yml`` for the synth layout).
-    """
-    geom = study.geometry
-    thetas, planes, keys = [], [], []
-    for e in study.experiments:
-        pl = (e.plane["tx"], e.plane["ty"], e.plane["phi"], e.plane["mirror"])
-        for s, th in zip(e.samples["sample"], e.theta):
-            thetas.append(th)
-            planes.append(pl)
-            keys.append((e.name, int(s)))
-    closure = pivot_closure_angles(geom)
-    clip = np.clip(np.asarray(thetas, float), -closure, closure)
-    cam, _ = camera_for_shapes(clip, geom, mm_per_px=mm_per_px, planes=planes)
-    calib_dir = Path(calib_dir)
-    calib_dir.mkdir(parents=True, exist_ok=True)
-    write_camera(cam, calib_dir / "camera.yml")
-    base = int(study.seed if seed is None else seed)
-    items = []
-    for k, ((name, s), th, pl) in enumerate(zip(keys, clip, planes)):
-        out = Path(experiment_dir(name)) / "images" / f"{s:04d}.png"
-        items.append((th, geom, cam, pl, [base, k], out, render_kw))
-    res = run_batch(_render_one, items, keys=[f"{n}/{s}" for n, s in keys], jobs=jobs, desc="render",
-                    unit="images")
-    if res.failures:
-        raise ValueError("rendering failed: " + "; ".join(f"{r.key}: {r.error}" for r in res.failures[:5]))
-    return Path(os.path.relpath(calib_dir / "camera.yml", Path(experiment_dir(keys[0][0])))).as_posix() \
-        if keys else str(calib_dir / "camera.yml")
-
-
-def _render_one(item):
-    th, geom, cam, pl, seed, out, kw = item
-    r = render_manipulator(th, geom, cam, plane=pl, rng=np.random.default_rng(seed), **kw)
-    write_image(out, r.image, png="noisy")       # lossless; noise-dominated: Huffman only
-    return str(out)

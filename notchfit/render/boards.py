@@ -3,25 +3,27 @@
 They let ``notchfit calibrate`` be tried in one command (README, "Working
 with your own data"). They were written by::
 
-    from notchfit.io import calibration_dir, load_board
-    from notchfit.render.boards import write_sample_views
-    write_sample_views(load_board("charuco_a4"), calibration_dir() / "samples" / "charuco_a4")
+    from notchfit.io import calibration_dir, load_board, write_image
+    from notchfit.render.boards import sample_board_views
+    for name, v in sample_board_views(load_board("charuco_a4")).items():
+        write_image(calibration_dir() / "samples" / "charuco_a4" / f"{name}.jpg", v.image, jpeg_quality=90)
 
-with the defaults below; the test suite renders them again and compares.
+with the defaults below (JPEG at quality 90 keeps each view near 60 KB and moves
+the calibration's reprojection rms by less than 0.001 px, docs/history.md); the
+test suite renders them again and compares. The renderer writes no files itself:
+vision sits below the file I/O (docs/architecture.md).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import cv2
 import numpy as np
 
 from ..camera import Board, CameraModel
-from ..io import write_image
 from . import RenderedBoard, render_board
 
-__all__ = ["SAMPLE_CAMERA", "SAMPLE_PLANE_POSE", "board_poses", "sample_board_views", "write_sample_views"]
+__all__ = ["SAMPLE_CAMERA", "SAMPLE_PLANE_POSE", "board_poses", "sample_board_views"]
 
 #: The camera of the sample views: 640 x 480 px, f ≈ 800 px, mild barrel distortion.
 SAMPLE_CAMERA = CameraModel(np.array([[800.0, 0.0, 322.0], [0.0, 805.0, 236.0], [0.0, 0.0, 1.0]]),
@@ -75,14 +77,3 @@ def sample_board_views(board: Board, *, camera: CameraModel = SAMPLE_CAMERA, n_v
              for k, (rv, tv) in enumerate(board_poses(board, n_views, rng))}
     views["plane"] = render_board(board, camera, *plane_pose, rng=rng)
     return views
-
-
-def write_sample_views(board: Board, folder, *, jpeg_quality: int = 90, **kw) -> list[Path]:
-    """Write :func:`sample_board_views` as ``folder/<name>.jpg`` (JPEG, as a camera writes them).
-
-    JPEG at quality 90 keeps each view near 60 KB and moves the calibration's
-    reprojection rms by less than 0.001 px (docs/history.md).
-    """
-    folder = Path(folder)
-    return [write_image(folder / f"{name}.jpg", v.image, jpeg_quality=jpeg_quality)
-            for name, v in sample_board_views(board, **kw).items()]

@@ -8,18 +8,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..causes import REGISTRY
+
 __all__ = ["CauseText", "cause_text"]
 
-#: What each cause means for the robot, in a phrase (the ids of docs/data-formats.md).
+#: What each cause means for the robot, in a phrase: the cause records' labels, and the two verdicts.
 _MEANING = {
-    "proximal_friction": "friction between the load cell and the tube's base (sheath, pulleys): the tension that "
-                         "reaches the tube lags the measured one",
-    "static_friction": "the cables stick in their channels longer than the paper's static friction allows",
-    "joint_hysteresis": "the superelastic flexures are hysteretic: a joint keeps its angle until the torque on it "
-                        "changes by a threshold (a play, or loops confined to large bends, or elastic-plastic loops)",
-    "external_load": "a steady external load (payload, gravity, contact) bends both pull directions the same way",
-    "stiffness_gradient": "the joint stiffness changes along the backbone",
-    "calibration_error": "the image-to-plane mapping is wrong (scale or lens distortion)",
+    **{c.id: c.label for c in REGISTRY.values()},
     "none": "nothing beyond the measurement noise: the calibrated model explains the data",
     "unexplained": "a significant error that none of the candidate effects removes",
 }
