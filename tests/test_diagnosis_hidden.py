@@ -185,7 +185,7 @@ def test_angle_data_of_a_one_tendon_wrist(tmp_path):
     # the report speaks degrees and names the wrist's data and model
     assert main(["report", str(tmp_path / "out"), "--study", str(tmp_path / "study")]) == 0
     page = (tmp_path / "out" / "report.html").read_text()
-    assert "held-out joint-angle error" in page and "joint angles per sample given in angles.csv" in page
+    assert "held-out joint-angle error" in page and "joint angles per sample (one per notch) given in angles.csv" in page
     assert "the tube&#x27;s default model" in page or "the tube's default model" in page
 
 

@@ -68,7 +68,7 @@ def plot_loops(diag, out_dir) -> list[Path]:
 
 def tube_groups(preps) -> list[tuple[str, list[int]]]:
     """``(tube, experiment indices)`` per tube (geometry, labelled as ``identify`` labels it:
-    :func:`notchfit.identify.data.tube_labels`) in order of first appearance. A study of several tubes
+    :func:`notchfit.estimation.tube_labels`) in order of first appearance. A study of several tubes
     has as many joints and notch points per tube as each tube's geometry, so per-joint and per-point
     errors are pooled within a tube only."""
     groups: dict = {}

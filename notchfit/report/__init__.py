@@ -46,7 +46,7 @@ import numpy as np
 from .. import io as nio
 from .._version import __version__
 from ..cables import pulled_side
-from ..identify.data import tube_labels
+from ..estimation import tube_labels
 from .diagnosis import diagnosis_section
 from .forms import NotAvailable, Page, Section
 from .page import num, rel, render_page
