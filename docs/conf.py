@@ -60,6 +60,34 @@ autodoc_default_options = {"members": True, "show-inheritance": True}
 autodoc_member_order = "bysource"
 autodoc_typehints = "none"          # numpydoc's Parameters sections give the types, shapes and units
 autodoc_mock_imports: list[str] = []
+
+
+def _documented_modules() -> set[str]:
+    """The modules that have a page of their own: every name in api/index.rst's autosummary lists."""
+    text = (Path(__file__).parent / "api" / "index.rst").read_text(encoding="utf-8")
+    return {ln.strip() for ln in text.splitlines() if ln.startswith("   notchfit")}
+
+
+DOCUMENTED_MODULES = _documented_modules()
+
+
+def _skip_reexports(app, what, name, obj, skip, options):
+    """An object is described on one page only: that of the closest documented module it lives in (its own
+    module, or the package above it that re-exports it); other packages that re-export it skip it."""
+    if what != "module":
+        return skip
+    here = app.env.temp_data.get("autodoc:module")
+    home = getattr(obj, "__module__", None)
+    if not here or not isinstance(home, str):
+        return skip
+    parts = home.split(".")
+    page = next((".".join(parts[:k]) for k in range(len(parts), 0, -1) if ".".join(parts[:k]) in DOCUMENTED_MODULES),
+                None)
+    if page is not None and page != here:
+        return True
+    return skip
+
+
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_validation_checks: set[str] = set()
@@ -106,3 +134,7 @@ sphinx_gallery_conf = {
     "min_reported_time": 1,
     "write_computation_times": False,   # its page loads scripts from the network; the build log has the times
 }
+
+
+def setup(app):
+    app.connect("autodoc-skip-member", _skip_reexports)

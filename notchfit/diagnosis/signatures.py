@@ -234,7 +234,7 @@ def signatures(preps, base: HeldOut, noise: float, *, stall_ratio: float = 0.3) 
         The baseline's held-out predictions.
     noise : float
         Mean squared point error a perfect model would leave [m²]
-        (:func:`notchfit.diagnosis.noise.noise_floor`).
+        (:func:`notchfit.estimation.noise_floor`).
     stall_ratio : float
         Passed to :func:`loading_stalls`.
 

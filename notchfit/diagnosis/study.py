@@ -175,7 +175,7 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
         Run the (model × fold) calibrations on this Dask cluster instead.
     seed : int
         Seed of the noise floor's Monte Carlo draws
-        (:func:`notchfit.diagnosis.noise.noise_floor`).
+        (:func:`notchfit.estimation.noise_floor`).
     max_folds : int
         Leave-one-experiment-out up to this many experiments, else k-fold.
     causes : sequence of str

@@ -35,17 +35,14 @@ from .study import Identification, TubeFit, identify
 #: The experiment type of an identification (the estimation core's :class:`notchfit.estimation.Observations`).
 Observed = Observations
 
+#: identify's own names; the estimation core's types it uses (Observations, Problem, Solution,
+#: tube_labels, ...) stay importable from here but are documented in notchfit.estimation
 __all__ = [
     "DEPTH",
     "MATERIAL",
-    "METRICS",
     "REST",
     "SPECS",
     "Identification",
-    "Observations",
-    "Observed",
-    "Problem",
-    "Solution",
     "TubeFit",
     "default_free",
     "identify",
@@ -53,6 +50,4 @@ __all__ = [
     "parse_free",
     "solve",
     "specs_for",
-    "tube_labels",
-    "zero_tension_samples",
 ]
