@@ -57,7 +57,7 @@ with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0
 def renders(folder: Path, size: str, n: int) -> list[Path]:
     """``n`` JPEG renders (wrist in a chuck, camera tone curve, blur) and camera.yml in ``folder``."""
     from notchfit import io
-    from notchfit.render.scenes import Scene, render_scene, scene_camera
+    from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
 
     geom = io.load_geometry(io.datasets_dir() / "geometry" / "wrist_asymmetric.toml")
     (wh, px_per_mm) = SIZES[size]

@@ -11,11 +11,11 @@ each true notch point takes the nearest detected corner (an oracle assignment th
 pipeline cannot do by itself: it favours the reference). Its time excludes the assignment.
 
 Real scenes (--scenes): a one-sided wrist like the lab's (OD 1.62 mm, five notches 0.8 mm high, one
-side) in 4928x3264 renders at 130 px/mm (notchfit.render.scenes: a chuck, collet, clamp or none,
+side) in 4928x3264 renders at 130 px/mm (notchfit.vision.render.scenes: a chuck, collet, clamp or none,
 plain tube, cylinder shading, specular streak, either polarity, defocus, JPEG, any orientation), with
 the calibrated camera and without one (scale from the tube's diameter).
 
-Seeded random lab scenes (--variety N): everything a lab photograph varies in (notchfit.render.variety:
+Seeded random lab scenes (--variety N): everything a lab photograph varies in (notchfit.vision.render.variety:
 holders incl. a chuck's jaws as dark as the tube or brighter, polarity, shading, streak, uneven backdrop
 and vignetting, the lens's perspective and a tilt out of the plane up to 4 deg, blur, defocus, motion,
 ISO noise, sharpening, JPEG 75-95, any angle, bends to 0.98 of each slot's closure, per-notch depths),
@@ -49,10 +49,10 @@ import time
 import cv2
 import numpy as np
 
-from notchfit.camera import CameraModel
-from notchfit.detection import detect_notches, mirror_without_camera
-from notchfit.geometry import default_geometry
-from notchfit.render import place_in_view, render_manipulator
+from notchfit.vision.camera import CameraModel
+from notchfit.vision.detection import detect_notches, mirror_without_camera
+from notchfit.physics.geometry import default_geometry
+from notchfit.vision.render import place_in_view, render_manipulator
 
 
 def generic(image, max_corners=400, quality=0.01, min_distance=5, win=5):
@@ -79,7 +79,7 @@ CLOSE = 0.1395        # just below the default slot-closure angle 0.13970 rad
 
 def robustness_row(render_kw, cam_kw, n, seed):
     """Detect n seeded random shapes (|theta| <= 0.1395 rad, half mirrored); (ok fraction, rms mm, max mm)."""
-    from notchfit.render import camera_for_shapes
+    from notchfit.vision.render import camera_for_shapes
 
     geom = default_geometry()
     rng = np.random.default_rng(seed)
@@ -133,8 +133,8 @@ SCENES = [  # (name, Scene keywords); blur 2 px (a DSLR at 130 px/mm), chuck 8 m
 
 def big_timing(repeat, seed):
     """ms per 4928x3264 image (the lab's wrist in a chuck at 130 px/mm), with and without the camera."""
-    from notchfit.geometry import Geometry
-    from notchfit.render.scenes import Scene, render_scene, scene_camera
+    from notchfit.physics.geometry import Geometry
+    from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
 
     geom = Geometry(**WRIST)
     th = np.array([0.2, 0.25, 0.3, 0.3, 0.25])
@@ -170,8 +170,8 @@ def _best_ms(fn, repeat):
 
 def speed(repeat, seed):
     """ms per image of the three photograph kinds the targets name, measured in one run."""
-    from notchfit.geometry import Geometry
-    from notchfit.render.scenes import Scene, render_scene, scene_camera
+    from notchfit.physics.geometry import Geometry
+    from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
 
     rng = np.random.default_rng(seed)
     geom = default_geometry()
@@ -210,8 +210,8 @@ def speed(repeat, seed):
 def scene_rows(per_scene, seed, size=(4928, 3264), px_per_mm=130.0, repeat=2):
     """Per scene kind: corners ok / real corners, rms and max error [mm], ms per image, with the camera
     and without it (scale error [%])."""
-    from notchfit.geometry import Geometry
-    from notchfit.render.scenes import Scene, render_scene, scene_camera
+    from notchfit.physics.geometry import Geometry
+    from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
 
     geom = Geometry(**WRIST)
     rng = np.random.default_rng(seed)
@@ -257,7 +257,7 @@ def _variety_geometries():
     """The lab's wrist with joints on each slot's section, and the shipped wrists (per-notch dimensions)."""
     from pathlib import Path
 
-    from notchfit.geometry import Geometry
+    from notchfit.physics.geometry import Geometry
     from notchfit.io import load_geometry
 
     here = Path(__file__).resolve().parent.parent / "datasets" / "geometry"
@@ -285,9 +285,9 @@ def _table(title, rows, key):
 
 
 def variety(n, seed, size=(4928, 3264), px_per_mm=130.0):
-    """n seeded random lab scenes (notchfit.render.variety), detected with and without the camera; tables
+    """n seeded random lab scenes (notchfit.vision.render.variety), detected with and without the camera; tables
     per holder kind and per factor."""
-    from notchfit.render.variety import draw_scene, render_draw, score
+    from notchfit.vision.render.variety import draw_scene, render_draw, score
 
     rng = np.random.default_rng(seed)
     geoms = _variety_geometries()
@@ -304,7 +304,7 @@ def variety(n, seed, size=(4928, 3264), px_per_mm=130.0):
             scale = det.scale_mm_per_px * px_per_mm - 1 if not cal and det.n_ok else math.nan
             rows.append({**s, "err": s["errors_mm"], "cal": cal, "t": t, "scale": scale, "kind": d.kind, **d.labels})
     print(f"{n} random lab scenes, {size[0]}x{size[1]}, {px_per_mm:g} px/mm, seed {seed} "
-          "(notchfit.render.variety; the tube tilted out of the plane up to 4 deg, lens 150-500 mm away)")
+          "(notchfit.vision.render.variety; the tube tilted out of the plane up to 4 deg, lens 150-500 mm away)")
     _table("holder", rows, lambda r: r["kind"])
     print()
     _table("tilt out of the plane", rows, lambda r: "0-2 deg" if r["tilt_deg"] < 2 else "2-4 deg")
@@ -325,7 +325,7 @@ def _pbr_gallery(folder):
     from pathlib import Path
 
     from notchfit.io import load_geometry, load_image
-    from notchfit.render.pbr import PbrScene, PbrTruth
+    from notchfit.vision.render.pbr import PbrScene, PbrTruth
 
     root = Path(__file__).resolve().parent.parent
     out = []
@@ -361,8 +361,8 @@ def pbr(folder, repeat=1, render=False):
     the spread of (found - true) / sigma (1 = honest), ms per image; the overall fraction (target >= 95 %)."""
     import tempfile
 
-    from notchfit.render.pbr import score_detection
-    from notchfit.render.scenes import Scene, render_scene
+    from notchfit.vision.render.pbr import score_detection
+    from notchfit.vision.render.scenes import Scene, render_scene
 
     if render:
         import make_pbr_gallery

@@ -16,10 +16,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from notchfit.diagnosis import diagnose
+from notchfit.analysis.diagnosis import diagnose
 from notchfit.io import read_study
-from notchfit.recipes import combine_recipes
-from notchfit.synth import generate_study, load_recipe
+from notchfit.studies.recipes import combine_recipes
+from notchfit.studies.synth import generate_study, load_recipe
 from notchfit.units import MM
 
 

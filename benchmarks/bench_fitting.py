@@ -5,17 +5,17 @@ paper-like friction shapes θ_j = a (1 − 0.03 j) with a from 0.01 to 0.12 rad
 and back, a random plane transform, seeded 0.02 mm point noise), for each
 shape model:
 
-* **notchfit** — :func:`notchfit.fitting.fit_samples` (batched
+* **notchfit** — :func:`notchfit.analysis.fitting.fit_samples` (batched
   Levenberg–Marquardt over all samples, analytic Jacobians), transform fixed;
 * **scipy/analytic** — one ``scipy.optimize.least_squares`` call per sample
   with the same analytic Jacobian (``solver="scipy"``);
 * **reference** — one ``scipy.optimize.least_squares`` call per sample with a
   2-point finite-difference Jacobian (the straightforward implementation),
 
-all from the same closed-form start (:func:`notchfit.fitting.estimate_angles`).
+all from the same closed-form start (:func:`notchfit.analysis.fitting.estimate_angles`).
 It prints ms per sample, the speed-up against the reference, and the largest
 parameter difference in units of the standard error (agreement check). It
-also times the whole :func:`notchfit.fitting.fit_experiment` (joint
+also times the whole :func:`notchfit.analysis.fitting.fit_experiment` (joint
 transform estimate with the free model + cc + linear) per sample.
 
 BLAS is pinned to one thread (the fitter's matrices are tiny; threading only
@@ -41,11 +41,11 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
-from notchfit.fitting import estimate_angles, fit_experiment, fit_samples  # noqa: E402
-from notchfit.geometry import default_geometry  # noqa: E402
-from notchfit.notches import notch_points, to_plane  # noqa: E402
-from notchfit.shapes import get_model  # noqa: E402
-from notchfit.synth import synthetic_points  # noqa: E402
+from notchfit.analysis.fitting import estimate_angles, fit_experiment, fit_samples  # noqa: E402
+from notchfit.physics.geometry import default_geometry  # noqa: E402
+from notchfit.physics.notches import notch_points, to_plane  # noqa: E402
+from notchfit.physics.shapes import get_model  # noqa: E402
+from notchfit.studies.synth import synthetic_points  # noqa: E402
 
 MODELS = ("cc", "linear", "quadratic", "pw3", "free", "free_smooth")
 

@@ -35,9 +35,9 @@ import time
 
 import numpy as np
 
-from notchfit.friction import DEFAULT_DT, FrictionParams, simulate
+from notchfit.physics.friction import DEFAULT_DT, FrictionParams, simulate
 from notchfit.io import datasets_dir, load_geometry
-from notchfit.protocols import bend_unbend
+from notchfit.physics.protocols import bend_unbend
 
 
 def best_time(fn, repeat):

@@ -32,14 +32,14 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from notchfit import io
-from notchfit.friction import simulate
-from notchfit.estimation import observe_study
-from notchfit.identify import default_free, identify, make_problem
-from notchfit.identify.problem import whitened
-from notchfit.identify.specs import base_model, specs_for
-from notchfit.identify.study import FIT_SOLVER
-from notchfit.recipes import recipe_from_dict
-from notchfit.synth import generate_study
+from notchfit.physics.friction import simulate
+from notchfit.analysis.estimation import observe_study
+from notchfit.analysis.identify import default_free, identify, make_problem
+from notchfit.analysis.identify.problem import whitened
+from notchfit.analysis.identify.specs import base_model, specs_for
+from notchfit.analysis.identify.study import FIT_SOLVER
+from notchfit.studies.recipes import recipe_from_dict
+from notchfit.studies.synth import generate_study
 
 TRUTH = {"E_lin": 45e9, "E_se": 3e9, "strain_lower": 0.014, "mu_d": 0.12}
 

@@ -25,9 +25,9 @@ import time
 
 import numpy as np
 
-from notchfit import kinematics as K
-from notchfit.geometry import default_geometry, notch_layout
-from notchfit.notches import notch_points_and_jacobian
+from notchfit.physics import kinematics as K
+from notchfit.physics.geometry import default_geometry, notch_layout
+from notchfit.physics.notches import notch_points_and_jacobian
 
 
 def numpy_reference(theta, geom):

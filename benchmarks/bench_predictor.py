@@ -1,6 +1,6 @@
 """Benchmark of the real-time predictor (issue 18): time per tension sample.
 
-``notchfit.predictor.Predictor`` advances the friction simulator (Sec. IV-B,
+``notchfit.physics.predictor.Predictor`` advances the friction simulator (Sec. IV-B,
 fast solver) by one interval per new sample. In one run, for the seed tube
 (27 joints, channel law, paper parameters) and the 5-joint asymmetric-notch
 wrist (``datasets/geometry/wrist_asymmetric.toml``, material springs, capstan
@@ -30,11 +30,11 @@ import time
 
 import numpy as np
 
-from notchfit.friction import FrictionParams, default_params, simulate
-from notchfit.geometry import default_geometry
+from notchfit.physics.friction import FrictionParams, default_params, simulate
+from notchfit.physics.geometry import default_geometry
 from notchfit.io import datasets_dir, load_geometry
-from notchfit.predictor import Predictor
-from notchfit.protocols import bend_unbend
+from notchfit.physics.predictor import Predictor
+from notchfit.physics.protocols import bend_unbend
 
 
 def streams(peak: float, counter: float, tendons):

@@ -2,10 +2,10 @@
 straightforward per-pixel evaluation in the same run.
 
 The textured background (a sum of plane waves) and the illumination field (gradient + hot spot)
-are separable in (u, v); notchfit.render builds them from 1-D arrays (one small matrix product
+are separable in (u, v); notchfit.vision.render builds them from 1-D arrays (one small matrix product
 for the waves). The reference evaluates the same formulas at every pixel.
 
-Real scenes (notchfit.render.scenes): the lab's wrist in a chuck at 130 px/mm in a 4928x3264 image,
+Real scenes (notchfit.vision.render.scenes): the lab's wrist in a chuck at 130 px/mm in a 4928x3264 image,
 exact coverage only in a box around the tube and the holder's visible part.
 
 Run:  python benchmarks/bench_render.py [--repeat 5]
@@ -17,9 +17,9 @@ import time
 
 import numpy as np
 
-from notchfit.camera import CameraModel
-from notchfit.geometry import default_geometry
-from notchfit.render import _illumination, _smooth_field, place_in_view, render_manipulator
+from notchfit.vision.camera import CameraModel
+from notchfit.physics.geometry import default_geometry
+from notchfit.vision.render import _illumination, _smooth_field, place_in_view, render_manipulator
 
 H, W = 1200, 1920
 
@@ -78,8 +78,8 @@ def main():
                                                 rng=np.random.default_rng(k)), a.repeat)
     print(f"render_manipulator (default settings)  {t:.0f} ms per image")
 
-    from notchfit.geometry import Geometry
-    from notchfit.render.scenes import Scene, render_scene, scene_camera
+    from notchfit.physics.geometry import Geometry
+    from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
     wrist = Geometry(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
                      slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist", inner_radius=0.7e-3,
                      tendons=("right",), tendon_path="lumen", r_x=None, r_z=None, cable_radius=None,

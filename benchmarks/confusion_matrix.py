@@ -3,7 +3,7 @@
 Singles: every recipe of ``datasets/recipes/`` for the six causes, the null study, and joint hysteresis
 from the generator's other laws (``joint_hysteresis_flag``: a two-branch superelastic plateau,
 ``joint_hysteresis_masing``: Bouc-Wen loops). Pairs: every pair of the five nameable causes, each effect
-from its one-cause recipe's range (``notchfit.recipes.combine_recipes``). Studies are reduced as in the
+from its one-cause recipe's range (``notchfit.studies.recipes.combine_recipes``). Studies are reduced as in the
 default test job (4 experiments, 9 + 11 samples, 2 folds) or full (``--full``: six experiments,
 leave-one-out), several seeds. The generator's truth.json is deleted before each diagnosis.
 Prints Markdown tables: counts of the first named cause per hidden cause (and of studies given a second
@@ -22,10 +22,10 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from notchfit.diagnosis import CAUSES, diagnose
+from notchfit.analysis.diagnosis import CAUSES, diagnose
 from notchfit.io import read_study
-from notchfit.recipes import combine_recipes
-from notchfit.synth import generate_study, load_recipe
+from notchfit.studies.recipes import combine_recipes
+from notchfit.studies.synth import generate_study, load_recipe
 
 SMALL = dict(n_experiments=4, n_up=8, n_down=10)   # as tests/test_diagnosis_hidden.py
 COLUMNS = ("none",) + CAUSES + ("unexplained",)

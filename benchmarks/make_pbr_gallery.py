@@ -1,6 +1,6 @@
 """Render the physically based test gallery (tests/data/pbr/) with Mitsuba 3 and write its ground truth.
 
-Each scene of GALLERY (notchfit.render.pbr.PbrScene) is rendered by a path tracer (variant scalar_rgb)
+Each scene of GALLERY (notchfit.vision.render.pbr.PbrScene) is rendered by a path tracer (variant scalar_rgb)
 and written as <name>.jpg (or .png when the scene has no JPEG step) beside <name>.json: the scene, the
 geometry file, the camera (intrinsics, distortion, the bending plane's pose), the tube's pose, every notch
 point's corner in the image with whether the image shows it (and why not), and the render time. truth.csv
@@ -37,8 +37,8 @@ import numpy as np
 
 from notchfit.io import load_geometry
 from notchfit.io.outputs import atomic_write, write_json_atomic
-from notchfit.render import pivot_closure_angles
-from notchfit.render.pbr import PbrScene, render_pbr
+from notchfit.vision.render import pivot_closure_angles
+from notchfit.vision.render.pbr import PbrScene, render_pbr
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "tests" / "data" / "pbr"

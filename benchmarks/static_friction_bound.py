@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from notchfit.diagnosis import BASELINE_MU_EXCESS, prepare_experiment, predict_points
-from notchfit.friction import simulate
+from notchfit.analysis.diagnosis import BASELINE_MU_EXCESS, prepare_experiment, predict_points
+from notchfit.physics.friction import simulate
 from notchfit.io import read_study
-from notchfit.notches import notch_points, to_plane
-from notchfit.synth import load_recipe, synthesize, write_study
+from notchfit.physics.notches import notch_points, to_plane
+from notchfit.studies.synth import load_recipe, synthesize, write_study
 from notchfit.units import MM
 
 

@@ -12,9 +12,9 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from notchfit.diagnosis import diagnose
+from notchfit.analysis.diagnosis import diagnose
 from notchfit.io import read_study
-from notchfit.synth import generate_study, load_recipe
+from notchfit.studies.synth import generate_study, load_recipe
 
 SIZES = {
     "proximal_friction": [{"proximal_beta": v} for v in (0.01, 0.02, 0.04, 0.08)],

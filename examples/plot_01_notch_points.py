@@ -5,7 +5,7 @@ Project the notch points
 The 58 numbered notch points of the default tube (27 joints, Sec. IV-A of
 Moses et al. 2015) at three shapes: straight, constant curvature, and the
 linear shape ``θ_j = a + b j`` whose base joints bend more than its tip. The
-projector :func:`notchfit.notches.notch_points` maps joint angles [rad] to
+projector :func:`notchfit.physics.notches.notch_points` maps joint angles [rad] to
 points (x, z) [m] in the manipulator frame; ``docs/geometry.md`` numbers
 them.
 """
@@ -13,8 +13,8 @@ them.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from notchfit.geometry import default_geometry
-from notchfit.notches import notch_points
+from notchfit.physics.geometry import default_geometry
+from notchfit.physics.notches import notch_points
 
 geom = default_geometry()
 j = np.arange(1, geom.n_joints + 1)

@@ -16,8 +16,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from notchfit.figures.fitting import synthetic_bend_unbend
-from notchfit.fitting import fit_experiment
-from notchfit.geometry import default_geometry
+from notchfit.analysis.fitting import fit_experiment
+from notchfit.physics.geometry import default_geometry
 
 geom = default_geometry()
 points, truth = synthetic_bend_unbend(geom)            # (S, 58, 2) [m] and the ground truth

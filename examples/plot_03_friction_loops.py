@@ -4,7 +4,7 @@ The friction model and its hysteresis loops
 
 The cable-friction simulator of Sec. IV-B driven by a bend–unbend test (the
 left cable pulled from 0.45 N to 25 N and back,
-:func:`notchfit.protocols.bend_unbend`). Friction between the cable and its
+:func:`notchfit.physics.protocols.bend_unbend`). Friction between the cable and its
 guide channels makes the unloading branch differ from the loading one: the
 loop of tension against tip angle (the sum of the joint angles) changes
 with the dynamic friction coefficient ``μ_d``, and a larger ``μ_d`` bends the
@@ -16,9 +16,9 @@ paper's ``μ_d = 0.29``.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from notchfit.friction import FrictionParams, simulate
+from notchfit.physics.friction import FrictionParams, simulate
 from notchfit.polygon import polygon_area
-from notchfit.protocols import bend_unbend
+from notchfit.physics.protocols import bend_unbend
 
 test = bend_unbend(25.0, 0.45, pull="left")
 results = {mu: simulate(test.time, test.tension_left, test.tension_right, FrictionParams(mu_d=mu))

@@ -4,8 +4,8 @@ Detect the notch corners on a rendered image
 
 A tube bent at 0.1 rad per joint is rendered through a synthetic camera
 (0.05 mm per pixel, blur, noise, uneven light, a textured background:
-:func:`notchfit.render.render_manipulator`), and
-:func:`notchfit.detection.detect_notches` finds its 58 numbered corners.
+:func:`notchfit.vision.render.render_manipulator`), and
+:func:`notchfit.vision.detection.detect_notches` finds its 58 numbered corners.
 The rendering returns the true points, so the detector's error is measured
 here; ``docs/robustness.md`` gives it over many images and conditions.
 """
@@ -13,10 +13,10 @@ here; ``docs/robustness.md`` gives it over many images and conditions.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from notchfit.detection import detect_notches
+from notchfit.vision.detection import detect_notches
 from notchfit.figures.detection import detection_overlay
-from notchfit.geometry import default_geometry
-from notchfit.render import camera_for_shapes, render_manipulator
+from notchfit.physics.geometry import default_geometry
+from notchfit.vision.render import camera_for_shapes, render_manipulator
 
 geom = default_geometry()
 rng = np.random.default_rng(2015)

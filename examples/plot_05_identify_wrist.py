@@ -6,7 +6,7 @@ Two nitinol wrists cut from one tube stock (a 5-notch asymmetric wrist and a
 4-notch, pre-curved, tip-first wrist: ``datasets/geometry/wrist_*.toml``),
 three loading trials each, the angle of every notch measured with 0.5° noise:
 the synthetic study of ``notchfit demo --tube wrist``, at a smaller size.
-:func:`notchfit.identify.identify` fits what the wrists share (the material's
+:func:`notchfit.analysis.identify.identify` fits what the wrists share (the material's
 ``E_lin``, ``E_se``, ``strain_lower`` and the tendon's friction ``μ_d``) and
 each wrist's rest angles and cut depths; the plot compares the measured
 angles of each wrist's first trial with the identified model. The hidden
@@ -20,9 +20,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from notchfit import io
-from notchfit.friction import simulate_angles
-from notchfit.identify import identify
-from notchfit.synth import generate_study, load_recipe
+from notchfit.physics.friction import simulate_angles
+from notchfit.analysis.identify import identify
+from notchfit.studies.synth import generate_study, load_recipe
 
 folder = Path(tempfile.mkdtemp()) / "study"
 generate_study(load_recipe("wrist_stock").scaled(n_up=8), folder, seed=7)

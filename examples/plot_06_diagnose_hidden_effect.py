@@ -5,7 +5,7 @@ Diagnose a hidden effect
 A small synthetic study (4 bend–unbend tests, notch points with 0.02 mm
 noise) hides one effect the paper's model lacks: friction between the load
 cell and the manipulator's base (``proximal_friction``, a capstan band of
-``β = 0.1``). :func:`notchfit.diagnosis.diagnose` calibrates the paper's
+``β = 0.1``). :func:`notchfit.analysis.diagnosis.diagnose` calibrates the paper's
 model on some tests, predicts the held-out ones, fits six physical
 extensions, and names a cause only when it beats the baseline on held-out
 data by more than the measurement noise.
@@ -34,7 +34,7 @@ MM = 1e3
 
 
 def summarize(diag) -> dict:
-    """What the figure shows, from a :class:`notchfit.diagnosis.Diagnosis` [mm]."""
+    """What the figure shows, from a :class:`notchfit.analysis.diagnosis.Diagnosis` [mm]."""
     return {
         "cause": diag.cause,
         "causes": list(diag.causes),
@@ -49,8 +49,8 @@ def summarize(diag) -> dict:
 
 if os.environ.get("NOTCHFIT_DOCS_DIAGNOSE") == "1":   # run the diagnosis and refresh the cache
     from notchfit import io
-    from notchfit.diagnosis import diagnose
-    from notchfit.synth import generate_study, load_recipe
+    from notchfit.analysis.diagnosis import diagnose
+    from notchfit.studies.synth import generate_study, load_recipe
 
     folder = Path(tempfile.mkdtemp()) / "study"
     recipe = load_recipe("proximal_friction").scaled(n_experiments=4, n_up=8, n_down=10)

@@ -3,13 +3,13 @@ The real-time predictor in a loop
 =================================
 
 During a procedure the tension is measured one sample at a time and the
-shape is wanted at once. :class:`notchfit.predictor.Predictor` holds the
+shape is wanted at once. :class:`notchfit.physics.predictor.Predictor` holds the
 friction model's state (joint angles, the cables' tension profiles, every
 link's stick/slip state) and advances it by one interval per new sample, at
 a cost that does not grow with the history. Here a loop feeds it a tension
 history sample by sample — pull, release, pull again — as a control loop
 would, times each step, and draws the estimated notch points of a few
-samples. Fed the whole history at once, :func:`notchfit.friction.simulate`
+samples. Fed the whole history at once, :func:`notchfit.physics.friction.simulate`
 returns the same angles (tested to 1e-9 rad).
 """
 
@@ -18,8 +18,8 @@ import time
 import matplotlib.pyplot as plt
 import numpy as np
 
-from notchfit.friction import FrictionParams
-from notchfit.predictor import Predictor
+from notchfit.physics.friction import FrictionParams
+from notchfit.physics.predictor import Predictor
 
 rng = np.random.default_rng(1)
 tension = np.r_[np.linspace(0.5, 20.0, 15), np.linspace(18.0, 3.0, 10), np.linspace(5.0, 15.0, 8)]

@@ -4,16 +4,27 @@ After Moses, Murphy, Kutzer & Armand, "Modeling cable and guide channel
 interaction in a high-strength cable-driven continuum manipulator",
 IEEE/ASME Trans. Mechatronics 20(6), 2015.
 
-Modules are named for their concept (geometry, kinematics, notches, cables,
-springs, statics, friction, fitting, camera, detection, render, io, synth,
-diagnosis, report); the command-line pipeline is assembled in
-:mod:`notchfit.cli` and :mod:`notchfit.commands`.
+The package's folders are its layers (docs/architecture.md), each importing
+only from those below it: the primitives at the top of the package (units,
+validation, paper, polygon, imaging, progress, batch); :mod:`notchfit.physics`
+(geometry, kinematics, notches, shapes, cables, springs, statics, friction,
+the predictor); :mod:`notchfit.vision` (camera, render, detection, the
+camera-plane warp); :mod:`notchfit.analysis` (fitting, comparison, the
+estimation core, identify, diagnosis, the cause records); :mod:`notchfit.io`;
+:mod:`notchfit.studies` (synthetic studies and their recipes);
+:mod:`notchfit.figures`, :mod:`notchfit.report` and :mod:`notchfit.review`;
+and the command line, :mod:`notchfit.cli` and :mod:`notchfit.commands`. The
+module names of earlier releases (``notchfit.friction``) still import the same
+modules, with a warning that names the new home.
 """
 
+from . import _moved
 from ._version import __version__
-from .geometry import Geometry, default_geometry
+from .physics.geometry import Geometry, default_geometry
 
 __all__ = ["Geometry", "default_geometry", "load_geometry", "__version__"]
+
+_moved.install()
 
 
 def __getattr__(name):

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from notchfit.geometry import Geometry, default_geometry
+from notchfit.physics.geometry import Geometry, default_geometry
 
 
 @pytest.fixture

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from notchfit.cli import main
-from notchfit.synth import generate_study, load_recipe
+from notchfit.studies.synth import generate_study, load_recipe
 
 ROOT = Path(__file__).resolve().parent.parent
 

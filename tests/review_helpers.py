@@ -13,8 +13,8 @@ import pandas as pd
 from notchfit import io
 from notchfit.cli import main
 from notchfit.commands.review import load_session
-from notchfit.geometry import default_geometry
-from notchfit.render import camera_for_shapes, render_manipulator
+from notchfit.physics.geometry import default_geometry
+from notchfit.vision.render import camera_for_shapes, render_manipulator
 from notchfit.review.server import make_server
 
 #: The corner the tests blank out in sample 1's detections (to be placed by hand).

@@ -1,7 +1,7 @@
 """Measured joint angles through the analyses (issue 18): shape models fitted in angle space,
 simulation against measured angles, and the commands on an experiment with angles and no points.
 
-The shape models of Sec. IV-A (``θ = B · params``, notchfit.shapes) fitted to measured angles
+The shape models of Sec. IV-A (``θ = B · params``, notchfit.physics.shapes) fitted to measured angles
 are linear least squares: closed forms checked here against the normal equations; the
 simulation's angle residual is ``θ_sim − θ_meas`` in degrees (docs/data-formats.md,
 ``simulation_vs_angles.csv``).
@@ -18,11 +18,11 @@ import pytest
 
 from notchfit import io
 from notchfit.cli import main
-from notchfit.comparison import angle_residuals, angle_rms, compare_angles
-from notchfit.fitting import fit_angles
-from notchfit.fitting.angles import estimate_angle_sigma
-from notchfit.friction import FrictionParams, simulate
-from notchfit.synth import generate_study, load_recipe
+from notchfit.analysis.comparison import angle_residuals, angle_rms, compare_angles
+from notchfit.analysis.fitting import fit_angles
+from notchfit.analysis.fitting.angles import estimate_angle_sigma
+from notchfit.physics.friction import FrictionParams, simulate
+from notchfit.studies.synth import generate_study, load_recipe
 from notchfit.units import DEG
 
 

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from notchfit import io
-from notchfit.synth import load_recipe, synthesize, write_study
+from notchfit.studies.synth import load_recipe, synthesize, write_study
 from notchfit.units import DEG
 
 

@@ -15,19 +15,20 @@ import pytest
 PACKAGE = Path(__file__).resolve().parent.parent / "notchfit"
 
 #: physics: pure models over numpy arrays; they read and write no files.
-PHYSICS = ("geometry", "kinematics", "notches", "cables", "springs", "statics", "friction",
-           "_friction_kernels", "_hysteresis_kernels", "_spring_kernels", "friction_params", "predictor", "shapes",
-           "units", "validation", "paper", "polygon", "section")
+PHYSICS = tuple(f"physics.{m}" for m in ("geometry", "kinematics", "notches", "cables", "springs", "statics",
+                                          "friction", "_friction_kernels", "_hysteresis_kernels", "_spring_kernels",
+                                          "friction_params", "predictor", "shapes", "section", "protocols")) + \
+    ("units", "validation", "paper", "polygon")
 #: analysis: returns objects, writes nothing.
-ANALYSIS = ("fitting", "estimation", "causes", "comparison", "diagnosis", "identify")
+ANALYSIS = ("analysis",)
 #: the estimation core, one floor below both engines (identify, diagnosis).
-ESTIMATION = ("estimation",)
-ENGINES = ("identify", "diagnosis")
+ESTIMATION = ("analysis.estimation",)
+ENGINES = ("analysis.identify", "analysis.diagnosis")
 #: vision: cameras, images, rendering and detection, below the file I/O (they read and write no files).
-VISION = ("camera", "imaging", "render", "detection", "warp")
+VISION = ("vision", "imaging")
 #: what vision and the estimation core must not import: the file I/O and everything above it.
 ABOVE_ANALYSIS = ("notchfit.io", "notchfit.batch", "notchfit.commands", "notchfit.cli", "notchfit.figures",
-                  "notchfit.report", "notchfit.synth", "notchfit.recipes")
+                  "notchfit.report", "notchfit.studies.synth", "notchfit.studies.recipes")
 MAX_MODULE_LINES = 800
 #: modules that may exceed the module length limit: the numba kernels of the friction solvers
 #: (each time loop kept whole for the compiler, with the helpers it inlines).
@@ -125,7 +126,7 @@ def test_cycle_finder_finds_a_cycle():
 def test_import_resolution_of_relative_imports():
     modules = all_modules()
     graph = import_graph()
-    assert "notchfit.geometry" in graph["notchfit.kinematics"]
+    assert "notchfit.physics.geometry" in graph["notchfit.physics.kinematics"]
     assert set(graph) == set(modules)
 
 
@@ -145,7 +146,7 @@ def test_physics_imports_no_file_io_and_nothing_above_it(module):
     graph = import_graph()
     deps = graph[f"notchfit.{module}"]
     above = ("notchfit.io", "notchfit.commands", "notchfit.cli", "notchfit.figures", "notchfit.report",
-             "notchfit.diagnosis", "notchfit.fitting", "notchfit.synth", "notchfit.recipes", "notchfit.batch")
+             "notchfit.analysis.diagnosis", "notchfit.analysis.fitting", "notchfit.studies.synth", "notchfit.studies.recipes", "notchfit.batch")
     bad = sorted(d for d in deps if any(d == a or d.startswith(a + ".") for a in above))
     assert not bad, f"notchfit.{module} (physics) imports {bad}"
 
@@ -167,12 +168,12 @@ def test_estimation_sits_below_both_engines():
     and neither imports the other."""
     engines = tuple(f"notchfit.{e}" for e in ENGINES)
     for m, deps in _layer_members(ESTIMATION).items():
-        bad = _bad(deps, engines + ABOVE_ANALYSIS + ("notchfit.causes", "notchfit.comparison"))
+        bad = _bad(deps, engines + ABOVE_ANALYSIS + ("notchfit.analysis.causes", "notchfit.analysis.comparison"))
         assert not bad, f"{m} (estimation core) imports {bad}"
     for engine in ENGINES:
         members = _layer_members((engine,))
-        uses = {d for deps in members.values() for d in deps if d.startswith("notchfit.estimation")}
-        assert uses, f"notchfit.{engine} does not build on notchfit.estimation"
+        uses = {d for deps in members.values() for d in deps if d.startswith("notchfit.analysis.estimation")}
+        assert uses, f"notchfit.{engine} does not build on notchfit.analysis.estimation"
         other = tuple(f"notchfit.{e}" for e in ENGINES if e != engine)
         for m, deps in members.items():
             assert not _bad(deps, other), f"{m} imports the other engine: {_bad(deps, other)}"
@@ -187,7 +188,7 @@ def test_vision_sits_below_file_io():
 
 def test_layer_checks_catch_a_violation():
     """The layer helpers see a forbidden edge (a check that could not fail would prove nothing)."""
-    assert _bad({"notchfit.io.outputs", "notchfit.geometry"}, ABOVE_ANALYSIS) == ["notchfit.io.outputs"]
+    assert _bad({"notchfit.io.outputs", "notchfit.physics.geometry"}, ABOVE_ANALYSIS) == ["notchfit.io.outputs"]
     assert _bad({"notchfit.iota"}, ("notchfit.io",)) == []
 
 

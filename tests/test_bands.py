@@ -1,4 +1,4 @@
-"""Prediction intervals by the unscented transform (notchfit.estimation.bands).
+"""Prediction intervals by the unscented transform (notchfit.analysis.estimation.bands).
 
 Checked against closed forms (a linear model's mean and covariance are exact,
 a quadratic's mean is exact: Julier & Uhlmann, Proc. IEEE 2004, Sec. III),
@@ -9,8 +9,8 @@ of a 95 % interval, and the real-time predictor against the whole-history band.
 import numpy as np
 import pytest
 
-from notchfit.estimation.bands import BandPredictor, prediction_band, sigma_points
-from notchfit.friction import default_params, simulate
+from notchfit.analysis.estimation.bands import BandPredictor, prediction_band, sigma_points
+from notchfit.physics.friction import default_params, simulate
 from notchfit.io import load_geometry
 from notchfit.io.resources import datasets_dir
 from notchfit.units import DEG

@@ -88,7 +88,7 @@ def test_workers_start_after_the_parent_used_native_thread_pools():
         "assert all(r.ok for r in res.items), res.summary('t')\n"
         "from concurrent.futures import ProcessPoolExecutor\n"
         "from notchfit.batch import single_threaded_worker\n"
-        "with ProcessPoolExecutor(2, initializer=single_threaded_worker) as ex:  # as notchfit.diagnosis\n"
+        "with ProcessPoolExecutor(2, initializer=single_threaded_worker) as ex:  # as notchfit.analysis.diagnosis\n"
         "    assert list(ex.map(abs, [-1, -2])) == [1, 2]\n"
         "print('ok')\n"
     )

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from notchfit import cables as C
-from notchfit import kinematics as K
+from notchfit.physics import cables as C
+from notchfit.physics import kinematics as K
 
 OP = 0.14  # operating range |θ| ≤ 0.14 rad (Sec. II-B, Figs. 3-6)
 

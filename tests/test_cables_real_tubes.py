@@ -1,4 +1,4 @@
-"""Cables of real tubes (notchfit.cables, docs/models.md "Real tubes: kinematics"): a lumen tendon across
+"""Cables of real tubes (notchfit.physics.cables, docs/models.md "Real tubes: kinematics"): a lumen tendon across
 circular-arc notches, one-tendon coupling matrices, per-link spacings in the channel law; seed unchanged."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from notchfit import cables as C
-from notchfit import kinematics as K
-from notchfit.geometry import default_geometry
+from notchfit.physics import cables as C
+from notchfit.physics import kinematics as K
+from notchfit.physics.geometry import default_geometry
 from notchfit.io import load_geometry
 
 DATA = Path(__file__).resolve().parent.parent / "datasets" / "geometry"

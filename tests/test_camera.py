@@ -6,9 +6,9 @@ import cv2
 import numpy as np
 import pytest
 
-from notchfit.camera import CameraModel, BoardDetection, calibrate_camera, detect_board, estimate_plane_pose
+from notchfit.vision.camera import CameraModel, BoardDetection, calibrate_camera, detect_board, estimate_plane_pose
 from notchfit.io import load_board, read_camera, write_camera
-from notchfit.render import render_board
+from notchfit.vision.render import render_board
 
 K_TRUE = np.array([[800.0, 0, 322.0], [0, 805.0, 236.0], [0, 0, 1]])
 D_TRUE = np.array([-0.1, 0.05, 0.001, -0.0005, 0.0])
@@ -224,10 +224,10 @@ def test_camera_file_has_normal_permissions(tmp_path):
 
 def test_shipped_sample_views_are_the_rendered_board():
     """calibration/samples/charuco_a4 (README: `calibrate` in one command) are the views
-    notchfit.render.boards renders (JPEG quality 90: a few DN apart), small, and they calibrate
+    notchfit.vision.render.boards renders (JPEG quality 90: a few DN apart), small, and they calibrate
     to the camera they were rendered with."""
     from notchfit.io import calibration_dir, load_image
-    from notchfit.render.boards import SAMPLE_CAMERA, SAMPLE_PLANE_POSE, sample_board_views
+    from notchfit.vision.render.boards import SAMPLE_CAMERA, SAMPLE_PLANE_POSE, sample_board_views
 
     folder = calibration_dir() / "samples" / "charuco_a4"
     board = load_board("charuco_a4")

@@ -18,7 +18,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from notchfit.camera import DIST_LENGTHS, CameraModel
+from notchfit.vision.camera import DIST_LENGTHS, CameraModel
 from notchfit.io import InputFileError, read_camera, write_camera
 from notchfit.units import MM
 from reliability_helpers import cli_env

@@ -1,4 +1,4 @@
-"""One record per cause (notchfit.causes): complete, and the only table of causes in the package."""
+"""One record per cause (notchfit.analysis.causes): complete, and the only table of causes in the package."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from notchfit.causes import CAUSES, FIGURE_KINDS, REGISTRY, REQUIREMENTS, Cause, ScoreTerm
-from notchfit.estimation import ParamSpec
+from notchfit.analysis.causes import CAUSES, FIGURE_KINDS, REGISTRY, REQUIREMENTS, Cause, ScoreTerm
+from notchfit.analysis.estimation import ParamSpec
 from notchfit.figures.diagnosis import VIEWS
-from notchfit.recipes import list_recipes, load_recipe
+from notchfit.studies.recipes import list_recipes, load_recipe
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "notchfit"
@@ -22,7 +22,7 @@ NOT_CAUSES = {"none", "unexplained", "baseline"}
 
 def measured_signatures() -> set[str]:
     """The signature names the diagnosis computes (the first argument of every ``Signature(...)``)."""
-    tree = ast.parse((PACKAGE / "diagnosis" / "signatures.py").read_text(encoding="utf-8"))
+    tree = ast.parse((PACKAGE / "analysis" / "diagnosis" / "signatures.py").read_text(encoding="utf-8"))
     names = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "Signature" and node.args:
@@ -123,15 +123,15 @@ def _named_causes(tree) -> list[tuple[int, str]]:
 
 
 def test_no_module_keeps_its_own_cause_table_or_names_an_unknown_cause():
-    """Only notchfit/causes.py maps cause ids to anything; every cause a module compares with is known."""
+    """Only notchfit/analysis/causes.py maps cause ids to anything; every cause a module compares with is known."""
     tables, unknown = [], []
     for path in sorted(PACKAGE.rglob("*.py")):
-        if path.name == "causes.py" and path.parent == PACKAGE:
+        if path.name == "causes.py" and path.parent == PACKAGE / "analysis":
             continue
         tree = ast.parse(path.read_text(encoding="utf-8"))
         rel = path.relative_to(ROOT)
         tables += [f"{rel}:{line}" for line in _cause_tables(tree)]
         unknown += [f"{rel}:{line}: {v!r}" for line, v in _named_causes(tree)
                     if v not in REGISTRY and v not in NOT_CAUSES and re.fullmatch(r"[a-z]+(_[a-z]+)+", v)]
-    assert not tables, "tables keyed by cause ids outside notchfit/causes.py: " + ", ".join(tables)
+    assert not tables, "tables keyed by cause ids outside notchfit/analysis/causes.py: " + ", ".join(tables)
     assert not unknown, "causes the registry lacks: " + ", ".join(unknown)

@@ -37,7 +37,7 @@ import pytest  # noqa: E402
 
 from notchfit import io  # noqa: E402
 from notchfit.cli import main  # noqa: E402
-from notchfit.synth import generate_study, load_recipe  # noqa: E402
+from notchfit.studies.synth import generate_study, load_recipe  # noqa: E402
 
 
 @pytest.fixture(scope="module")

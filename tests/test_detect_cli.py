@@ -6,10 +6,10 @@ import pandas as pd
 import pytest
 
 from notchfit import io
-from notchfit.camera import CameraModel
+from notchfit.vision.camera import CameraModel
 from notchfit.cli import main
 from notchfit.io import load_board, read_camera, write_camera
-from notchfit.render import camera_for_shapes, render_board, render_manipulator
+from notchfit.vision.render import camera_for_shapes, render_board, render_manipulator
 
 
 def _experiment(tmp_path, geom, thetas, *, corrupt=None, missing=None):
@@ -103,7 +103,7 @@ def test_calibrate_cli(tmp_path, capsys):
 def test_detect_cli_photo_without_calibration_and_stated_base(tmp_path, capsys):
     """A lab photo of a one-sided wrist in a chuck, no camera file, `base = "top"` in experiment.toml:
     the scale comes from the tube's diameter (within 1 %), stated in the log and in detect_run.json."""
-    from notchfit.render.scenes import Scene, render_scene, scene_camera
+    from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
 
     geom = io.load_geometry(io.datasets_dir() / "geometry" / "wrist_asymmetric.toml")
     th = np.array([0.2, 0.25, 0.3, 0.3, 0.25])
@@ -132,7 +132,7 @@ def test_detect_cli_photo_without_calibration_and_stated_base(tmp_path, capsys):
 
 def _tone_curve_experiment(tmp_path, image_gamma=None):
     """A wrist photographed as a camera writes it: a tone curve (gamma 2.2), blur, JPEG."""
-    from notchfit.render.scenes import Scene, render_scene, scene_camera
+    from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
 
     geom = io.load_geometry(io.datasets_dir() / "geometry" / "wrist_asymmetric.toml")
     th = np.array([0.2, 0.25, 0.3, 0.3, 0.25])

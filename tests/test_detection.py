@@ -8,11 +8,11 @@ at most 0.004 mm (python benchmarks/bench_detection.py measures the same on 1920
 import numpy as np
 import pytest
 
-from notchfit.camera import CameraModel
-from notchfit.detection import detect_notches, detections_table, draw_overlay
-from notchfit.fitting import fit_experiment
-from notchfit.geometry import notch_layout
-from notchfit.render import _form_image, camera_for_shapes, render_manipulator
+from notchfit.vision.camera import CameraModel
+from notchfit.vision.detection import detect_notches, detections_table, draw_overlay
+from notchfit.analysis.fitting import fit_experiment
+from notchfit.physics.geometry import notch_layout
+from notchfit.vision.render import _form_image, camera_for_shapes, render_manipulator
 
 CLOSE = 0.1395          # the default slots close at 0.13970 rad: the outer corners almost touch
 
@@ -68,7 +68,7 @@ def test_numbering_is_geometry_md(geom):
 
     Checked in the manipulator frame through the known plane transform, independently of the projector.
     """
-    from notchfit.notches import from_plane
+    from notchfit.physics.notches import from_plane
 
     lay = notch_layout(geom)
     th = np.full(geom.n_joints, 0.05)

@@ -8,10 +8,10 @@ import cv2
 import numpy as np
 import pytest
 
-from notchfit.detection import detect_notches
-from notchfit.detection.chain import ChainTolerance, SideCandidates, joint_play, number_side
-from notchfit.geometry import Geometry, default_geometry, notch_layout
-from notchfit.render.scenes import Scene, render_scene, scene_camera
+from notchfit.vision.detection import detect_notches
+from notchfit.vision.detection.chain import ChainTolerance, SideCandidates, joint_play, number_side
+from notchfit.physics.geometry import Geometry, default_geometry, notch_layout
+from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
 
 WRIST = Geometry(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
                  slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist", inner_radius=0.7e-3,
@@ -156,7 +156,7 @@ def test_a_double_edge_widens_the_corner_uncertainty():
     width Δ); clean edges get none."""
     from math import erf, sqrt
 
-    from notchfit.detection.refine import edge_spread
+    from notchfit.vision.detection.refine import edge_spread
 
     t = np.arange(-12, 12.01, 0.5)
     step = lambda x, s: 0.5 * (1 + np.vectorize(erf)(x / (sqrt(2) * s)))

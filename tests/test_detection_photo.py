@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from PIL import Image, ImageOps
 
-from notchfit.camera import CameraModel
-from notchfit.detection import detect_notches, mirror_without_camera
-from notchfit.geometry import Geometry, default_geometry
+from notchfit.vision.camera import CameraModel
+from notchfit.vision.detection import detect_notches, mirror_without_camera
+from notchfit.physics.geometry import Geometry, default_geometry
 from notchfit.io import image_orientation, load_image
-from notchfit.render import place_in_view, render_manipulator
-from notchfit.render.scenes import Scene, render_scene, scene_camera
+from notchfit.vision.render import place_in_view, render_manipulator
+from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
 
 WRIST = Geometry(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
                  slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist", inner_radius=0.7e-3,
@@ -91,7 +91,7 @@ def test_working_resolution_follows_the_tube_not_the_file():
     at 0.03 mm/px and the lab's wrist at 130 px/mm keep their factors (2 and 8); a large printed tube in a
     2 MP phone photo at 20 px/mm is worked on at 1/5 (it used to be full resolution); the file's size
     does not enter."""
-    from notchfit.detection import DetectorOptions, work_factor
+    from notchfit.vision.detection import DetectorOptions, work_factor
 
     opts = DetectorOptions()
     printed = Geometry(n_joints=6, p=4e-3, outer_radius=3e-3, slot_width=1.5e-3, slot_depth=4.2e-3,
@@ -106,9 +106,9 @@ def test_working_resolution_follows_the_tube_not_the_file():
 def test_overlay_frames_a_partial_detection_without_a_sliver():
     """Two corners found far apart on one image row (a partial detection): the crop around them keeps a
     readable shape (sides at most 2:1), in both overlays."""
-    from notchfit.detection import overlay_with_crop
-    from notchfit.detection.overlay import overlay_crop
-    from notchfit.detection.result import Detection
+    from notchfit.vision.detection import overlay_with_crop
+    from notchfit.vision.detection.overlay import overlay_crop
+    from notchfit.vision.detection.result import Detection
 
     img = np.full((3000, 4000), 150, np.uint8)
     px = np.full((14, 2), np.nan)
@@ -123,7 +123,7 @@ def test_overlay_frames_a_partial_detection_without_a_sliver():
 
 def test_a_geometry_written_for_detection_alone_needs_no_tendon():
     """The dimensions and the slots only: loaded, detected with; what needs a tendon says which keys."""
-    from notchfit.geometry import geometry_from_dict
+    from notchfit.physics.geometry import geometry_from_dict
 
     g = geometry_from_dict({"n_joints": 5, "p_mm": 1.6, "outer_radius_mm": 0.81, "slot_width_mm": 0.8,
                             "slot_depth_mm": 1.3, "base_edge_z_mm": WRIST.base_edge_z * 1e3,

@@ -9,9 +9,9 @@ numbered, no other point may be reported, and the error stays within 0.005 mm rm
 import numpy as np
 import pytest
 
-from notchfit.detection import detect_notches, draw_overlay, mirror_without_camera, overlay_with_crop
-from notchfit.geometry import Geometry, default_geometry
-from notchfit.render.scenes import Scene, render_scene, scene_camera
+from notchfit.vision.detection import detect_notches, draw_overlay, mirror_without_camera, overlay_with_crop
+from notchfit.physics.geometry import Geometry, default_geometry
+from notchfit.vision.render.scenes import Scene, render_scene, scene_camera
 
 WRIST = Geometry(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
                  slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist", inner_radius=0.7e-3,
@@ -139,7 +139,7 @@ def test_shipped_wrists_per_notch_dimensions_and_section_backbone(name):
     from pathlib import Path
 
     from notchfit.io import load_geometry
-    from notchfit.render import pivot_closure_angles
+    from notchfit.vision.render import pivot_closure_angles
 
     g = load_geometry(Path(__file__).resolve().parent.parent / "datasets" / "geometry" / f"{name}.toml")
     th = g.rest_angles + 0.6 * (pivot_closure_angles(g) - g.rest_angles)
@@ -161,8 +161,8 @@ def _lab_geometries():
 
 
 def _variety(n, seed, size, px_per_mm, calibrated):
-    """Detect n seeded random lab scenes (notchfit.render.variety); totals of the scores."""
-    from notchfit.render.variety import draw_scene, render_draw, score
+    """Detect n seeded random lab scenes (notchfit.vision.render.variety); totals of the scores."""
+    from notchfit.vision.render.variety import draw_scene, render_draw, score
 
     rng = np.random.default_rng(seed)
     geoms = _lab_geometries()

@@ -6,15 +6,15 @@ import cv2
 import numpy as np
 import pytest
 
-from notchfit.detection import DetectorOptions, detect_notches
-from notchfit.detection.base import find_base, holder_mask, image_side
-from notchfit.detection.lines import intersect, robust_group_lines
-from notchfit.detection.outline import bridge_slots, crop_region, slot_mouths
-from notchfit.detection.refine import CornerSpecs, refine_pass
-from notchfit.detection.segment import fill_holes, largest_region, segment
-from notchfit.detection.view import DiameterScale
-from notchfit.detection.width import measure_diameter, rough_radius
-from notchfit.render import polygon_coverage
+from notchfit.vision.detection import DetectorOptions, detect_notches
+from notchfit.vision.detection.base import find_base, holder_mask, image_side
+from notchfit.vision.detection.lines import intersect, robust_group_lines
+from notchfit.vision.detection.outline import bridge_slots, crop_region, slot_mouths
+from notchfit.vision.detection.refine import CornerSpecs, refine_pass
+from notchfit.vision.detection.segment import fill_holes, largest_region, segment
+from notchfit.vision.detection.view import DiameterScale
+from notchfit.vision.detection.width import measure_diameter, rough_radius
+from notchfit.vision.render import polygon_coverage
 
 
 def _image(polys, shape, bg=200.0, fg=40.0, blur=1.0, noise=0.0, rng=None):
@@ -259,8 +259,8 @@ def test_curved_face_corner_from_the_ellipse_arc():
 def test_tube_radius_is_the_band_that_holds_the_slots():
     """A clamp with a bar 1.5x as wide as the tube and much longer, and a tube (R = 10 px) with five slots
     (w = 8, d = 16 px): the thinnest or the longest band is not the answer; the one holding the slots is."""
-    from notchfit.detection.width import tube_radius
-    from notchfit.geometry import Geometry
+    from notchfit.vision.detection.width import tube_radius
+    from notchfit.physics.geometry import Geometry
 
     g = Geometry(n_joints=5, p=1.6e-3, outer_radius=1e-3, slot_width=0.8e-3, slot_depth=1.6e-3, slot_sides=(1,) * 5,
                  mount_half_width=None, mount_bottom_z=None, name="t", inner_radius=0.7e-3, tendons=("right",),
@@ -282,7 +282,7 @@ def test_band_width_across_a_shaded_tube_with_a_streak(skew_deg):
     background inside: its width from profiles through its centre, 0.15 px each and 0.05 px (0.05 %) on
     average, even when the profiles are 6° off the perpendicular (the skew is measured and corrected:
     uncorrected, 0.55 %)."""
-    from notchfit.detection.width import band_width
+    from notchfit.vision.detection.width import band_width
 
     a = math.radians(25.0)
     d, n = np.array([math.cos(a), math.sin(a)]), np.array([-math.sin(a), math.cos(a)])
@@ -305,9 +305,9 @@ def test_band_width_across_a_shaded_tube_with_a_streak(skew_deg):
 def test_rigid_link_check_finds_a_slot_numbered_one_off():
     """Corners of a one-sided wrist: a corner from the next link put in a point's place breaks its link's
     distances and is dropped; a tube built 4 % longer than drawn passes (links are checked to 15 %)."""
-    from notchfit.detection.plane import rigid_link_check
-    from notchfit.geometry import Geometry
-    from notchfit.notches import notch_points
+    from notchfit.vision.detection.plane import rigid_link_check
+    from notchfit.physics.geometry import Geometry
+    from notchfit.physics.notches import notch_points
 
     g = Geometry(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
                  slot_sides=(1,) * 5, mount_half_width=None, mount_bottom_z=None, name="w", inner_radius=0.7e-3,
@@ -351,7 +351,7 @@ def test_a_specular_line_brighter_than_the_background_stays_inside_the_tube():
     lab's polished wrist: 198 DN on a 158 DN background): the line is object (it differs from the
     background the other way by more than a third of the contrast), so the tube is one region; taken
     for background it would cut the tube in two."""
-    from notchfit.detection.segment import largest_region, segment
+    from notchfit.vision.detection.segment import largest_region, segment
 
     rng = np.random.default_rng(5)
     img = np.full((120, 160), 158.0) + rng.normal(0, 1.0, (120, 160))

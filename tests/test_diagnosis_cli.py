@@ -23,7 +23,7 @@ def test_parallel_and_seed_options():
 
 # ----------------------------------------------------------------------------- options through the CLI
 def _small_study(tmp_path, recipe="null", seed=1):
-    from notchfit.synth import generate_study, load_recipe
+    from notchfit.studies.synth import generate_study, load_recipe
 
     study = tmp_path / "study"
     generate_study(load_recipe(recipe).scaled(n_experiments=4, n_up=8, n_down=10), study, seed=seed)

@@ -4,7 +4,7 @@ once; `notchfit diagnose` must name them from the data alone and gain >= 30% hel
 The test knows the causes only because it chose the recipe; it deletes the generator's
 truth.json before the analysis and decides what was found from diagnosis.json alone.
 Joint hysteresis is also hidden by laws the candidate does not have (the generator's
-Bouc-Wen loops and two-branch superelastic flag, notchfit._hysteresis_kernels), and a
+Bouc-Wen loops and two-branch superelastic flag, notchfit.physics._hysteresis_kernels), and a
 one-tendon wrist is diagnosed from measured joint angles.
 The default job runs reduced studies (4 experiments, 9 + 11 samples, two folds) with the
 candidates narrowed to the hidden cause(s) and their likely rivals (``--causes``): each cause's
@@ -20,9 +20,9 @@ import json
 import pytest
 
 from notchfit.cli import main
-from notchfit.diagnosis import CAUSES
-from notchfit.recipes import combine_recipes
-from notchfit.synth import generate_study, load_recipe
+from notchfit.analysis.diagnosis import CAUSES
+from notchfit.studies.recipes import combine_recipes
+from notchfit.studies.synth import generate_study, load_recipe
 
 # reduced studies for the default job: 4 experiments (3 counter-tensions, both directions),
 # 9 + 11 samples each, two folds

@@ -1,8 +1,8 @@
 """Typed diagnosis results and their diagnosis.json dictionaries (lengths in m inside, mm in the file)."""
 import pytest
 
-from notchfit.diagnosis import CandidateResult, Gain, Signature
-from notchfit.diagnosis.decision import decide
+from notchfit.analysis.diagnosis import CandidateResult, Gain, Signature
+from notchfit.analysis.diagnosis.decision import decide
 
 
 def test_signature_lengths_in_mm_in_the_file():

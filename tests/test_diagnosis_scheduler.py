@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from notchfit.cli import main
-from notchfit.diagnosis import noise_floor, prepare_experiment
-from notchfit.friction import FrictionParams
+from notchfit.analysis.diagnosis import noise_floor, prepare_experiment
+from notchfit.physics.friction import FrictionParams
 from notchfit.io import read_study
-from notchfit.synth import generate_study, load_recipe
+from notchfit.studies.synth import generate_study, load_recipe
 
 # as tests/test_diagnosis_hidden.py: 4 experiments, 9 + 11 samples each, two folds
 SMALL = dict(n_experiments=4, n_up=8, n_down=10)

@@ -4,11 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from notchfit.diagnosis import (CANDIDATES, CAUSES, folds_by_experiment, loading_stalls,
-                                paired_z, rank_candidates)
-from notchfit.diagnosis import peak_regimes as measured_regimes
-from notchfit.diagnosis.noise import _effective_n
-from notchfit.diagnosis.signatures import _loop_area, _release_tension
+from notchfit.analysis.diagnosis import CANDIDATES, CAUSES, folds_by_experiment, loading_stalls, paired_z, rank_candidates
+from notchfit.analysis.diagnosis import peak_regimes as measured_regimes
+from notchfit.analysis.diagnosis.noise import _effective_n
+from notchfit.analysis.diagnosis.signatures import _loop_area, _release_tension
 
 
 def test_causes_match_data_format_table():
@@ -103,8 +102,8 @@ def test_ranking_points_to_static_friction_on_stalls():
 
 # ----------------------------------------------------------------------------- issue 19: two causes, angles, scope
 def _prep(name="E1", metric="points", pulled=1, geom=None, S=4):
-    from notchfit.diagnosis import Prepared
-    from notchfit.geometry import default_geometry
+    from notchfit.analysis.diagnosis import Prepared
+    from notchfit.physics.geometry import default_geometry
 
     g = geom or default_geometry()
     shape = (S, g.n_points, 2) if metric == "points" else (S, g.n_joints)
@@ -116,8 +115,8 @@ def _prep(name="E1", metric="points", pulled=1, geom=None, S=4):
 
 
 def test_second_candidates_keep_masked_ones_and_drop_noisy_static_friction():
-    from notchfit.diagnosis import CandidateResult
-    from notchfit.diagnosis.pairs import second_candidates
+    from notchfit.analysis.diagnosis import CandidateResult
+    from notchfit.analysis.diagnosis.pairs import second_candidates
 
     def c(cause, rms, sig=False):
         return CandidateResult(cause, {}, 1, rms, rms, 0.0, 1.0, 0.1, sig)
@@ -134,8 +133,8 @@ def test_second_candidates_keep_masked_ones_and_drop_noisy_static_friction():
 def test_contribution_shares_add_up_to_the_removed_discrepancy():
     """Shapley shares over the two orders of adding the causes: they add to one, and the cause that
     removes more in both orders gets the larger share (docs/diagnosis.md)."""
-    from notchfit.diagnosis import HeldOut
-    from notchfit.diagnosis.pairs import contributions
+    from notchfit.analysis.diagnosis import HeldOut
+    from notchfit.analysis.diagnosis.pairs import contributions
 
     p = _prep(metric="angles")
     a, b = "external_load", "stiffness_gradient"
@@ -154,10 +153,10 @@ def test_contribution_shares_add_up_to_the_removed_discrepancy():
 
 
 def test_scope_skips_what_angle_data_and_a_section_backbone_cannot_show():
-    from notchfit.diagnosis.scope import applicable_causes
-    from notchfit.diagnosis.signatures import skipped_signatures
+    from notchfit.analysis.diagnosis.scope import applicable_causes
+    from notchfit.analysis.diagnosis.signatures import skipped_signatures
     from notchfit.io import load_geometry
-    from notchfit.synth import _geometry_source
+    from notchfit.studies.synth import _geometry_source
 
     wrist = load_geometry(_geometry_source("wrist_asymmetric"))
     preps = (_prep("R1", "angles", geom=wrist), _prep("R2", "angles", geom=wrist))
@@ -170,7 +169,7 @@ def test_scope_skips_what_angle_data_and_a_section_backbone_cannot_show():
 
 
 def test_recorded_protocol_is_used_and_missing_one_is_said():
-    from notchfit.diagnosis.scope import resolve_protocol
+    from notchfit.analysis.diagnosis.scope import resolve_protocol
 
     preps = (_prep("A"), _prep("B"))
     out, prot, cal = resolve_protocol(preps, {"A": 4.0, "B": 4.0}, None, None)
@@ -181,8 +180,8 @@ def test_recorded_protocol_is_used_and_missing_one_is_said():
 
 
 def test_angle_metric_in_the_file():
-    from notchfit.diagnosis import CandidateResult, Gain
-    from notchfit.estimation import choose_metric
+    from notchfit.analysis.diagnosis import CandidateResult, Gain
+    from notchfit.analysis.estimation import choose_metric
     from notchfit.units import DEG
 
     d = CandidateResult("joint_hysteresis", {}, 3, DEG, 2 * DEG, 0.0, 4.0, 0.5, True).to_dict("angles")

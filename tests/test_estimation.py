@@ -1,4 +1,4 @@
-"""The estimation core (notchfit.estimation): one noise rule, the block layout of one problem, its solution
+"""The estimation core (notchfit.analysis.estimation): one noise rule, the block layout of one problem, its solution
 and standard errors against closed forms, the leave-one-out splits."""
 
 from __future__ import annotations
@@ -8,10 +8,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from notchfit.estimation import (Block, Observations, ParamSpec, Problem, folds, grid_starts, solve, tension_sigma,
-                                 tube_folds, whitened)
-from notchfit.friction import LOAD_CELL_SIGMA
-from notchfit.geometry import default_geometry
+from notchfit.analysis.estimation import Block, Observations, ParamSpec, Problem, folds, grid_starts, solve, tension_sigma, tube_folds, whitened
+from notchfit.physics.friction import LOAD_CELL_SIGMA
+from notchfit.physics.geometry import default_geometry
 
 
 def _obs(name, tube, measured, sigma=0.1):

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from notchfit import cables as C
+from notchfit.physics import cables as C
 from notchfit.cli import main
 from notchfit.figures import discover
 
@@ -100,7 +100,7 @@ def test_cli_writes_data_and_png_and_refuses_overwrite(tmp_path, capsys):
     df = pd.read_csv(out / "fig3.csv")
     assert list(df.columns) == ["theta_i_rad", "theta_ip1_rad", "error_um"]
     assert df.theta_i_rad.min() == pytest.approx(-0.14) and df.theta_ip1_rad.max() == pytest.approx(0.14)
-    from notchfit.geometry import default_geometry
+    from notchfit.physics.geometry import default_geometry
     g = default_geometry()
     row = df.iloc[1234]
     expect = (C.segment_length(row.theta_i_rad, row.theta_ip1_rad, g)

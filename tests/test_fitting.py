@@ -3,23 +3,12 @@
 import numpy as np
 import pytest
 
-from notchfit.fitting import (
-    PlaneTransform,
-    compare_models,
-    estimate_angles,
-    fit_experiment,
-    fit_sample,
-    fit_samples,
-    fit_transform,
-    fits_table,
-    initial_transform,
-    pointwise_table,
-)
-from notchfit.fitting.lm import Problem as _Problem
-from notchfit.synth import synthetic_points
-from notchfit.geometry import notch_layout
-from notchfit.notches import notch_points
-from notchfit.shapes import get_model
+from notchfit.analysis.fitting import PlaneTransform, compare_models, estimate_angles, fit_experiment, fit_sample, fit_samples, fit_transform, fits_table, initial_transform, pointwise_table
+from notchfit.analysis.fitting.lm import Problem as _Problem
+from notchfit.studies.synth import synthetic_points
+from notchfit.physics.geometry import notch_layout
+from notchfit.physics.notches import notch_points
+from notchfit.physics.shapes import get_model
 
 SIG = 2e-5                      # 0.02 mm point noise (the brief's synthetic level)
 TRUE_T = (0.012, -0.004, 0.3)   # plane transform [m, m, rad]
@@ -33,7 +22,7 @@ def linear_theta(a, b, n):
 @pytest.fixture(scope="module")
 def recovery():
     """24 samples of linear shapes, seeded noise 0.02 mm, unknown transform."""
-    from notchfit.geometry import default_geometry
+    from notchfit.physics.geometry import default_geometry
 
     geom = default_geometry()
     rng = np.random.default_rng(4)
@@ -250,7 +239,7 @@ def test_gauge_rotation_vs_theta1_is_exact_without_base_points(geom):
     P1 = to = notch_points(theta, geom)
     th2 = theta.copy()
     th2[0] += d            # +θ1 turns +z toward +x: clockwise in the (x, z) plane
-    from notchfit.notches import to_plane
+    from notchfit.physics.notches import to_plane
     A = to_plane(P1, *TRUE_T)
     Bp = to_plane(notch_points(th2, geom), TRUE_T[0], TRUE_T[1], TRUE_T[2] + d)
     link = notch_layout(geom).link

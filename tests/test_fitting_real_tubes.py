@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from notchfit.fitting import fit_experiment
-from notchfit.fitting.first_pass import estimate_angles
+from notchfit.analysis.fitting import fit_experiment
+from notchfit.analysis.fitting.first_pass import estimate_angles
 from notchfit.io import load_geometry
-from notchfit.notches import notch_points, to_plane
+from notchfit.physics.notches import notch_points, to_plane
 
 DATA = Path(__file__).resolve().parent.parent / "datasets" / "geometry"
 PLANE = (2.0e-3, -1.0e-3, 0.25, False)          # tx, ty [m], phi [rad], mirror

@@ -5,15 +5,15 @@ import math
 import numpy as np
 import pytest
 
-from notchfit import _friction_kernels as K
-from notchfit.friction import FrictionParams, SimulationResult, cable_displacement, simulate, simulation_table
-from notchfit.friction import stepwise_regimes as classify_regimes
-from notchfit.shapes import line_fit as shape_ab
-from notchfit.geometry import Geometry
+from notchfit.physics import _friction_kernels as K
+from notchfit.physics.friction import FrictionParams, SimulationResult, cable_displacement, simulate, simulation_table
+from notchfit.physics.friction import stepwise_regimes as classify_regimes
+from notchfit.physics.shapes import line_fit as shape_ab
+from notchfit.physics.geometry import Geometry
 from notchfit.io import load_params, save_params
-from notchfit.kinematics import joint_torques_from_tip_wrench
-from notchfit.protocols import bend_unbend, paper_protocols
-from notchfit.springs import friction_spring
+from notchfit.physics.kinematics import joint_torques_from_tip_wrench
+from notchfit.physics.protocols import bend_unbend, paper_protocols
+from notchfit.physics.springs import friction_spring
 
 
 def loop_area(load, tip):

@@ -21,8 +21,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from notchfit import io
-from notchfit.camera import CameraModel
-from notchfit.synth import load_recipe
+from notchfit.vision.camera import CameraModel
+from notchfit.studies.synth import load_recipe
 from reliability_helpers import make_study
 
 FUZZ_EXAMPLES = 200

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from notchfit.geometry import Geometry, notch_layout
+from notchfit.physics.geometry import Geometry, notch_layout
 from notchfit.io import load_geometry
 
 
@@ -84,7 +84,7 @@ def test_toml_bad_sides_and_other_n(tmp_path):
 def test_default_geometry_is_the_shipped_default_file():
     import dataclasses
 
-    from notchfit.geometry import default_geometry
+    from notchfit.physics.geometry import default_geometry
 
     shipped, default = load_geometry("default"), default_geometry()
     for f in dataclasses.fields(Geometry):

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from notchfit.geometry import Geometry, default_geometry, geometry_from_dict, notch_layout
+from notchfit.physics.geometry import Geometry, default_geometry, geometry_from_dict, notch_layout
 from notchfit.io import load_geometry
-from notchfit.section import notch_section
+from notchfit.physics.section import notch_section
 
 DATA = Path(__file__).resolve().parent.parent / "datasets" / "geometry"
 MM = 1e-3

@@ -1,4 +1,4 @@
-"""The joint-hysteresis family and the generator's laws (notchfit._hysteresis_kernels).
+"""The joint-hysteresis family and the generator's laws (notchfit.physics._hysteresis_kernels).
 
 Closed forms at μ = 0 (every joint sees the drive torque F = r_x ΔT and comes to rest):
 * the play of constant width (the seed's hysteresis_torque): test_friction.py;
@@ -21,10 +21,10 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from notchfit import _hysteresis_kernels as H
-from notchfit.friction import FrictionParams, simulate
+from notchfit.physics import _hysteresis_kernels as H
+from notchfit.physics.friction import FrictionParams, simulate
 from notchfit.io import load_params, save_params
-from notchfit.protocols import bend_unbend
+from notchfit.physics.protocols import bend_unbend
 
 
 def _drive(F_values, *, interval=2.0, counter=0.45, r_x=0.0025):

@@ -1,4 +1,4 @@
-"""Identifiability verdicts from the Fisher information (notchfit.estimation.identifiability).
+"""Identifiability verdicts from the Fisher information (notchfit.analysis.estimation.identifiability).
 
 Checked against closed forms of linear least squares (the covariance of an
 ordinary regression is σ² (XᵀX)⁻¹, Bates & Watts 1988 Sec. 1.1), against a
@@ -10,7 +10,7 @@ frictionless study pulled in one direction (its residuals do not depend on μ).
 import numpy as np
 import pytest
 
-from notchfit.estimation.identifiability import assess
+from notchfit.analysis.estimation.identifiability import assess
 
 
 def test_standard_errors_are_the_regression_closed_form():
@@ -63,7 +63,7 @@ def test_large_standard_error_against_the_range_is_flagged():
 
 def _wrist_information(tension_max):
     """Finite-difference Jacobian of a loading-only wrist's angles in (E_lin, E_se), σ = 0.5°."""
-    from notchfit.friction import default_params, simulate
+    from notchfit.physics.friction import default_params, simulate
     from notchfit.io import load_geometry
     from notchfit.io.resources import datasets_dir
 

@@ -19,13 +19,13 @@ import pytest
 
 from notchfit import io
 from notchfit.cli import main
-from notchfit.estimation import choose_metric, observe_study, tube_labels
-from notchfit.friction import default_params
-from notchfit.identify import default_free, identify, parse_free, zero_tension_samples
+from notchfit.analysis.estimation import choose_metric, observe_study, tube_labels
+from notchfit.physics.friction import default_params
+from notchfit.analysis.identify import default_free, identify, parse_free, zero_tension_samples
 from notchfit.io import load_params
-from notchfit.identify.problem import standard_errors
-from notchfit.recipes import recipe_from_dict
-from notchfit.synth import generate_study
+from notchfit.analysis.identify.problem import standard_errors
+from notchfit.studies.recipes import recipe_from_dict
+from notchfit.studies.synth import generate_study
 
 TRUTH = {"E_lin": 45e9, "E_se": 3e9, "strain_lower": 0.014, "mu_d": 0.12}
 ANGLE_NOISE_DEG = 0.5
@@ -150,7 +150,7 @@ def test_free_names_defaults_and_tubes(geom):
         "E_lin", "mu_d", "rest_angle", "slot_depth")
     with pytest.raises(ValueError, match="twice"):
         parse_free(["E_lin", "E_lin_Pa"])
-    from notchfit.identify import specs_for
+    from notchfit.analysis.identify import specs_for
     with pytest.raises(ValueError, match="no tube of this study uses spring_law = 'rates'"):
         specs_for(("k_lin", "mu_d"), [default_params(io.load_geometry(io.datasets_dir() / "geometry"
                                                                       / "wrist_asymmetric.toml"))])
@@ -221,8 +221,8 @@ def test_simulate_angles_rests_where_the_frictionless_statics_put_it(name):
     protocol rests where each joint's spring balances its tendon torques, τ_j(θ_j − θ0_j) = a_R,j T_R −
     a_L,j T_L (docs/models.md, "Real tubes: mechanics"), solved by inverting the piecewise-linear spring
     (PiecewiseLinearSpring.angle), not by the time-stepping solver; for a one-tendon wrist and the seed tube."""
-    from notchfit.cables import LEFT, RIGHT
-    from notchfit.friction import simulate_angles
+    from notchfit.physics.cables import LEFT, RIGHT
+    from notchfit.physics.friction import simulate_angles
     geom = io.load_geometry(io.datasets_dir() / "geometry" / f"{name}.toml")
     p = default_params(geom).replace(mu_d=0.0, mu_s=0.0)
     peak = 2.5 if geom.backbone == "section" else 20.0

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from notchfit import io
-from notchfit.notches import notch_points, to_plane
+from notchfit.physics.notches import notch_points, to_plane
 
 
 def _samples(S=5, image=False):
@@ -333,7 +333,7 @@ def test_load_toml_lines_and_errors(tmp_path):
 
 
 def test_every_toml_reader_raises_toml_error(tmp_path):
-    from notchfit.synth import load_recipe
+    from notchfit.studies.synth import load_recipe
 
     bad = tmp_path / "bad.toml"
     bad.write_text("x = = 1\n")
@@ -368,7 +368,7 @@ def test_physics_does_not_import_io_and_moved_names_say_where():
     import subprocess
     import sys
 
-    code = ("import sys, notchfit.friction as f, notchfit.geometry, notchfit.statics\n"
+    code = ("import sys, notchfit.physics.friction as f, notchfit.physics.geometry, notchfit.physics.statics\n"
             "assert 'notchfit.io' not in sys.modules, 'physics imported notchfit.io'\n"
             "import notchfit\n"
             "assert 'notchfit.io' not in sys.modules, 'import notchfit imported notchfit.io'\n"
@@ -377,7 +377,7 @@ def test_physics_does_not_import_io_and_moved_names_say_where():
             "except AttributeError as exc:\n"
             "    assert 'notchfit.io.load_params' in str(exc), exc\n"
             "else:\n"
-            "    raise AssertionError('notchfit.friction.load_params still imports')\n"
+            "    raise AssertionError('notchfit.physics.friction.load_params still imports')\n"
             "assert 'notchfit.io' not in sys.modules, 'the moved name imported notchfit.io'\n"
             "import notchfit.io as io\n"
             "assert notchfit.load_geometry is io.load_geometry\n")

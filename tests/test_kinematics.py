@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from notchfit import kinematics as K
+from notchfit.physics import kinematics as K
 
 
 def _fd(f, x, h=1e-7):

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from notchfit import kinematics as K
-from notchfit.geometry import default_geometry, notch_layout
+from notchfit.physics import kinematics as K
+from notchfit.physics.geometry import default_geometry, notch_layout
 from notchfit.io import load_geometry
-from notchfit.notches import notch_points, notch_points_and_jacobian
+from notchfit.physics.notches import notch_points, notch_points_and_jacobian
 
 DATA = Path(__file__).resolve().parent.parent / "datasets" / "geometry"
 MODELS = ("pivot", "arc")
@@ -145,7 +145,7 @@ def test_joints_sit_where_the_geometry_puts_them():
 
 
 def test_arc_notch_closes_at_the_closure_angle():
-    """In the arc model a slot's two outer corners meet at θ_c = h/(R + ȳ) (notchfit.section)."""
+    """In the arc model a slot's two outer corners meet at θ_c = h/(R + ȳ) (notchfit.physics.section)."""
     g = wrist()
     lay = notch_layout(g)
     th = g.closure_angles.copy()

@@ -1,4 +1,4 @@
-"""Pure error and lack of fit (notchfit.lack_of_fit) against the textbook decomposition.
+"""Pure error and lack of fit (notchfit.analysis.lack_of_fit) against the textbook decomposition.
 
 The identities and the test are those of a regression with replicates
 (Draper & Smith, Applied Regression Analysis, 3rd ed., Sec. 2.1; NIST/SEMATECH
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from notchfit.lack_of_fit import lack_of_fit, lack_of_fit_table, loading_direction, replicate_groups
+from notchfit.analysis.lack_of_fit import lack_of_fit, lack_of_fit_table, loading_direction, replicate_groups
 
 
 def _replicated(rng, *, groups=12, reps=4, sigma=0.3, bias=0.0):

@@ -5,7 +5,7 @@ Closed forms used here and their sources:
 * linear notch rate ``k_j = E I_j / h_j``: Euler–Bernoulli moment–curvature
   ``M = E I κ`` with ``κ = θ/h`` for a notch of height ``h`` bending as an arc
   (Gere & Timoshenko, Mechanics of Materials; York et al., ICRA 2015);
-  ``I_j`` from the circular-segment closed forms of :mod:`notchfit.section`
+  ``I_j`` from the circular-segment closed forms of :mod:`notchfit.physics.section`
   (Roark, Table A.1; tested against quadrature in tests/test_section.py);
 * outer-fibre strain ``ε = c θ / h`` (the same arc);
 * capstan equation ``T_2 = T_1 e^{-μ φ}`` for a cord sliding over a wrap ``φ``
@@ -19,14 +19,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from notchfit import _friction_kernels as K
-from notchfit import statics
-from notchfit.friction import DEFAULT_DAMPING_TIME, FrictionParams, clip_load_cell, simulate
+from notchfit.physics import _friction_kernels as K
+from notchfit.physics import statics
+from notchfit.physics.friction import DEFAULT_DAMPING_TIME, FrictionParams, clip_load_cell, simulate
 from notchfit.io import load_params, params_from_mapping, params_to_mapping, save_params
-from notchfit.geometry import default_geometry
+from notchfit.physics.geometry import default_geometry
 from notchfit.io import datasets_dir, load_geometry
-from notchfit.protocols import bend_unbend
-from notchfit.springs import material_spring
+from notchfit.physics.protocols import bend_unbend
+from notchfit.physics.springs import material_spring
 
 E_LIN, E_SE = 40e9, 4e9
 
@@ -292,7 +292,7 @@ def test_model_file_round_trip(tmp_path):
 
 
 def test_default_model_follows_the_geometry(wrist):
-    from notchfit.friction import default_params
+    from notchfit.physics.friction import default_params
     assert default_params(default_geometry()) == FrictionParams()
     p = default_params(wrist)
     assert p.spring_law == "material" and p.friction_law == "capstan"
@@ -305,7 +305,7 @@ def test_default_model_follows_the_geometry(wrist):
 def test_kernel_tip_torques_equal_the_kinematic_jacobian(name):
     """The kernels' J_X^T f (Eqs. 18-20 on the pivot chain: per-joint spacing, neutral-axis
     pivots, the tool point on the tip face) equals kinematics.joint_torques_from_tip_wrench."""
-    from notchfit.kinematics import joint_torques_from_tip_wrench
+    from notchfit.physics.kinematics import joint_torques_from_tip_wrench
 
     g = _geom(name)
     J = FrictionParams(spring_law="material").joint_table(g)

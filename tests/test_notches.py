@@ -2,10 +2,9 @@
 import numpy as np
 import pytest
 
-from notchfit import kinematics as K
-from notchfit.geometry import notch_layout
-from notchfit.notches import (from_plane, notch_points, notch_points_and_jacobian,
-                              plane_params_jacobian, to_plane)
+from notchfit.physics import kinematics as K
+from notchfit.physics.geometry import notch_layout
+from notchfit.physics.notches import from_plane, notch_points, notch_points_and_jacobian, plane_params_jacobian, to_plane
 
 
 def _poe_points(theta, geom):

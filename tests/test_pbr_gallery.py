@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from notchfit.detection import detect_notches
-from notchfit.geometry import notch_layout
+from notchfit.vision.detection import detect_notches
+from notchfit.physics.geometry import notch_layout
 from notchfit.io import load_geometry, load_image
-from notchfit.notches import notch_points, to_plane
-from notchfit.render.pbr import PbrScene, PbrTruth, pbr_camera, pbr_truth, score_detection
-from notchfit.render.solid import limb_corners
+from notchfit.physics.notches import notch_points, to_plane
+from notchfit.vision.render.pbr import PbrScene, PbrTruth, pbr_camera, pbr_truth, score_detection
+from notchfit.vision.render.solid import limb_corners
 
 ROOT = Path(__file__).resolve().parent.parent
 GALLERY = ROOT / "tests" / "data" / "pbr"
@@ -135,7 +135,7 @@ def test_detector_on_the_printed_tube_never_numbers_a_corner_wrongly(gallery_sco
 def test_score_counts_wrong_numbers_invented_points_and_z():
     """The scorer on a made-up detection: found = truth + noise of the stated σ, two corners swapped,
     a base point reported, a closed mouth's corners a pixel apart not counted as swapped."""
-    from notchfit.detection.result import Detection
+    from notchfit.vision.detection.result import Detection
     from notchfit.units import MM
 
     rec, scene, truth, geom = _load(GALLERY / "closed_b.json")

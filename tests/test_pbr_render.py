@@ -1,4 +1,4 @@
-"""The physically based renderer (notchfit.render.pbr) against notchfit's own camera model and meshes.
+"""The physically based renderer (notchfit.vision.render.pbr) against notchfit's own camera model and meshes.
 
 The marker test checks that Mitsuba's perspective sensor and CameraModel project alike (the gallery's
 ground truth rests on it); the slow test re-renders a committed gallery scene. Both need Mitsuba 3
@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 
 from notchfit.io import load_geometry, load_image
-from notchfit.render.pbr import (PbrScene, PbrTruth, chuck_mesh, hull_mesh, pbr_camera, project, render_markers,
-                                 render_pbr, sweep_mesh, tube_mesh)
-from notchfit.render.solid import SolidPose
+from notchfit.vision.render.pbr import PbrScene, PbrTruth, chuck_mesh, hull_mesh, pbr_camera, project, render_markers, render_pbr, sweep_mesh, tube_mesh
+from notchfit.vision.render.solid import SolidPose
 
 ROOT = Path(__file__).resolve().parent.parent
 GALLERY = ROOT / "tests" / "data" / "pbr"

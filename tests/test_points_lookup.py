@@ -12,7 +12,7 @@ import pytest
 
 from notchfit import io
 from notchfit.cli import main
-from notchfit.synth import generate_study, load_recipe
+from notchfit.studies.synth import generate_study, load_recipe
 
 
 @pytest.fixture(scope="module")

@@ -14,12 +14,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from notchfit.friction import FrictionParams, default_params, simulate
-from notchfit.geometry import default_geometry
+from notchfit.physics.friction import FrictionParams, default_params, simulate
+from notchfit.physics.geometry import default_geometry
 from notchfit.io import datasets_dir, load_geometry
-from notchfit.notches import notch_points, point_projector
-from notchfit.predictor import Predictor
-from notchfit.protocols import bend_unbend
+from notchfit.physics.notches import notch_points, point_projector
+from notchfit.physics.predictor import Predictor
+from notchfit.physics.protocols import bend_unbend
 
 
 def _wrist(name="wrist_tip_first"):
@@ -60,7 +60,7 @@ def test_seed_tube_equals_simulate(params):
 @pytest.mark.parametrize("law", ["capstan", "channel"])
 def test_wrist_equals_simulate_and_points(law):
     """Tip-first wrist (rest angles, one tendon, material springs), both friction laws: angles to 1e-9 rad,
-    notch points equal to notchfit.notches.notch_points of those angles (Sec. IV-A projector)."""
+    notch points equal to notchfit.physics.notches.notch_points of those angles (Sec. IV-A projector)."""
     g = _wrist()
     params = default_params(g).replace(friction_law=law, mu_d=0.15, mu_s=0.17)
     t, T = _wrist_history()

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from notchfit import paper
-from notchfit.cables import LEFT, RIGHT, pulled_side
+from notchfit.physics.cables import LEFT, RIGHT, pulled_side
 from notchfit.imaging import to_gray, to_gray8
 from notchfit.polygon import polygon_area
-from notchfit.shapes import line_fit, linear
+from notchfit.physics.shapes import line_fit, linear
 from notchfit.units import DEG, MM
 from notchfit.validation import as_finite, as_joint_angles, readonly
 

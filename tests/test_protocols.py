@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from notchfit.protocols import BendProtocol, bend_unbend, paper_protocols
+from notchfit.physics.protocols import BendProtocol, bend_unbend, paper_protocols
 
 
 def test_fig11_default_protocol_shape():

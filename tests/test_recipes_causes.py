@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from notchfit.io import read_study
-from notchfit.recipes import EFFECT_LAWS, combine_recipes, load_recipe, recipe_from_dict
-from notchfit.synth import generate_study, synthesize
+from notchfit.studies.recipes import EFFECT_LAWS, combine_recipes, load_recipe, recipe_from_dict
+from notchfit.studies.synth import generate_study, synthesize
 
 TINY = dict(n_experiments=2, n_up=3, n_down=3)
 

@@ -21,7 +21,7 @@ import pytest
 from notchfit import io
 from notchfit.commands import diagnose
 from notchfit.io import interrupts, outputs
-from notchfit.synth import generate_study, load_recipe
+from notchfit.studies.synth import generate_study, load_recipe
 from reliability_helpers import (assert_one_line_error, cli_env, copy_study, make_study, messages,
                                  prior_outputs, run_main, snapshot)
 

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 import pytest
 
-from notchfit.camera import CameraModel
+from notchfit.vision.camera import CameraModel
 from notchfit.io import datasets_dir, write_camera
 from reliability_helpers import (assert_one_line_error, cli_env, copy_study, make_study, messages,
                                  prior_outputs, run_cli, run_main, snapshot)

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from notchfit.notches import notch_points, to_plane
-from notchfit.render import (camera_for_shapes, manipulator_outline, polygon_coverage, render_manipulator)
+from notchfit.physics.notches import notch_points, to_plane
+from notchfit.vision.render import camera_for_shapes, manipulator_outline, polygon_coverage, render_manipulator
 
 
 def _shoelace(p):
@@ -76,7 +76,7 @@ def test_rendered_silhouette_area_is_unbiased(geom):
     r = render_manipulator(th, geom, cam, plane=planes[0], rng=np.random.default_rng(0), blur_sigma=0.0,
                            noise=0.0, illumination=0.0, texture=0.0, dtype=np.float64, supersample=16)
     cov = (200.0 - r.image) / 160.0
-    from notchfit.render import _subdivide, outline_in_plane
+    from notchfit.vision.render import _subdivide, outline_in_plane
     poly = cam.plane_to_pixel(_subdivide(outline_in_plane(th, geom, *planes[0]), 1e-6))
     perimeter = np.sum(np.linalg.norm(np.roll(poly, -1, 0) - poly, axis=1))
     # area error / perimeter = mean edge offset [px]
@@ -99,7 +99,7 @@ def test_noise_level_and_seed(geom):
 
 def test_background_fields_match_their_direct_per_pixel_formulas():
     """The separable texture and illumination fields equal the per-pixel formulas."""
-    from notchfit.render import _illumination, _smooth_field
+    from notchfit.vision.render import _illumination, _smooth_field
 
     H, W = 37, 53
     v, u = np.mgrid[0:H, 0:W].astype(float)

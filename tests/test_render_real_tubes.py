@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from notchfit.io import load_geometry
-from notchfit.notches import notch_points
-from notchfit.render import manipulator_outline, pivot_closure_angles
+from notchfit.physics.notches import notch_points
+from notchfit.vision.render import manipulator_outline, pivot_closure_angles
 
 DATA = Path(__file__).resolve().parent.parent / "datasets" / "geometry"
 

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from notchfit.geometry import Geometry
-from notchfit.notches import notch_points, to_plane
-from notchfit.render.scenes import Scene, holder_outline, render_scene, scene_camera, tube_outline
+from notchfit.physics.geometry import Geometry
+from notchfit.physics.notches import notch_points, to_plane
+from notchfit.vision.render.scenes import Scene, holder_outline, render_scene, scene_camera, tube_outline
 from notchfit.polygon import polygon_area
-from notchfit.render import polygon_coverage
+from notchfit.vision.render import polygon_coverage
 
 WRIST = Geometry(n_joints=5, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.8e-3, slot_depth=1.3e-3,
                  slot_sides=(1,) * 5, mount_half_width=2.5e-3, name="wrist", inner_radius=0.7e-3,
@@ -72,7 +72,7 @@ def test_seeded_and_jpeg():
 def test_union_coverage_is_exact_for_overlapping_and_oversized_polygons():
     """Two overlapping rectangles: the union's coverage is A + B - (A and B), pixel by pixel; a polygon
     reaching far beyond the output (a holder drawn to beyond the image) merges with the others row by row."""
-    from notchfit.render import union_coverage
+    from notchfit.vision.render import union_coverage
 
     a = np.array([[10.3, 10.7], [40.2, 10.7], [40.2, 40.9], [10.3, 40.9]])
     b = a + [15.1, 9.3]
@@ -89,12 +89,12 @@ def test_union_coverage_is_exact_for_overlapping_and_oversized_polygons():
 def test_solid_tube_seen_square_on_is_the_planar_silhouette():
     """Orthographic view, no tilt: the union of the solid's convex pieces covers exactly the planar
     outline of geometry.md (mitred flexures included), and each face corner is the notch point."""
-    from notchfit.render.solid import SolidPose, limb_corners, piece_outlines
+    from notchfit.vision.render.solid import SolidPose, limb_corners, piece_outlines
 
     cam, plane = scene_camera(TH, WRIST, image_size=(600, 500), mm_per_px=1 / 40, angle_deg=70, focal_px=1e8)
     pose = SolidPose(plane)
     polys = piece_outlines(TH, WRIST, cam, pose, WRIST.base_edge_z)
-    from notchfit.render import union_coverage
+    from notchfit.vision.render import union_coverage
     solid = union_coverage(polys, (500, 600), supersample=16)
     planar = polygon_coverage([cam.plane_to_pixel(to_plane(tube_outline(TH, WRIST, WRIST.base_edge_z), *plane))],
                               (500, 600), supersample=16)
@@ -107,7 +107,7 @@ def test_tilted_solid_face_bulges_by_r_sin_tilt_and_its_corner_is_on_the_outline
     """A straight tube tilted 5° about x, seen orthographically: each slot face's edge is an ellipse arc of
     semi-axis R sin 5° (the lower face's middle is R sin 5° above its corners), and the ground-truth
     corner (limb meets circle) is a vertex of the rendered outline."""
-    from notchfit.render.solid import SolidPose, limb_corners, piece_outlines
+    from notchfit.vision.render.solid import SolidPose, limb_corners, piece_outlines
 
     th = np.zeros(WRIST.n_joints)
     mm = 1 / 40
@@ -127,7 +127,7 @@ def test_tilted_solid_face_bulges_by_r_sin_tilt_and_its_corner_is_on_the_outline
 
 
 def test_variety_draws_are_seeded_and_their_truth_exact():
-    from notchfit.render.variety import draw_scene, render_draw, score
+    from notchfit.vision.render.variety import draw_scene, render_draw, score
 
     a = draw_scene(np.random.default_rng(3), [WRIST], size=(500, 400), px_per_mm=40)
     b = draw_scene(np.random.default_rng(3), [WRIST], size=(500, 400), px_per_mm=40)
@@ -136,7 +136,7 @@ def test_variety_draws_are_seeded_and_their_truth_exact():
     assert np.array_equal(ra.image, rb.image) and ra.visible[2:].all()
     assert a.labels["closure"] <= 0.98 + 1e-9 and a.scene.solid
     # a detection that reports exactly the truth scores perfectly
-    from notchfit.detection.result import Detection
+    from notchfit.vision.detection.result import Detection
 
     ok = ra.visible
     det = Detection(ra.points_plane, np.where(ok[:, None], ra.points_px, np.nan), np.zeros(len(ok)),
@@ -148,7 +148,7 @@ def test_variety_draws_are_seeded_and_their_truth_exact():
 def test_image_formation_noise_vignetting_and_kernels():
     """ISO noise: sigma^2 = level / (200 * 100 / ISO) + read^2 on a flat field; vignetting darkens the
     corners by the stated fraction; the defocus and motion kernels are normalised and as wide as stated."""
-    from notchfit.render.scenes import _disk_kernel, _form_scene, _line_kernel
+    from notchfit.vision.render.scenes import _disk_kernel, _form_scene, _line_kernel
 
     flat = np.zeros((400, 400), np.float32)
     sc = Scene(background=150.0, tube_level=50.0, texture=0.0, illumination=0.0, blur_sigma=0.0, iso=1600.0)

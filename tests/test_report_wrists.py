@@ -16,7 +16,7 @@ import pytest
 
 from notchfit import io, report
 from notchfit.cli import main
-from notchfit.synth import generate_study, load_recipe
+from notchfit.studies.synth import generate_study, load_recipe
 
 from browser_helpers import chromium_path, no_browser
 from test_report import glance_text, noise_floors, numbers_without_unit, sections, tables

@@ -21,7 +21,7 @@ from reliability_helpers import assert_one_line_error, cli_env, messages, run_ma
 from notchfit import io
 from notchfit.commands import detect as detect_cmd
 from notchfit.io import resume as resume_mod
-from notchfit.render import camera_for_shapes, render_manipulator
+from notchfit.vision.render import camera_for_shapes, render_manipulator
 
 N_SAMPLES = 8
 RESUME_DIR = ".notchfit-resume-detect"
@@ -44,7 +44,7 @@ def _write_experiment(folder, images, geom_name="default"):
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     """``(experiment folder, reference output folder)``: the experiment and its uninterrupted detect run."""
-    from notchfit.geometry import default_geometry
+    from notchfit.physics.geometry import default_geometry
 
     geom = default_geometry()
     root = tmp_path_factory.mktemp("resume")

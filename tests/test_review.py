@@ -20,8 +20,8 @@ import pytest
 from notchfit import io
 from notchfit.cli import main
 from notchfit.commands._points import source_lines
-from notchfit.geometry import default_geometry
-from notchfit.notches import notch_points, to_plane
+from notchfit.physics.geometry import default_geometry
+from notchfit.physics.notches import notch_points, to_plane
 from notchfit.review.measure import hand_angles, live_fit
 from notchfit.review.server import ReviewHandler
 from notchfit.units import MM

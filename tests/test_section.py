@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from notchfit.section import closure_angle, notch_section, segment_moments, tendon_moment_arm
+from notchfit.physics.section import closure_angle, notch_section, segment_moments, tendon_moment_arm
 
 MM = 1e-3
 

@@ -3,16 +3,7 @@
 import numpy as np
 import pytest
 
-from notchfit.shapes import (
-    DEFAULT_SMOOTH_WEIGHT,
-    ShapeModel,
-    constant_curvature,
-    free,
-    get_model,
-    linear,
-    piecewise,
-    quadratic,
-)
+from notchfit.physics.shapes import DEFAULT_SMOOTH_WEIGHT, ShapeModel, constant_curvature, free, get_model, linear, piecewise, quadratic
 
 N = 27
 

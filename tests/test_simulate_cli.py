@@ -3,9 +3,9 @@ import pandas as pd
 import pytest
 
 from notchfit.cli import main
-from notchfit.friction import FrictionParams
+from notchfit.physics.friction import FrictionParams
 from notchfit.io import save_params
-from notchfit.synth import generate_study, load_recipe
+from notchfit.studies.synth import generate_study, load_recipe
 
 
 @pytest.fixture(scope="module")
@@ -42,14 +42,14 @@ def test_model_file_and_overrides_change_the_prediction(study, tmp_path):
 
 
 def test_compare_simulation_on_its_own_prediction():
-    """The comparison (notchfit.comparison) of a simulation with its own noise-free points:
+    """The comparison (notchfit.analysis.comparison) of a simulation with its own noise-free points:
     measured and predicted a, b agree and the prediction's point error is zero."""
     import numpy as np
 
-    from notchfit.comparison import compare_simulation, comparison_table
-    from notchfit.friction import simulate
-    from notchfit.protocols import bend_unbend
-    from notchfit.synth import synthetic_points
+    from notchfit.analysis.comparison import compare_simulation, comparison_table
+    from notchfit.physics.friction import simulate
+    from notchfit.physics.protocols import bend_unbend
+    from notchfit.studies.synth import synthetic_points
 
     t, tl, tr, ids = bend_unbend(20.0, 0.45, n_up=6, n_down=5)
     res = simulate(t, tl, tr)

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from notchfit.springs import PiecewiseLinearSpring, dual_rate_spring, friction_spring
+from notchfit.physics.springs import PiecewiseLinearSpring, dual_rate_spring, friction_spring
 
 
 def test_fig7_dual_rate_matches_paper_formula():

@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from notchfit import cables as C
-from notchfit import kinematics as K
-from notchfit import statics as S
-from notchfit.geometry import Geometry
+from notchfit.physics import cables as C
+from notchfit.physics import kinematics as K
+from notchfit.physics import statics as S
+from notchfit.physics.geometry import Geometry
 from notchfit.io import load_fea_reference
-from notchfit.springs import dual_rate_spring
+from notchfit.physics.springs import dual_rate_spring
 
 
 def linear_spring(k):

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pandas as pd
 
-from notchfit.diagnosis import Calibration, Diagnosis, Gain
-from notchfit.fitting import StudyFit
-from notchfit.identify import Identification, TubeFit
+from notchfit.analysis.diagnosis import Calibration, Diagnosis, Gain
+from notchfit.analysis.fitting import StudyFit
+from notchfit.analysis.identify import Identification, TubeFit
 from notchfit.units import DEG
 
 

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from notchfit.cli import main
-from notchfit.diagnosis import CAUSES
+from notchfit.analysis.diagnosis import CAUSES
 from notchfit.io import read_study
-from notchfit.notches import notch_points, to_plane
-from notchfit.synth import list_recipes, load_recipe, recipe_from_dict, synthesize, write_study
+from notchfit.physics.notches import notch_points, to_plane
+from notchfit.studies.synth import list_recipes, load_recipe, recipe_from_dict, synthesize, write_study
 
 
 def test_every_cause_has_a_recipe_and_all_recipes_load():

@@ -1,7 +1,7 @@
 """Synthetic real-tube wrists with ground truth (issue 14, datasets/recipes/wrist_*.toml).
 
 The one-sided wrist is frictionless: its truth is the quasi-static equilibrium of
-every sample (notchfit.statics, Newton's method on ``τ_j(θ_j - θ0_j) = a_j T``),
+every sample (notchfit.physics.statics, Newton's method on ``τ_j(θ_j - θ0_j) = a_j T``),
 a formulation independent of the friction simulator; the simulator at μ = 0
 must reproduce it to 1e-9 rad (docs/models.md invariant, real tubes). The
 tip-first wrist has capstan friction: its truth is the reference solver's.
@@ -15,8 +15,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from notchfit.friction import simulate
-from notchfit.synth import list_recipes, synthesize, write_study
+from notchfit.physics.friction import simulate
+from notchfit.studies.synth import list_recipes, synthesize, write_study
 
 
 @pytest.fixture(scope="module")

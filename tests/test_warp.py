@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from notchfit.warp import apply_point_warp, point_warp_jacobian, unwarp_points
+from notchfit.vision.warp import apply_point_warp, point_warp_jacobian, unwarp_points
 
 
 def test_identity_and_scale(rng):
@@ -44,8 +44,7 @@ def test_bad_input():
 # --------------------------------------------------------------------------------------------
 # a tilted bending plane seen in perspective (issue: camera-plane errors beyond an in-plane warp)
 # --------------------------------------------------------------------------------------------
-from notchfit.warp import (apply_camera_plane_warp, apply_plane_tilt, tilt_homography,  # noqa: E402
-                           unapply_plane_tilt, unwarp_camera_plane)
+from notchfit.vision.warp import apply_camera_plane_warp, apply_plane_tilt, tilt_homography, unapply_plane_tilt, unwarp_camera_plane  # noqa: E402
 
 
 def _opencv_tilted_plane(P, tilt, c, D):

@@ -12,8 +12,8 @@ import pandas as pd
 
 from notchfit import io
 from notchfit.cli import main
-from notchfit.friction import FrictionParams
-from notchfit.synth import generate_study, load_recipe
+from notchfit.physics.friction import FrictionParams
+from notchfit.studies.synth import generate_study, load_recipe
 
 
 def test_simulate_with_the_true_model_reproduces_the_wrist(tmp_path, capsys):

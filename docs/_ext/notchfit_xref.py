@@ -6,8 +6,8 @@ With ``-n`` (nitpicky) every unresolved reference warns. A reference that the
 API pages document links there. Docstrings also name objects that are not in
 a module's ``__all__`` (private helpers, submodules of a package documented
 as a whole): such a reference is resolved here, first to the documented
-object of the same name higher up its package (``notchfit.diagnosis.noise.paired_z``
--> ``notchfit.diagnosis.paired_z``), else shown as code when the name exists
+object of the same name higher up its package (``notchfit.analysis.diagnosis.noise.paired_z``
+-> ``notchfit.analysis.diagnosis.paired_z``), else shown as code when the name exists
 in the package's code. A name that exists nowhere still fails the build.
 """
 

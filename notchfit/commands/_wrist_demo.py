@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .. import io
 from ..report import build_report
-from ..synth import generate_study, load_recipe
+from ..studies.synth import generate_study, load_recipe
 from . import fit, simulate
 from . import identify as identify_cmd
 from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call

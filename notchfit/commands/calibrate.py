@@ -43,8 +43,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    # slow optional dependency: notchfit.camera imports cv2
-    from ..camera import calibrate_camera, detect_board, estimate_plane_pose
+    # slow optional dependency: notchfit.vision.camera imports cv2
+    from ..vision.camera import calibrate_camera, detect_board, estimate_plane_pose
 
     if args.out.exists() and not args.force:
         raise InputError(f"{args.out} exists; use --force to replace it")

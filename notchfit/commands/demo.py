@@ -10,11 +10,11 @@ import time
 from pathlib import Path
 
 from .. import io
-from .. import diagnosis
+from ..analysis import diagnosis
 from ..io.interrupts import deferred_interrupts
 from ..progress import Steps, bar as progress_bar
 from ..report import SECTIONS, build_report, summary_lines
-from ..synth import generate_study, load_recipe
+from ..studies.synth import generate_study, load_recipe
 from . import _common as common
 from . import detect, fit, simulate
 from ._common import EXIT_INPUT_ERROR, EXIT_ITEMS_FAILED, InputError, call, count_option, jobs_option
@@ -89,7 +89,7 @@ def demo_study(study_dir, *, cause: str = "proximal_friction", small: bool = Fal
 
     Returns
     -------
-    recipe : notchfit.synth.Recipe
+    recipe : notchfit.studies.synth.Recipe
         The recipe as scaled for the demo.
     images : bool
         Whether images were rendered (default: yes for the full demo, no with
@@ -99,7 +99,7 @@ def demo_study(study_dir, *, cause: str = "proximal_friction", small: bool = Fal
     images = (not small) if images is None else bool(images)
     recipe = load_recipe(cause)
     if images and recipe.cause == "calibration_error":
-        images = False          # its warp acts on points (notchfit.synth.write_study)
+        images = False          # its warp acts on points (notchfit.studies.synth.write_study)
     recipe = recipe.scaled(n_experiments=n_exp, n_up=n_up, n_down=n_down)
     recipe = recipe.replace(image_options={"mm_per_px": IMAGE_MM_PER_PX, **recipe.image_options})
     generate_study(recipe, study_dir, seed=seed, force=True, jobs=jobs, images=images)

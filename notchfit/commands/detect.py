@@ -100,7 +100,7 @@ def detect_one(item: dict) -> dict:
     summary for ``detect_run.json``.
     """
     # slow optional dependency: the detector and the overlay are OpenCV
-    from ..detection import detect_notches, detections_table
+    from ..vision.detection import detect_notches, detections_table
     from ..figures.detection import detection_overlay
 
     img = io.load_image(item["image"])

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from .. import io
-from ..diagnosis import CAUSES, Diagnosis, choose_metric, diagnose
+from ..analysis.diagnosis import CAUSES, Diagnosis, choose_metric, diagnose
 from ..figures.diagnosis import write_diagnosis_figures
 from ..io import save_params
 from ..progress import Steps

@@ -9,10 +9,9 @@ import pandas as pd
 from .. import io
 from ..batch import run_batch
 from ..figures.fitting import experiment_figures, fig12_sample_index
-from ..fitting import (StudyFit, angle_fits_table, failed_fits, fit_angles, fit_experiment, fits_table,
-                       jointwise_table, pointwise_table)
+from ..analysis.fitting import StudyFit, angle_fits_table, failed_fits, fit_angles, fit_experiment, fits_table, jointwise_table, pointwise_table
 from ..progress import bar as progress_bar
-from ..shapes import get_model
+from ..physics.shapes import get_model
 from ..units import MM
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
                       check_points_dir, list_failures)

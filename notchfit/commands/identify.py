@@ -6,7 +6,7 @@ import re
 from pathlib import Path
 
 from .. import io
-from ..identify import identify, tube_labels
+from ..analysis.identify import identify, tube_labels
 from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
                       check_points_dir, list_failures)
 from ._points import MISSING_HINT, lookup_points

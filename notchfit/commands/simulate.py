@@ -9,9 +9,9 @@ import numpy as np
 
 from .. import io
 from ..batch import run_batch
-from ..comparison import angle_comparison_table, compare_angles, compare_simulation, comparison_table
+from ..analysis.comparison import angle_comparison_table, compare_angles, compare_simulation, comparison_table
 from ..figures.friction import plot_fig18, plot_fig19
-from ..friction import FrictionParams, default_params, simulate, simulation_table
+from ..physics.friction import FrictionParams, default_params, simulate, simulation_table
 from ..progress import bar as progress_bar
 from ..units import DEG
 from ._common import (EXIT_ITEMS_FAILED, add_batch_options, add_points_option, check_out_dir, check_points_dir,
@@ -121,7 +121,7 @@ def simulation_figures(value: dict, out_dir: Path) -> list[Path]:
 
 def _experiment_params(exps, args) -> dict:
     """The model of each experiment: the model file, or the default for its geometry
-    (:func:`notchfit.friction.default_params`: the paper's for the seed tube), then the overrides."""
+    (:func:`notchfit.physics.friction.default_params`: the paper's for the seed tube), then the overrides."""
     return {e.name: parse_params(args.model, args.param, base=default_params(e.geometry)) for e in exps}
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..synth import generate_study, list_recipes, load_recipe
+from ..studies.synth import generate_study, list_recipes, load_recipe
 from ._common import InputError, count_option, jobs_option
 
 NAME = "synth"
@@ -35,7 +35,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", type=Path, help="study folder to create")
     parser.add_argument("--seed", type=count_option(0), default=None, help="override the recipe's seed")
     parser.add_argument("--images", action="store_true", default=None,
-                        help="also render one image per sample (needs notchfit.render)")
+                        help="also render one image per sample (needs notchfit.vision.render)")
     parser.add_argument("--experiments", type=count_option(1), default=None,
                         help="keep only the first N experiments of the recipe")
     parser.add_argument("--samples", type=count_option(1), nargs=2, metavar=("N_UP", "N_DOWN"), default=None,

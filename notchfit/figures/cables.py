@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import cables
-from ..geometry import Geometry, default_geometry
+from ..physics import cables
+from ..physics.geometry import Geometry, default_geometry
 from . import new_figure, save_png, write_csv
 
 UM = 1e6

@@ -18,7 +18,7 @@ def detection_overlay(image, det, sample, *, size: int = 1000, full: bool = Fals
     ----------
     image : ndarray, shape (H, W) or (H, W, 3|4)
         The sample's image (any size: 16–24 MP photographs included).
-    det : notchfit.detection.Detection
+    det : notchfit.vision.detection.Detection
     sample : int
         Sample id for the label.
     size : int
@@ -26,8 +26,8 @@ def detection_overlay(image, det, sample, *, size: int = 1000, full: bool = Fals
         markers, numbers and the label are drawn at this scale, so they are
         readable whatever the photograph's size.
     full : bool
-        The whole view beside the crop (:func:`notchfit.detection.overlay_with_crop`);
-        default: the crop alone (:func:`notchfit.detection.overlay.overlay_crop`), a
+        The whole view beside the crop (:func:`notchfit.vision.detection.overlay_with_crop`);
+        default: the crop alone (:func:`notchfit.vision.detection.overlay.overlay_crop`), a
         few times smaller on disk.
 
     Returns
@@ -35,10 +35,10 @@ def detection_overlay(image, det, sample, *, size: int = 1000, full: bool = Fals
     ndarray, shape (H', W', 3), uint8 (BGR)
         The overlay and a ``sample S: k/m ok`` label.
     """
-    # slow optional dependency: the overlay is drawn with cv2 (as is notchfit.detection)
+    # slow optional dependency: the overlay is drawn with cv2 (as is notchfit.vision.detection)
     import cv2
 
-    from ..detection.overlay import overlay_crop, overlay_with_crop
+    from ..vision.detection.overlay import overlay_crop, overlay_with_crop
 
     ov = overlay_with_crop(image, det, height=size) if full else overlay_crop(image, det, size=size)
     cv2.putText(ov, f"sample {sample}: {det.n_ok}/{len(det.status)} ok", (10, 28),

@@ -1,6 +1,6 @@
 """Figures that make the diagnosis's case (written by ``notchfit diagnose``).
 
-Functions take the :class:`notchfit.diagnosis.Diagnosis` (which carries the
+Functions take the :class:`notchfit.analysis.diagnosis.Diagnosis` (which carries the
 prepared experiments and every held-out prediction); they write
 ``diagnosis_*.png`` (and the plotted data as CSV) into the output folder,
 where ``notchfit report`` embeds them:
@@ -12,7 +12,7 @@ where ``notchfit report`` embeds them:
 * ``diagnosis_cause_<id>`` — one per named cause: the held-out prediction
   without that cause (the baseline, or the other cause's model) against the
   extended model and the measurement, in the view that shows what it removes
-  (:attr:`notchfit.causes.Cause.figure`).
+  (:attr:`notchfit.analysis.causes.Cause.figure`).
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..causes import REGISTRY
-from ..estimation.observations import metric_unit, tube_labels
-from ..shapes import line_fit
+from ..analysis.causes import REGISTRY
+from ..analysis.estimation.observations import metric_unit, tube_labels
+from ..physics.shapes import line_fit
 from ..units import MM
 from . import new_figure, save_png, write_csv
 from .summary import DPI, candidates_figure, loops_figure, residual_map_figure
@@ -68,7 +68,7 @@ def plot_loops(diag, out_dir) -> list[Path]:
 
 def tube_groups(preps) -> list[tuple[str, list[int]]]:
     """``(tube, experiment indices)`` per tube (geometry, labelled as ``identify`` labels it:
-    :func:`notchfit.estimation.tube_labels`) in order of first appearance. A study of several tubes
+    :func:`notchfit.analysis.estimation.tube_labels`) in order of first appearance. A study of several tubes
     has as many joints and notch points per tube as each tube's geometry, so per-joint and per-point
     errors are pooled within a tube only."""
     groups: dict = {}
@@ -276,7 +276,7 @@ def _view_plane(diag, contrib, fig) -> dict:
     return rows
 
 
-#: The views a cause's figure can take, by kind (:attr:`notchfit.causes.Cause.figure`).
+#: The views a cause's figure can take, by kind (:attr:`notchfit.analysis.causes.Cause.figure`).
 VIEWS = {"loop": _view_loop, "asymmetry": _view_asymmetry, "backbone": _view_backbone, "plane": _view_plane}
 
 

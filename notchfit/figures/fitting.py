@@ -1,6 +1,6 @@
 """Figs. 12–15 of Sec. IV-A: shape fits, pointwise error, shape parameters.
 
-Plotting functions take a :class:`notchfit.fitting.ExperimentFit` and an
+Plotting functions take a :class:`notchfit.analysis.fitting.ExperimentFit` and an
 output path and write one PNG (matplotlib Agg canvas, no pyplot state):
 
 - :func:`plot_overlay` — Fig. 12: measured notch points ``Q_i`` with the
@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..fitting import fit_experiment, pointwise_table
-from ..geometry import default_geometry
-from ..synth import synthetic_points
+from ..analysis.fitting import fit_experiment, pointwise_table
+from ..physics.geometry import default_geometry
+from ..studies.synth import synthetic_points
 from ..units import MM
 from . import new_figure, save_png, write_csv
 
@@ -239,7 +239,7 @@ def plot_shape_parameters(result, path, *, x=None, xlabel: str = "sample", model
     xlabel : str
     model : str
         Fitted model whose ``a``, ``b`` are shown (literal for linear; see
-        :class:`notchfit.fitting.SampleFit` for the others).
+        :class:`notchfit.analysis.fitting.SampleFit` for the others).
     title : str
 
     Returns

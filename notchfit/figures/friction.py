@@ -1,6 +1,6 @@
 """Figures of the friction model (Sec. IV-B): Figs. 11, 17, 18, 19 and the hysteresis loop.
 
-Each ``plot_*`` function takes a :class:`notchfit.friction.SimulationResult`
+Each ``plot_*`` function takes a :class:`notchfit.physics.friction.SimulationResult`
 (and optionally measured data) and writes CSV + PNG; the ``FIGURES`` entries
 run the paper's Fig. 11 protocol (0.45 N counter-tension on the right cable,
 the left cable pulled to 25 N and back, 38 samples 5 s apart) with the
@@ -18,7 +18,7 @@ paper's parameters and plot it:
 
 ``notchfit simulate`` draws each experiment's Figs. 18–19 with
 :func:`plot_fig18` and :func:`plot_fig19`, the measured data coming from
-:func:`notchfit.comparison.compare_simulation`.
+:func:`notchfit.analysis.comparison.compare_simulation`.
 """
 
 from __future__ import annotations
@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cables import LEFT
-from ..cables import pulled_side as pulled_cable
-from ..friction import FrictionParams, SimulationResult, simulate
+from ..physics.cables import LEFT
+from ..physics.cables import pulled_side as pulled_cable
+from ..physics.friction import FrictionParams, SimulationResult, simulate
 from ..polygon import polygon_area
-from ..protocols import bend_unbend
+from ..physics.protocols import bend_unbend
 from ..units import MM
 from . import new_figure, save_png, write_csv
 
@@ -41,7 +41,7 @@ REGIME_COLORS = {"I": "#4c72b0", "II": "#dd8452", "III": "#55a868"}
 
 
 def pulled_side(result: SimulationResult) -> str:
-    """``"left"`` or ``"right"``: the pulled cable of the test (:func:`notchfit.cables.pulled_side`)."""
+    """``"left"`` or ``"right"``: the pulled cable of the test (:func:`notchfit.physics.cables.pulled_side`)."""
     return "left" if pulled_cable(result.input_left, result.input_right) == LEFT else "right"
 
 

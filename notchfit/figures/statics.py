@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import kinematics, statics
-from ..geometry import Geometry, default_geometry
+from ..physics import kinematics, statics
+from ..physics.geometry import Geometry, default_geometry
 from ..io import load_fea_reference
-from ..springs import PiecewiseLinearSpring, dual_rate_spring
+from ..physics.springs import PiecewiseLinearSpring, dual_rate_spring
 from ..units import MM
 from . import new_figure, save_png, write_csv
 

@@ -4,7 +4,7 @@ The camera file's keys are those of docs/data-formats.md: ``camera_matrix``,
 ``distortion_coefficients`` (1xN), ``image_width``, ``image_height``,
 ``avg_reprojection_error`` [px], and ``plane_rvec``, ``plane_tvec`` (3x1,
 ``plane_tvec`` in mm) when the bending plane is known. The models they hold
-are :class:`~notchfit.camera.CameraModel` and :class:`~notchfit.camera.Board`.
+are :class:`~notchfit.vision.camera.CameraModel` and :class:`~notchfit.vision.camera.Board`.
 
 Camera files are written with ``cv2.FileStorage`` (so OpenCV's own reader
 reads them) but read by a parser of the FileStorage YAML subset written here:
@@ -21,7 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..camera import DIST_LENGTHS, Board, CameraModel
+from ..vision.camera import DIST_LENGTHS, Board, CameraModel
 from ..units import MM
 from .errors import InputFileError, InputFileNotFoundError, decode_text, located, read_input_bytes
 from .outputs import atomic_write

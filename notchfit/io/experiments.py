@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..geometry import Geometry
+from ..physics.geometry import Geometry
 from ..units import DEG, MM
 from .errors import InputFileError, InputFileNotFoundError
 from .models import load_geometry

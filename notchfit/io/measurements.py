@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..friction import LOAD_CELL_SIGMA
+from ..physics.friction import LOAD_CELL_SIGMA
 from ..units import DEG, MM
 from .tables import POINT_COLUMNS, Problems, check_point_rows, read_csv_table
 

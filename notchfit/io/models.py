@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..friction_params import PARAM_KEYS, PER_JOINT_FIELDS, TUBE_FIELDS, FrictionParams
-from ..geometry import Geometry, geometry_from_dict
-from ..statics import FEAReference
+from ..physics.friction_params import PARAM_KEYS, PER_JOINT_FIELDS, TUBE_FIELDS, FrictionParams
+from ..physics.geometry import Geometry, geometry_from_dict
+from ..physics.statics import FEAReference
 from ..units import MM
 from .outputs import write_text_atomic
 from .resources import datasets_dir
@@ -65,7 +65,7 @@ def load_geometry(source: str | os.PathLike | None = "default") -> Geometry:
 
 
 def load_params(path) -> FrictionParams:
-    """Friction parameters from a TOML file (keys with units, :data:`notchfit.friction_params.PARAM_KEYS`).
+    """Friction parameters from a TOML file (keys with units, :data:`notchfit.physics.friction_params.PARAM_KEYS`).
 
     Missing keys take the paper's values; a ``[metadata]`` table is ignored.
     Plain field names (``k_lin``) are accepted too.
@@ -179,7 +179,7 @@ def load_fea_reference(path: str | os.PathLike | None = None) -> FEAReference:
 # the model.toml mapping (file keys with units <-> FrictionParams fields)
 # =============================================================================
 def params_from_mapping(data: dict, origin: str = "<dict>") -> FrictionParams:
-    """Friction parameters from a parameter-file mapping (keys with units, :data:`notchfit.friction_params.PARAM_KEYS`).
+    """Friction parameters from a parameter-file mapping (keys with units, :data:`notchfit.physics.friction_params.PARAM_KEYS`).
 
     Parameters
     ----------
@@ -233,7 +233,7 @@ def _mapping_value(field: str, key: str, val, origin: str):
 
 
 def params_to_mapping(params: FrictionParams) -> dict:
-    """``{file key: value}`` of ``params`` (SI keys with units, :data:`notchfit.friction_params.PARAM_KEYS`), in file order.
+    """``{file key: value}`` of ``params`` (SI keys with units, :data:`notchfit.physics.friction_params.PARAM_KEYS`), in file order.
 
     The seed model's keys always; the real-tube keys (laws, damping time,
     material) only where they differ from their defaults, so a seed model file

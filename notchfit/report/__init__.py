@@ -45,8 +45,8 @@ import numpy as np
 
 from .. import io as nio
 from .._version import __version__
-from ..cables import pulled_side
-from ..estimation import tube_labels
+from ..physics.cables import pulled_side
+from ..analysis.estimation import tube_labels
 from .diagnosis import diagnosis_section
 from .forms import NotAvailable, Page, Section
 from .page import num, rel, render_page
@@ -105,7 +105,7 @@ class Inputs:
     why : str
         Why ``exps`` is None.
     pulled : dict
-        ``{experiment: +1 right | -1 left}`` (:func:`notchfit.cables.pulled_side`).
+        ``{experiment: +1 right | -1 left}`` (:func:`notchfit.physics.cables.pulled_side`).
     truth : dict or None
         ``truth.json`` of a synthetic study (the hidden effect).
     runs : dict

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..causes import REGISTRY
+from ..analysis.causes import REGISTRY
 
 __all__ = ["CauseText", "cause_text"]
 

@@ -16,7 +16,7 @@ import pandas as pd
 
 from .. import io as nio
 from ..figures.summary import fit_errors_figure, simulation_figure
-from ..friction import FrictionParams
+from ..physics.friction import FrictionParams
 from ..units import DEG
 from .forms import Heading, NotAvailable, Para, Table
 from .diagnosis import quantity
@@ -138,7 +138,7 @@ def _sim_params(inp) -> Para:
     elif rec.param_overrides:
         what = f"the defaults with `--param {' --param '.join(rec.param_overrides)}`"
     else:
-        what = "**notchfit's default values for this geometry** (notchfit.friction.default_params), not calibrated"
+        what = "**notchfit's default values for this geometry** (notchfit.physics.friction.default_params), not calibrated"
     laws = (f" (springs from the material, {params.get('friction_law', '')} friction)" if material else "")
     ext = {k: v for k, v in changed.items() if k in ("proximal_beta", "hysteresis_torque", "tip_force_x",
                                                       "tip_force_z", "stiffness_gradient")}

@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from ..fitting import fit_experiment
-from ..geometry import Geometry, notch_layout
+from ..analysis.fitting import fit_experiment
+from ..physics.geometry import Geometry, notch_layout
 
 __all__ = ["hand_angles", "live_fit"]
 

@@ -1,9 +1,9 @@
 """Image pixels <-> plane millimetres for a corner a person places, as the detect run mapped them.
 
 With a camera file the camera model maps (lens distortion, the plane's
-pose: :meth:`notchfit.camera.CameraModel.pixel_to_plane`); without one the
+pose: :meth:`notchfit.vision.camera.CameraModel.pixel_to_plane`); without one the
 detect run took a fronto-parallel view at a scale from the tube's diameter
-(:class:`notchfit.detection.view.DiameterScale`), whose scale is read back
+(:class:`notchfit.vision.detection.view.DiameterScale`), whose scale is read back
 from the sample's own detections (``x = s u``, ``y = -s v``: a least-squares
 ``s`` over its corners).
 """

@@ -1,0 +1,254 @@
+"""Predicted measurements and the calibration of a model on measured experiments.
+
+The friction simulator (Sec. IV-B, fast solver) is driven with the measured
+tensions and the experiment's protocol; its joint angles give notch points
+(Eqs. 1-3) registered in the plane like the measurements (and, for a
+calibration warp, warped), or are compared with measured joint angles
+directly. :func:`calibrate` fits the baseline, a candidate or a pair of
+candidates (:mod:`notchfit.analysis.diagnosis.specs`) to some experiments: one
+:class:`notchfit.analysis.estimation.problem.Problem` of the shared parameters (and,
+for a calibration warp, a registration block per experiment), solved by the
+estimation core (:mod:`notchfit.analysis.estimation.solve`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import partial
+
+import numpy as np
+
+from ..causes import REGISTRY
+from ..estimation.observations import Observations as Prepared
+from ..estimation.problem import Block, Problem, Simulations, measure_registered
+from ..estimation.solve import best_probe_starts, se_values, solve
+from ..fitting import fit_experiment
+from ...physics.friction import FrictionParams
+from ...vision.warp import apply_point_warp, unwarp_points
+from .specs import (REGISTRATION_BOUNDS, WARP_CENTER_RANGE, WARP_PARAMS, WARP_RADIUS, StudyScales, as_model,
+                    baseline_specs, model_params, specs_for)
+
+__all__ = ["Calibration", "SimulationCache", "calibrate", "predict_points", "reregister"]
+
+#: The simulations of a calibration, cached (the estimation core's :class:`~notchfit.analysis.estimation.problem.Simulations`).
+SimulationCache = Simulations
+#: Finite-difference step of the registration corrections [m, m, rad] (standard errors).
+REGISTRATION_STEP = 1e-6
+
+
+def _observed(prep: Prepared, theta, values: dict, registration=None, transform=None) -> np.ndarray:
+    """What ``prep`` would measure for ``theta``: its registration (with a correction) and the point warp
+    of ``values`` (:data:`~notchfit.analysis.diagnosis.specs.WARP_PARAMS`), or the angles."""
+    if prep.metric == "angles":
+        return theta
+    P = measure_registered(prep, theta, registration, transform)
+    warp = {k: values[k] for k in WARP_PARAMS if k in values}
+    if warp:
+        P = apply_point_warp(P, warp["scale_error"], warp["k_radial"],
+                             (warp["warp_center_x"], warp["warp_center_y"]), WARP_RADIUS)
+    return P
+
+
+def _model(base, o, values: dict, tube: dict) -> FrictionParams:
+    """The simulator's model of ``values`` (:func:`~notchfit.analysis.diagnosis.specs.model_params`)."""
+    return model_params(values, base)[0]
+
+
+def _measure(o, theta, values: dict, blocks: dict) -> np.ndarray:
+    """What ``o`` would measure (its registration block's correction and the point warp included)."""
+    return _observed(o, theta, values, blocks.get("registration"))
+
+
+def predict_points(prep: Prepared, values: dict, *, transform=None, registration=None,
+                   cache: Simulations | None = None, base: FrictionParams | None = None):
+    """Predicted measurements for parameter ``values``: notch points in the plane frame, or joint
+    angles for angle data.
+
+    Parameters
+    ----------
+    prep : Observations
+    values : dict
+        Model parameters by name (baseline, extension and warp).
+    transform : PlaneTransform, optional
+        Registration to use instead of ``prep.transform``.
+    registration : (dtx [m], dty [m], dphi [rad]), optional
+        Correction added to the registration.
+    cache : Simulations, optional
+    base : FrictionParams, optional
+        The model the values change (default: the paper's, Sec. IV-B).
+
+    Returns
+    -------
+    predicted : ndarray, shape (S, m, 2) [m] or (S, n) [rad]
+    theta : ndarray, shape (S, n) [rad]
+    """
+    params, _ = model_params(values, base)
+    theta = (cache or Simulations()).theta(prep, params)
+    return _observed(prep, theta, values, registration, transform), theta
+
+
+def reregister(prep: Prepared, values: dict):
+    """Registration of an experiment whose points are corrected by the warp in ``values``.
+
+    The calibration_error candidate corrects the measurement; the corrected
+    points are registered exactly as the baseline's (free-θ fit). A warp
+    that is not one-to-one over the points leaves the registration as is.
+
+    Returns
+    -------
+    PlaneTransform
+    """
+    _, warp = model_params(values)
+    if not warp or prep.metric != "points":
+        return prep.transform
+    try:
+        Q = unwarp_points(prep.measured, warp["scale_error"], warp["k_radial"],
+                          (warp["warp_center_x"], warp["warp_center_y"]), WARP_RADIUS)
+    except ValueError:
+        # the fitted warp folds over within these points: it is no correction of
+        # them; score it with the uncorrected registration
+        return prep.transform
+    fit = fit_experiment(Q, prep.geom, models=("free",), mirror=prep.transform.mirror,
+                         sigma=prep.sigma)
+    return fit.transform
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A model fitted on some experiments.
+
+    Attributes
+    ----------
+    cause : tuple of str
+        The model: ``()`` for the baseline, one cause, or a pair.
+    values : dict
+        Parameter values by name (SI).
+    se : dict
+        Standard errors (:func:`notchfit.analysis.estimation.solve.standard_errors`).
+    train_rms : float
+        Rms error on the training experiments [m per point, or rad per angle].
+    cost : float
+        Half the sum of squared normalised residuals.
+    n_residuals : int
+    success : bool
+    message : str
+    nfev : int
+    registration : tuple
+        Per training experiment, the fitted registration correction
+        (dtx [m], dty [m], dphi [rad]) (calibration_error only; else empty).
+    """
+
+    cause: tuple
+    values: dict
+    se: dict
+    train_rms: float
+    cost: float
+    n_residuals: int
+    success: bool
+    message: str
+    nfev: int
+    registration: tuple = ()
+
+
+def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base) -> Problem:
+    """Start vector and bounds; for a point correction the warp centre on the data and registrations."""
+    specs = specs_for(model, base)
+    sc = tuple(scales.factor(s.scale) for s in specs)
+    x0 = np.array([s.x_of_spec_value(s.start) if s.name not in start
+                   else s.to_x(float(start[s.name]), c) for s, c in zip(specs, sc)])
+    lo = np.array([s.x_bounds[0] for s in specs])
+    hi = np.array([s.x_bounds[1] for s in specs])
+    blocks = ()
+    if any(REGISTRY[c].corrects_points for c in model):
+        # centre the warp on the data: where a camera would be aimed
+        allp = np.concatenate([p.measured[p.valid] for p in preps])
+        c = np.nanmean(allp, axis=0)
+        idx = [i for i, s in enumerate(specs) if s.name in ("warp_center_x", "warp_center_y")]
+        if "warp_center_x" not in start:
+            x0[idx] = c
+        lo[idx], hi[idx] = c - WARP_CENTER_RANGE, c + WARP_CENTER_RANGE
+        blocks = tuple(Block("registration", p.name, 3, kind="experiment", step=REGISTRATION_STEP) for p in preps)
+        b = np.tile(REGISTRATION_BOUNDS, len(preps))
+        x0, lo, hi = np.r_[x0, np.zeros(b.size)], np.r_[lo, -b], np.r_[hi, b]
+    x0 = np.clip(x0, lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo))
+    return Problem(tuple(preps), specs, sc, blocks, x0, lo, hi, np.zeros((0, x0.size)),
+                   model=partial(_model, base), measure=_measure,
+                   sims=cache)
+
+
+def calibrate(preps, cause=None, start: dict | None = None, *,
+              diff_step: float = 2e-3, max_nfev: int = 60, ftol: float = 1e-3,
+              xtol: float = 1e-3, cache: Simulations | None = None,
+              scales: StudyScales | None = None, base: FrictionParams | None = None,
+              paper_start: bool = True, keep_start: float = math.inf, errors: bool = True) -> Calibration:
+    """Fit the baseline (``cause=None``), a candidate or a pair of candidates on experiments ``preps``.
+
+    Bounded least squares (:func:`notchfit.analysis.estimation.solve.solve`) on the
+    measurement residuals (notch points or joint angles) normalised by σ,
+    scipy's finite-difference Jacobian with a relative step ``diff_step``
+    large enough to step over the stick/slip switching of the simulator.
+    Positive stiffnesses are fitted in log space, the tube-sized parameters
+    in units of the study's scales. The extension parameters without a start
+    value start from the best of their ``probes`` (each one residual
+    evaluation), with the baseline parameters at ``start`` and at the base
+    model's values; the fit runs from the best probe of each and keeps the
+    lower cost (:func:`notchfit.analysis.estimation.solve.best_probe_starts`). A
+    candidate that corrects the points (a calibration warp) also fits a
+    registration correction per experiment (the registration was estimated
+    from the uncorrected points). Standard errors: the estimation core's one
+    rule (:func:`notchfit.analysis.estimation.solve.standard_errors`).
+
+    Parameters
+    ----------
+    preps : sequence of Observations
+    cause : None, str or sequence of str
+        The model (:func:`notchfit.analysis.diagnosis.specs.as_model`).
+    start : dict, optional
+        Start values by name (e.g. the baseline optimum, or a single cause's
+        fit for a pair); the spec's start for the rest.
+    diff_step, max_nfev, ftol, xtol : float, int
+        Passed to ``scipy.optimize.least_squares``.
+    cache : Simulations, optional
+    scales : StudyScales, optional
+        Default: the scales of ``preps``.
+    base : FrictionParams, optional
+        The model whose fixed parameters (laws, breaks, damping) the fit keeps
+        (default: the paper's, Sec. IV-B).
+    paper_start : bool
+        Also probe and fit from the base model's values (False: from ``start``
+        only, e.g. a pair started from its first cause's optimum).
+    keep_start : float
+        Fit from the second start too when its best probe's cost is within this
+        factor of the first's (default: always; a probe's cost does not tell
+        which start's basin the fit ends in: a tip load fitted from the
+        baseline optimum's best probe stopped at half the true force, from the
+        paper's values it found it).
+    errors : bool
+        Compute the standard errors (False for the cross-validation's fold fits, whose errors are not
+        reported: NaN).
+
+    Returns
+    -------
+    Calibration
+    """
+    start = dict(start or {})
+    model = as_model(cause)
+    base = base or FrictionParams()
+    pb = _problem(preps, model, start, cache or Simulations(), scales or StudyScales.of(preps, base), base)
+    paper = pb.x0.copy()
+    for i, s in enumerate(baseline_specs(base)):
+        paper[i] = s.x_of_spec_value(s.start)
+    starts = best_probe_starts(pb, (pb.x0, paper) if paper_start else (pb.x0,), skip=start, keep=keep_start)
+    sol = solve(pb, starts, jac="2-point", diff_rel=diff_step, max_nfev=max_nfev, ftol=ftol, xtol=xtol,
+                errors=errors)
+    vals = pb.values(sol.x)
+    regs = pb.block_values(sol.x, "experiment")
+    reg = tuple(tuple(regs[p.name]["registration"]) for p in preps) if regs else ()
+    sigma = np.concatenate([np.full(p.valid.size * p.values_per_item, p.sigma) for p in preps])
+    r = pb.residuals(sol.x) * sigma
+    n_val = sum(p.valid.sum() for p in preps)
+    train_rms = math.sqrt(float(np.sum(r**2)) / max(n_val, 1))
+    return Calibration(cause=model, values=vals, se=se_values(pb, sol.x, sol.se), train_rms=train_rms,
+                       cost=sol.cost, n_residuals=sol.n_residuals, success=sol.success, message=sol.message,
+                       nfev=sol.nfev, registration=reg)

@@ -1,0 +1,276 @@
+"""The diagnosis of a study: baseline, signatures, candidates, verdict, a second cause, extension and gain."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import partial
+
+import numpy as np
+
+from ..causes import REGISTRY
+from .calibration import calibrate
+from .crossval import folds_by_experiment, run_folds
+from .decision import decide, explain, hysteresis_shape, rank_candidates, score_candidate
+from .noise import pooled_mse, pooled_rms
+from .pairs import contributions, pair_sentence, screen_pairs, second_candidates, second_step
+from ..estimation.observations import choose_metric, observe_study
+from .results import Diagnosis, Gain
+from .scope import applicable_causes, base_model, resolve_protocol
+from .signatures import signatures, skipped_signatures
+from .specs import CANDIDATES, CAUSES, StudyScales, model_key
+
+__all__ = ["diagnose"]
+
+
+def _noise(base, held, preps) -> float:
+    """The noise floor [m² or rad²]: the smaller of the baseline's and the best candidate's.
+
+    The floor depends on the model's tension sensitivity; a baseline that
+    compensates a missing effect (e.g. too soft) overstates it.
+    """
+    floors = [base.mean_floor()]
+    if held:
+        best = min(held, key=lambda c: pooled_mse(held[c].sample_mse(preps)))
+        floors.append(held[best].mean_floor())
+    return min(floors)
+
+
+def _per_regime(preps, base_mse, ext_mse) -> dict:
+    """``{regime: Gain}`` for the regimes I/II/III that occur in the measured data."""
+    out = {}
+    for reg in ("I", "II", "III"):
+        masks = [p.regime == reg for p in preps]
+        rb, re_ = pooled_rms(base_mse, masks), pooled_rms(ext_mse, masks)
+        if np.isfinite(rb):
+            out[reg] = Gain(rb, re_)
+    return out
+
+
+def _baseline_words(base) -> str:
+    """What the calibrated baseline is, in words."""
+    if base.spring_law == "material":
+        law = "capstan friction of a tendon in the lumen" if base.friction_law == "capstan" else "channel friction"
+        return f"the friction model of the tube's material and section springs and {law}, with E_lin, E_se and μ_d fitted"
+    return "the paper's friction model with k_lin, k_mid and μ_d fitted"
+
+
+@dataclass
+class _Study:
+    """The prepared study and what every fit shares."""
+
+    preps: tuple
+    base: object
+    scales: StudyScales
+    protocol: dict
+    protocol_fit: object
+    skipped: dict
+    order: tuple = ()
+
+
+def _setup(experiments, causes, metric, estimate_protocol, kw, jobs, say, *, none_tol, seed) -> _Study:
+    """Measurements, base model, scales, protocol and the candidates that apply."""
+    metric = choose_metric(experiments, metric)
+    say(f"registering measurements and fitting measured shapes ({metric})")
+    preps = observe_study(experiments, metric)
+    base = base_model(preps)
+    scales = StudyScales.of(preps, base)
+    recorded = {e.name: e.ramp_time for e in experiments}
+    if any(v is None for v in recorded.values()) and estimate_protocol:
+        say("estimating the protocol of the experiments without [protocol]")
+    preps, protocol, cal = resolve_protocol(preps, recorded, base, scales, kw, estimate=estimate_protocol,
+                                            none_tol=none_tol, seed=seed, jobs=jobs)
+    usable, skipped = applicable_causes(preps, causes)
+    return _Study(preps, base, scales, protocol, cal,
+                  {"signatures": skipped_signatures(preps), "candidates": skipped}, usable)
+
+
+def _masked_first(st: _Study, cands, held, kw, jobs, say):
+    """For ``unexplained``: every pair of the candidates screened on all experiments; the pair that
+    lowers the in-sample error most gives the first cause (the one better alone) and the second.
+
+    Returns ``(first, second, screened)`` (``(None, None, {})`` with fewer than two candidates).
+    """
+    pool = [c.cause for c in sorted(cands, key=lambda c: c.heldout_rms)
+            if c.cause in st.order and (not REGISTRY[c.cause].second_if_significant or c.significant)]
+    if len(pool) < 2:
+        return None, None, {}
+    say(f"no single cause is significant: screening the {len(pool) * (len(pool) - 1) // 2} pairs of candidates")
+    screened = {}
+    for i, a in enumerate(pool[:-1]):
+        screened.update(screen_pairs(a, pool[i + 1:], st.preps, held[a].mean_values(), scales=st.scales,
+                                     others={c: held[c].mean_values() for c in pool[i + 1:]}, base=st.base,
+                                     calibrate_kw=kw, jobs=jobs))
+    best = min((k for k in screened if "+" in k), key=lambda k: screened[k][1])
+    first, second = best.split("+")
+    return first, second, screened
+
+
+def _second(st: _Study, cause, held, cands, run, noise, base_mse, *, second_cause, max_second, z_crit,
+            min_excess_removed, none_tol, say, kw, jobs):
+    """The second-cause step (:mod:`notchfit.analysis.diagnosis.pairs`): (causes, pair results, within noise,
+    first cause, screened fits). For ``unexplained`` (two strong effects can each keep the other's
+    candidate from significance) every pair is screened and the best is cross-validated from the
+    candidate better alone; it must be significant against the baseline too."""
+    base_ms = pooled_mse(base_mse)
+    if not second_cause or (cause not in CANDIDATES and cause != "unexplained"):
+        return ((cause,) if cause in CANDIDATES else ()), (), False, cause, {}
+    if cause == "unexplained":
+        first, c2, pre = _masked_first(st, cands, held, kw, jobs, say)
+        if first is None:
+            return (), (), False, cause, {}
+        second, against, screen = [c2], (base_mse, base_ms), (lambda sec: pre)
+    else:
+        first, against = cause, None
+        second = [c for c in second_candidates(first, cands, max_second=max_second) if c in st.order]
+        screen = partial(screen_pairs, first, preps=st.preps, start=held[first].mean_values(), scales=st.scales,
+                         others={c: held[c].mean_values() for c in second}, base=st.base, calibrate_kw=kw,
+                         jobs=jobs)
+        if second:
+            say(f"screening {len(second)} second causes with {first} on all experiments")
+    within = pooled_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + none_tol)
+    c2, hp, res, screened = second_step(first, held, st.preps, run, noise, second, z_crit=z_crit,
+                                        min_excess_removed=min_excess_removed, none_tol=none_tol,
+                                        against_baseline=against, screen=screen)
+    held.update(hp)
+    if against is not None:
+        return ((first, c2) if c2 else ()), res, within, first, screened
+    return ((first, c2) if c2 else (first,)), res, within, first, screened
+
+
+def _extended(st: _Study, causes, held, screened, kw):
+    """The extended model fitted on every experiment (None without a named cause), started from the
+    mean of its fold optima (or the second-cause screen's fit of it)."""
+    if not causes:
+        return None
+    key = model_key(causes)
+    if key in screened:
+        return screened[key][0]
+    return calibrate(st.preps, causes, held[key].mean_values(), scales=st.scales, base=st.base, paper_start=False,
+                     **kw)
+
+
+def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_folds: int = 6,
+             causes=CAUSES, none_tol: float = 0.5, z_crit: float = 3.0, min_excess_removed: float = 0.3,
+             calibrate_kw: dict | None = None, progress=None, metric: str = "auto", second_cause: bool = True,
+             max_second: int = 4, estimate_protocol: bool = True) -> Diagnosis:
+    """Diagnose a study against the friction model (Sec. IV-B; docs/diagnosis.md).
+
+    The baseline is calibrated on the training experiments of each fold and
+    compared with the held-out ones; the discrepancy signatures order the
+    candidate causes, each candidate is fitted and scored the same way, and
+    the decision rule (:mod:`notchfit.analysis.diagnosis.decision`) names the first
+    cause. Then each promising second candidate is fitted with it and kept if
+    it removes a further significant part of the held-out discrepancy by the
+    same rule (:mod:`notchfit.analysis.diagnosis.pairs`). The extended model (every
+    named cause) is refitted on all experiments. Nothing is written.
+
+    Parameters
+    ----------
+    experiments : sequence of notchfit.io.Experiment
+        At least two, with notch points or with joint angles (``angles.csv``).
+    jobs : int
+        Worker processes for the (model × fold) calibrations (1: here; 0: one per CPU).
+    scheduler : str or dask.distributed.Client, optional
+        Run the (model × fold) calibrations on this Dask cluster instead.
+    seed : int
+        Seed of the noise floor's Monte Carlo draws
+        (:func:`notchfit.analysis.estimation.noise_floor`).
+    max_folds : int
+        Leave-one-experiment-out up to this many experiments, else k-fold.
+    causes : sequence of str
+        Candidates to try (default: all six; those that do not apply to the
+        study are skipped with their reason).
+    none_tol : float
+        ``none`` when the baseline's held-out mean squared error is below
+        ``(1 + none_tol)`` times the noise floor (and no second cause when the
+        first cause's is).
+    z_crit : float
+        Significance of a candidate's held-out improvement
+        (:func:`notchfit.analysis.diagnosis.noise.paired_z`).
+    min_excess_removed : float
+        Fraction of the excess over the noise floor a candidate must remove.
+    calibrate_kw : dict, optional
+        Passed to :func:`notchfit.analysis.diagnosis.calibration.calibrate`.
+    progress : callable, optional
+        Called with a short message at each stage.
+    metric : {"auto", "points", "angles"}
+        What is compared (:func:`notchfit.analysis.estimation.observations.choose_metric`).
+    second_cause : bool
+        Look for a second cause after the first.
+    max_second : int
+        Second candidates fitted with the first (the best single ones).
+    estimate_protocol : bool
+        Estimate ``ramp_time`` where experiment.toml gives no ``[protocol]``
+        (:func:`notchfit.analysis.diagnosis.scope.resolve_protocol`); else a step is assumed.
+
+    Returns
+    -------
+    Diagnosis
+    """
+    say = progress or (lambda msg: None)
+    kw = dict(calibrate_kw or {})
+    unknown = set(causes) - set(CAUSES)
+    if unknown:
+        raise ValueError(f"unknown cause(s) {sorted(unknown)}; known: {', '.join(CAUSES)}")
+    st = _setup(experiments, tuple(causes), metric, estimate_protocol, kw, jobs, say, none_tol=none_tol, seed=seed)
+    preps = st.preps
+    folds = folds_by_experiment(len(preps), max_folds)
+    run = partial(run_folds, preps, folds, calibrate_kw=kw, seed=seed, jobs=jobs, scheduler=scheduler,
+                  scales=st.scales, base=st.base)
+
+    say(f"calibrating the baseline on {len(folds)} folds")
+    held = run([None])
+    base = held["baseline"]
+    base_start = [cal.values for cal in base.calibrations]
+    sigs = signatures(preps, base, base.mean_floor())
+    order = [c for c, _, _ in rank_candidates(sigs, math.sqrt(base.mean_floor())) if c in st.order]
+    say(f"fitting {len(order)} candidate extensions")
+    singles = run(order, {c: base_start for c in order}) if order else {}
+    held.update(singles)
+
+    base_mse = base.sample_mse(preps)
+    base_ms = pooled_mse(base_mse)
+    noise = _noise(base, singles, preps)
+    say("fitting the baseline on all experiments")
+    full_base = st.protocol_fit or calibrate(preps, None, base_start[0], scales=st.scales, base=st.base, **kw)
+    cands = [score_candidate(c, held[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
+                             min_excess_removed=min_excess_removed) for c in order]
+    cause = decide(base_ms <= noise * (1.0 + none_tol), cands)
+    named, pair_res, within, first, screened = _second(
+        st, cause, held, cands, run, noise, base_mse, second_cause=second_cause, max_second=max_second,
+        z_crit=z_crit, min_excess_removed=min_excess_removed, none_tol=none_tol, say=say, kw=kw, jobs=jobs)
+    say(f"fitting the extended model ({model_key(named)}) on all experiments")
+    extended = _extended(st, named, held, screened, kw)
+    ext_mse = held[model_key(named)].sample_mse(preps) if named else base_mse
+    return _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
+                   ext_mse, noise, seed, screened, none_tol=none_tol, z_crit=z_crit, min_removed=min_excess_removed)
+
+
+def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
+            ext_mse, noise, seed, screened, *, none_tol, z_crit, min_removed) -> Diagnosis:
+    """The :class:`Diagnosis`: contributions, explanation, gains."""
+    preps = st.preps
+    metric = preps[0].metric
+    base_rms, noise_rms = math.sqrt(pooled_mse(base_mse)), math.sqrt(noise)
+    contribs = contributions(named, held, preps, noise, extended.values, metric=metric) if named else ()
+    causes = tuple(c.cause for c in contribs)
+    text = explain(cause, sigs, cands, base_rms, noise_rms, none_tol=none_tol, z_crit=z_crit,
+                   min_removed=min_removed, metric=metric, baseline=_baseline_words(st.base))
+    if named:
+        text += pair_sentence(causes, contribs, pair_res, first, metric=metric, z_crit=z_crit,
+                              min_removed=min_removed, within_noise=within, alone=cause == first,
+                              screened=screened)
+        if "joint_hysteresis" in named:
+            text += hysteresis_shape(extended.values, st.scales.angle)
+    if st.skipped["candidates"]:
+        text += " Not tried: " + "; ".join(f"{c} ({why})" for c, why in st.skipped["candidates"].items()) + "."
+    text += " " + st.protocol["text"]
+    return Diagnosis(experiments=tuple(p.name for p in preps), baseline=full_base,
+                     baseline_heldout_rms=base_rms, discrepancies=tuple(sigs), candidates=tuple(cands),
+                     cause=causes[0] if causes else cause, explanation=text,
+                     gain=Gain(base_rms, math.sqrt(pooled_mse(ext_mse))), extended=extended,
+                     per_regime=_per_regime(preps, base_mse, ext_mse), noise_rms=noise_rms, seed=seed,
+                     heldout=held, prepared=preps, causes=causes, contributions=contribs,
+                     pair_candidates=tuple(pair_res), metric=metric, protocol=st.protocol,
+                     skipped=st.skipped, base=st.base)

@@ -1,0 +1,218 @@
+"""Solving a :class:`~notchfit.analysis.estimation.problem.Problem`: probe starts, bounded least squares, standard
+errors, and the leave-one-out splits both engines score with.
+
+* **Starts.** The friction model is piecewise smooth (the superelastic plateau's
+  onset, the slot-closure stop and the stick/slip switching put kinks and local
+  minima in the cost): the cost is evaluated on the grid of the specs' probe
+  values around a start (one residual evaluation each) and the fit runs from the
+  best (:func:`grid_starts`: the best ``n`` of the start and its grid;
+  :func:`best_probe_starts`: the best probe around each of several starts).
+* **Fit.** ``scipy.optimize.least_squares`` (``trf``, bounded) from each start,
+  the lowest cost kept (:func:`solve`); the Jacobian by forward differences with
+  a step per parameter (:meth:`Problem.steps`, large enough to step over the
+  stick/slip switching) or scipy's relative ``2-point`` step.
+* **Standard errors** (:func:`standard_errors`), one rule for every fit: per
+  parameter the larger of the Gauss–Newton and the cluster-robust (jackknife)
+  estimate, one cluster per sample — the residuals of one sample share its
+  load-cell error and are correlated.
+* **Leave-one-out** (:func:`folds`, :func:`tube_folds`): held-out experiments,
+  or whole tubes.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .problem import Problem
+
+__all__ = ["Solution", "best_probe_starts", "folds", "forward_jacobian", "grid_starts", "se_values", "solve",
+           "standard_errors", "tube_folds"]
+
+
+@dataclass(frozen=True)
+class Solution:
+    """A solved problem.
+
+    Attributes
+    ----------
+    x : ndarray
+        Optimum (optimiser coordinates).
+    se : ndarray
+        Standard errors of ``x`` (:func:`standard_errors`).
+    cost : float
+        Half the sum of squared whitened residuals at ``x`` (the priors' included).
+    n_residuals : int
+        Measured values (angles or point coordinates).
+    success : bool
+    message : str
+    nfev : int
+        Residual evaluations, probes and Jacobians included.
+    starts : int
+        Least-squares runs.
+    """
+
+    x: np.ndarray
+    se: np.ndarray
+    cost: float
+    n_residuals: int
+    success: bool
+    message: str
+    nfev: int
+    starts: int
+
+
+def _cost(pb: Problem, x) -> float:
+    return float(np.sum(pb.residuals(x) ** 2))
+
+
+def _grid(pb: Problem, base_x, idx):
+    """``base_x`` with every combination of the probe values of the specs ``idx``."""
+    for combo in itertools.product(*(pb.specs[i].probes for i in idx)):
+        x = base_x.copy()
+        for i, v in zip(idx, combo):
+            x[i] = pb.specs[i].x_of_spec_value(v)
+        yield x
+
+
+def grid_starts(pb: Problem, n_starts: int) -> tuple[list, int]:
+    """The ``n_starts`` best of ``x0`` and its grid of probe values (clipped into the bounds); and the
+    number of residual evaluations spent."""
+    idx = [i for i, s in enumerate(pb.specs) if s.probes]
+    cands = [pb.x0] + [np.clip(x, pb.lo, pb.hi) for x in _grid(pb, pb.x0, idx)]
+    if len(cands) == 1:
+        return cands, 0
+    costs = [_cost(pb, x) for x in cands]
+    order = np.argsort(costs, kind="stable")
+    return [cands[i] for i in order[:max(1, n_starts)]], len(cands)
+
+
+def best_probe_starts(pb: Problem, bases, *, skip=(), keep: float = math.inf) -> list[np.ndarray]:
+    """Around each start of ``bases``, the best point of the grid of the probe values of the specs not
+    named in ``skip`` (``[x0]`` when none has probes); the starts are ordered by cost and kept when within
+    ``keep`` times the lowest."""
+    idx = [i for i, s in enumerate(pb.specs) if s.probes and s.name not in skip]
+    if not idx:
+        return [pb.x0]
+    found = []
+    for base_x in bases:
+        best = (np.inf, base_x)
+        for x in _grid(pb, base_x, idx):
+            cost = _cost(pb, x)
+            if cost < best[0]:
+                best = (cost, x)
+        found.append(best)
+    low = min(c for c, _ in found)
+    return [np.clip(x, pb.lo, pb.hi) for c, x in sorted(found, key=lambda t: t[0]) if c <= keep * low]
+
+
+def forward_jacobian(pb: Problem, x, h) -> np.ndarray:
+    """Forward differences of the residuals with steps ``h``, stepping inward at an upper bound."""
+    r0 = pb.residuals(x)
+    J = np.empty((r0.size, x.size))
+    for i in range(x.size):
+        step = h[i] if x[i] + h[i] <= pb.hi[i] else -h[i]
+        xi = x.copy()
+        xi[i] += step
+        J[:, i] = (pb.residuals(xi) - r0) / step
+    return J
+
+
+def standard_errors(pb: Problem, x, h) -> np.ndarray:
+    """Standard errors of ``x``: per parameter the larger of the Gauss–Newton and the cluster-robust estimate.
+
+    Gauss–Newton: ``s² (JᵀJ)⁻¹`` with ``s²`` the residual variance (exact for
+    independent errors of the observations). Cluster-robust, one cluster per
+    sample (the residuals of one sample share its load-cell error): the
+    jackknife over clusters in its one-step form (CR3),
+    ``(G−1)/G Σ_g (d_g − d̄)(d_g − d̄)ᵀ`` with ``d_g = (JᵀJ − J_gᵀJ_g)⁻¹ J_gᵀ r_g``,
+    which also holds where a few samples carry most of the information
+    (high leverage), where the plain sandwich is biased low.
+    """
+    J = forward_jacobian(pb, x, h)
+    r = pb.residuals(x)
+    keep = pb.measured()
+    cl = pb.clusters()
+    B = J.T @ J                               # the priors' rows included (a posterior's information)
+    J, r, cl = J[keep], r[keep], cl[keep]
+    n, p = r.size, x.size
+    gn = np.diag(np.linalg.pinv(B)) * float(r @ r) / max(n - p, 1)
+    d = []
+    for g in np.unique(cl):
+        k = cl == g
+        Jg = J[k]
+        d.append(np.linalg.lstsq(B - Jg.T @ Jg, Jg.T @ r[k], rcond=None)[0])
+    d = np.asarray(d)
+    G = d.shape[0]
+    cr3 = (G - 1) / max(G, 1) * np.sum((d - d.mean(axis=0)) ** 2, axis=0)
+    return np.sqrt(np.clip(np.maximum(gn, cr3), 0.0, None))
+
+
+def se_values(pb: Problem, x, se) -> dict:
+    """Standard errors of the shared parameters by name, in SI (log coordinates: relative to the value)."""
+    vals = pb.values(x)
+    return {s.name: (vals[s.name] * float(se[i]) if s.log else float(se[i]) * c)
+            for i, (s, c) in enumerate(zip(pb.specs, pb.scales))}
+
+
+def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_scale: float = 3.0,
+          max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6, diff_rel: float = 2e-3,
+          block_steps: dict | None = None, nfev: int = 0, errors: bool = True) -> Solution:
+    """Bounded least squares from each start; the lowest cost wins, with its standard errors.
+
+    Parameters
+    ----------
+    starts : sequence of ndarray
+        Start points (:func:`grid_starts`, :func:`best_probe_starts`).
+    jac : {"forward", "2-point"}
+        Forward differences with :meth:`Problem.steps` (``diff_rel``, ``block_steps``), or scipy's
+        ``2-point`` with the relative step ``diff_rel``.
+    loss, f_scale, max_nfev, ftol, xtol :
+        ``scipy.optimize.least_squares`` options, per run.
+    nfev : int
+        Evaluations already spent (probes), added to the count.
+    errors : bool
+        Compute the standard errors (else NaN: a fit whose errors nobody reads).
+    """
+    best = None
+    for x0 in starts:
+        if jac == "forward":
+            h = pb.steps(x0, diff_rel, block_steps)
+            res = least_squares(pb.residuals, x0, jac=lambda x, h=h: forward_jacobian(pb, x, h),
+                                bounds=(pb.lo, pb.hi), method="trf", loss=loss, f_scale=f_scale,
+                                max_nfev=max_nfev, ftol=ftol, xtol=xtol, x_scale="jac")
+            nfev += res.nfev + res.njev * x0.size
+        else:
+            res = least_squares(pb.residuals, x0, bounds=(pb.lo, pb.hi), method="trf", diff_step=diff_rel,
+                                loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol, xtol=xtol,
+                                x_scale="jac")
+            nfev += res.nfev
+        if best is None or res.cost < best.cost:
+            best = res
+    h = pb.steps(best.x, diff_rel, block_steps)
+    se = standard_errors(pb, best.x, h) if errors else np.full(best.x.size, np.nan)
+    cost = 0.5 * float(np.sum(pb.residuals(best.x) ** 2))          # the priors' terms included
+    if not math.isfinite(cost):
+        raise ValueError("the least-squares cost is not finite at its optimum")
+    return Solution(best.x, se, cost, int(pb.measured().sum()), bool(best.success), str(best.message),
+                    nfev + (best.x.size + 1 if errors else 0), len(starts))
+
+
+# ----------------------------------------------------------------------------- leave-one-out
+def folds(n: int, max_folds: int | None = None) -> list[np.ndarray]:
+    """Held-out experiment indices of each fold: leave-one-out (up to ``max_folds`` experiments; beyond,
+    ``max_folds`` interleaved folds)."""
+    k = n if max_folds is None else min(n, max_folds)
+    return [np.arange(n)[i::k] for i in range(k)]
+
+
+def tube_folds(obs) -> dict:
+    """Tube -> indices of its experiments (each tube held out in turn; empty with one tube)."""
+    tubes = list(dict.fromkeys(o.tube for o in obs))
+    if len(tubes) < 2:
+        return {}
+    return {t: np.array([i for i, o in enumerate(obs) if o.tube == t]) for t in tubes}

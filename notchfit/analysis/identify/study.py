@@ -1,0 +1,347 @@
+"""``identify``: calibrate the model on a study, with held-out errors (:func:`identify`)."""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+from dataclasses import dataclass, field
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from ...batch import run_batch
+from ...physics.friction import FrictionParams
+from ...physics.friction_params import PARAM_KEYS
+from ...units import DEG, MM
+from ..estimation.observations import METRICS, metric_unit, observe_study
+from ..estimation.solve import folds, se_values, tube_folds
+from .problem import Solution, errors, make_problem, predict, solve, with_values
+from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free,
+                    parse_free, specs_for)
+
+__all__ = ["FIT_SOLVER", "Identification", "TubeFit", "identify"]
+
+#: The fast solver's options inside the fits: joints move at most 2 mrad per step while a link
+#: slides (default 0.5 mrad): half the time, within 0.014° of the default on the shipped wrists
+#: (benchmarks/bench_identify.py); the reported errors use the defaults.
+FIT_SOLVER = {"dtheta_max": 2e-3}
+
+
+@dataclass(frozen=True)
+class TubeFit:
+    """One tube's identified per-notch values (n joints).
+
+    Attributes
+    ----------
+    name : str
+        Tube label (:func:`notchfit.analysis.estimation.observations.tube_labels`).
+    experiments : tuple of str
+    rest_angles, rest_se : ndarray (n,) [rad]
+        Rest angles used (identified, or the geometry's) and their standard errors (NaN: not identified).
+    slot_depths : ndarray (n,) [m]
+        Effective cut depths used (the geometry's plus the identified offsets).
+    depth_offsets, depth_se : ndarray (n,) [m]
+        Identified offsets from the geometry's depths (0 when not identified) and their standard errors.
+    model : FrictionParams
+        The tube's model: the shared values with its rest angles and cut depths.
+    """
+
+    name: str
+    experiments: tuple
+    rest_angles: np.ndarray = field(repr=False)
+    rest_se: np.ndarray = field(repr=False)
+    slot_depths: np.ndarray = field(repr=False)
+    depth_offsets: np.ndarray = field(repr=False)
+    depth_se: np.ndarray = field(repr=False)
+    model: FrictionParams = field(repr=False)
+
+    def as_dict(self) -> dict:
+        """Degrees and millimetres (µm for the depth offsets), as in ``identify.json``."""
+        deg = lambda a: [math.degrees(float(v)) for v in a]  # noqa: E731
+        um = lambda a: [float(v) * 1e6 for v in a]  # noqa: E731
+        return {"experiments": list(self.experiments), "rest_angle_deg": deg(self.rest_angles),
+                "rest_angle_se_deg": deg(self.rest_se), "slot_depth_mm": [float(v) / MM for v in self.slot_depths],
+                "slot_depth_offset_um": um(self.depth_offsets), "slot_depth_offset_se_um": um(self.depth_se)}
+
+
+@dataclass(frozen=True)
+class Identification:
+    """The identified model of a study and how well it predicts experiments it never saw.
+
+    Errors are in the metric's file unit (:attr:`unit`): degrees (joint angles) or millimetres
+    (notch-point distances); an rms is over every measured value it covers
+    (the "rms per notch" of the real-tube literature for angles).
+
+    Attributes
+    ----------
+    metric : {"angles", "points"}
+    free : tuple of str
+        The scalar free parameters (FrictionParams field names), in fit order.
+    values, se : dict
+        Their identified values and standard errors (SI; :func:`notchfit.analysis.identify.problem.standard_errors`).
+    tube_free : tuple of str
+        The per-tube unknowns identified: ``"rest_angle"``, ``"slot_depth"``.
+    tubes : dict
+        Tube label -> :class:`TubeFit`.
+    model : FrictionParams
+        The shared model: the base model with ``values``; with one tube, also
+        its rest angles and cut depths (its :attr:`TubeFit.model`).
+    experiment_tubes : dict
+        Experiment -> tube label.
+    train_rms : float
+        Rms error of the fit on every experiment.
+    train : dict
+        Experiment -> its rms error in that fit.
+    heldout_rms : float
+        Rms error of each experiment predicted by the model fitted without it
+        (leave one experiment out), over every experiment's values; NaN with one experiment.
+    heldout : dict
+        Experiment -> its held-out rms error.
+    heldout_by_tube : dict
+        With several tubes: tube -> rms error of its experiments predicted by the
+        model fitted on the other tubes only (from its geometry file: its rest
+        angles and depths as drawn).
+    solution : Solution
+        The fit on every experiment (cost, evaluations, convergence).
+    """
+
+    metric: str
+    free: tuple
+    values: dict
+    se: dict
+    tube_free: tuple
+    tubes: dict
+    model: FrictionParams
+    experiment_tubes: dict
+    train_rms: float
+    train: dict
+    heldout_rms: float
+    heldout: dict
+    heldout_by_tube: dict = field(default_factory=dict)
+    solution: Solution | None = field(default=None, repr=False)
+
+    @property
+    def unit(self) -> str:
+        """The file unit of the errors: ``"deg"`` (joint angles) or ``"mm"`` (notch points)."""
+        return METRICS[self.metric]
+
+    def summary(self) -> str:
+        """What ``notchfit identify`` prints: the identified values with their standard errors, each tube's
+        per-notch values, and the training and held-out errors (in :attr:`unit`)."""
+        unit, data = self.unit, self.as_dict()
+        lines = [f"identify: {len(self.experiment_tubes)} experiments, {len(self.tubes)} tube(s), errors in {unit}"]
+        lines += [f"  {key:18s} = {v:.5g} ± {data['se'][key]:.2g}" for key, v in data["params"].items()]
+        for tube, fit in self.tubes.items():
+            if REST in self.tube_free:
+                lines.append(f"  {tube}: rest angles [deg] " + ", ".join(f"{v / DEG:.2f}" for v in fit.rest_angles))
+            if DEPTH in self.tube_free:
+                lines.append(f"  {tube}: cut depths [mm] " + ", ".join(f"{v / MM:.4f}" for v in fit.slot_depths))
+        held = "" if math.isnan(self.heldout_rms) else (f"; held-out rms {self.heldout_rms:.3f} {unit} "
+                                                        "(each experiment predicted by a model fitted without it)")
+        lines.append(f"train rms {self.train_rms:.3f} {unit}{held}")
+        lines += [f"  {name:12s} held out {v:.3f} {unit}" for name, v in self.heldout.items()]
+        lines += [f"  tube {tube}: predicted from the other tubes' fit {v:.3f} {unit}"
+                  for tube, v in self.heldout_by_tube.items()]
+        return "\n".join(lines)
+
+    def as_dict(self) -> dict:
+        """The ``identify.json`` mapping (docs/data-formats.md): file keys with units, per-tube values."""
+        key = PARAM_KEYS
+        tube_keys = {REST: "rest_angle_rad", DEPTH: "slot_depth_offset_m"}
+        sol = self.solution
+        return {
+            # `free` names exactly the keys of `params` and `se` (readers of the contract's form can
+            # look every free name up); the per-tube parameters are listed apart, values under `tubes`
+            "free": [key[f] for f in self.free],
+            "free_per_tube": [tube_keys[f] for f in self.tube_free],
+            "params": {key[f]: self.values[f] for f in self.free},
+            "se": {key[f]: self.se[f] for f in self.free},
+            "metric": self.unit, "train_rms": self.train_rms, "heldout_rms": self.heldout_rms,
+            "heldout": dict(self.heldout), "train": dict(self.train),
+            "heldout_by_geometry": dict(self.heldout_by_tube),
+            "tubes": {t: f.as_dict() for t, f in self.tubes.items()},
+            "fit": None if sol is None else {"cost": sol.cost, "n_residuals": sol.n_residuals,
+                                             "success": sol.success, "message": sol.message, "nfev": sol.nfev,
+                                             "starts": sol.starts},
+        }
+
+
+@dataclass(frozen=True)
+class _Task:
+    """One fit: the experiments it trains on (indices into ``obs``) and the ones it predicts.
+
+    ``kind``: ``"all"`` (the fit on every experiment), ``"experiment"`` (one left
+    out), ``"tube"`` (one tube's experiments left out).
+    """
+
+    kind: str
+    obs: tuple
+    train: tuple
+    test: tuple
+    base: dict
+    free: tuple
+    start: FrictionParams | None
+    excess: float
+    options: dict
+
+
+def _fit(task: _Task):
+    """Fit on the training experiments; predict the test ones (a batch item)."""
+    with threadpool_limits(limits=1):
+        train = [task.obs[i] for i in task.train]
+        models = [task.base[o.tube] for o in train]
+        specs = specs_for(task.free, models, start=task.start)
+        opt = dict(task.options)
+        prob_kw = {k: opt.pop(k) for k in ("sim_kw", "rest_range", "depth_range", "depth_sigma", "depth_common")
+                   if k in opt}
+        pb = make_problem(train, task.base, specs, rest=REST in task.free, depth=DEPTH in task.free,
+                          excess=task.excess, **prob_kw)
+        sol = solve(pb, **opt)
+        fitted = pb.params(sol.x)
+        vals = pb.values(sol.x)
+        preds = {}
+        for i in task.test:
+            o = task.obs[i]
+            params = fitted.get(o.tube, with_values(task.base[o.tube], vals, task.excess))
+            preds[o.name] = errors(o, predict(o, params))
+        return pb, sol, fitted, preds
+
+
+def _rms(values) -> float:
+    v = np.concatenate([np.ravel(a) for a in values]) if values else np.zeros(0)
+    return float(np.sqrt(np.mean(v * v))) if v.size else math.nan
+
+
+def _base_models(obs, model: FrictionParams | None) -> dict:
+    """Tube -> base model: ``model`` (a model with rest angles belongs to one tube) or the geometry's default."""
+    tubes = dict.fromkeys(o.tube for o in obs)
+    if model is not None and model.rest_angle is not None and len(tubes) > 1:
+        raise ValueError("the --model file holds rest angles (rest_angle_rad), which belong to one tube; this "
+                         f"study has {len(tubes)} tubes ({', '.join(tubes)}): remove rest_angle_rad from it")
+    out = {}
+    for t in tubes:
+        geom = next(o.geom for o in obs if o.tube == t)
+        out[t] = model if model is not None else base_model(geom)
+        out[t].rest_angles(geom)           # checks the model's rest angles against the tube
+    return out
+
+
+def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool) -> tuple[list, list]:
+    """The full fit, one fit per left-out experiment, one per left-out tube (keys and tasks)."""
+    idx = tuple(range(len(obs)))
+    rest = (base, free, start, excess, options)
+    keys, tasks = ["all"], [_Task("all", obs, idx, (), *rest)]
+
+    def held_out(kind, test):
+        test = tuple(int(i) for i in test)
+        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, *rest)
+
+    if heldout and len(obs) > 1:
+        for f in folds(len(obs)):
+            keys.append(f"without {obs[f[0]].name}")
+            tasks.append(held_out("experiment", f))
+    for t, f in (tube_folds(obs) if by_tube else {}).items():
+        keys.append(f"without tube {t}")
+        tasks.append(held_out("tube", f))
+    return keys, tasks
+
+
+def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: bool = True,
+             by_tube: bool = True, jobs: int = 1, scheduler=None, n_starts: int = 2, loss: str = "linear",
+             f_scale: float = 3.0, max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6,
+             diff_rel: float = 2e-3, rest_step: float = 2e-4, rest_range: float = REST_RANGE,
+             depth_range: float = DEPTH_RANGE, depth_sigma: float = DEPTH_TOLERANCE,
+             depth_common: float | None = DEPTH_COMMON, sim_kw: dict | None = None) -> Identification:
+    """Identify the model's parameters on a study; held-out errors by leaving experiments (and tubes) out.
+
+    Parameters
+    ----------
+    exps : sequence of notchfit.io.Experiment
+        With measured joint angles (every one) or notch points (every one);
+        they may use different geometries (tubes): all share the scalar
+        parameters, each tube has its own rest angles.
+    free : sequence of str, optional
+        Parameters to fit (field names or model-file keys, ``rest_angle`` for
+        the rest angles); default :func:`notchfit.analysis.identify.specs.default_free`.
+    model : FrictionParams, optional
+        Base model (the values of everything not fitted, and the starts);
+        default :func:`notchfit.analysis.identify.specs.base_model` of each geometry
+        (the geometry's default model; quasi-static damping for the material law).
+    heldout, by_tube : bool
+        Also refit without each experiment / without each tube (when the study has several).
+    jobs, scheduler :
+        The fits run on :func:`notchfit.batch.run_batch`.
+    n_starts, loss, f_scale, max_nfev, ftol, xtol, diff_rel, rest_step :
+        Passed to :func:`notchfit.analysis.identify.problem.solve` (every fit alike).
+    rest_range : float
+        How far the rest angles may move from the geometry's [rad].
+    depth_range, depth_sigma, depth_common : float
+        Cut-depth offsets: bound, Gaussian prior per notch (the cutting tolerance) and
+        of a tube's mean (None: free) [m] (:func:`notchfit.analysis.identify.problem.make_problem`).
+    sim_kw : dict, optional
+        Options of :func:`notchfit.physics.friction.simulate` during the fits (default
+        :data:`FIT_SOLVER`); the reported errors always use its defaults.
+
+    Returns
+    -------
+    Identification
+    """
+    obs = observe_study(exps, prefer="angles", who="identify")
+    base = _base_models(obs, model)
+    free = parse_free(free) if free is not None else default_free(list(base.values()), [o.geom for o in obs])
+    first = next(iter(base.values()))
+    excess = max(first.mu_s - first.mu_d, 0.0)
+    options = dict(n_starts=n_starts, loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol, xtol=xtol,
+                   diff_rel=diff_rel, rest_step=rest_step, rest_range=rest_range, depth_range=depth_range,
+                   depth_sigma=depth_sigma, depth_common=depth_common,
+                   sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
+    keys, tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube)
+    # the platform's default start method (fork on Linux), as the diagnosis's folds: spawned workers
+    # re-import notchfit and reload the kernels, several seconds for fits of about one second
+    res = run_batch(_fit, tasks, keys=keys, jobs=jobs, scheduler=scheduler, desc="identify",
+                    start_method=multiprocessing.get_start_method())
+    if res.failures:
+        raise ValueError("identify: " + "; ".join(f"the fit {r.key}: {r.error}" for r in res.failures))
+    return _result(obs, base, free, excess, tasks, res.values())
+
+
+def _tube_fits(obs, pb, sol, fitted) -> dict:
+    """Tube -> :class:`TubeFit` of the full fit."""
+    se_of = pb.tube_values(sol.se)
+    out = {}
+    for t in dict.fromkeys(o.tube for o in obs):
+        geom = next(o.geom for o in obs if o.tube == t)
+        p, n = fitted[t], geom.n_joints
+        nan = np.full(n, math.nan)
+        out[t] = TubeFit(name=t, experiments=tuple(o.name for o in obs if o.tube == t),
+                         rest_angles=p.rest_angles(geom), rest_se=se_of.get(t, {}).get("rest_angle", nan),
+                         slot_depths=p.depth_geometry(geom).slot_depths,
+                         depth_offsets=np.zeros(n) if p.slot_depth_offset is None
+                         else np.broadcast_to(np.asarray(p.slot_depth_offset, float), (n,)).copy(),
+                         depth_se=se_of.get(t, {}).get("slot_depth_offset", nan), model=p)
+    return out
+
+
+def _result(obs, base, free, excess, tasks, outs) -> Identification:
+    """Collect the full fit and the held-out predictions."""
+    pb, sol, fitted, _ = outs[0]
+    _, unit = metric_unit(obs[0].metric)
+    vals = pb.values(sol.x)
+    se = se_values(pb, sol.x, sol.se)
+    tubes = _tube_fits(obs, pb, sol, fitted)
+    train_err = {o.name: errors(o, predict(o, fitted[o.tube])) for o in obs}
+    held, by_tube = {}, {}
+    for task, (_, _, _, preds) in zip(tasks[1:], outs[1:]):
+        if task.kind == "experiment":
+            held.update(preds)
+        else:
+            by_tube[obs[task.test[0]].tube] = _rms([p / unit for p in preds.values()])
+    names = list(tubes)
+    shared = fitted[names[0]] if len(names) == 1 else with_values(base[names[0]], vals, excess)
+    return Identification(
+        metric=obs[0].metric, free=tuple(s.name for s in pb.specs), values=vals, se=se,
+        tube_free=tuple(f for f in (REST, DEPTH) if f in free), tubes=tubes, model=shared,
+        experiment_tubes={o.name: o.tube for o in obs}, train_rms=_rms([e / unit for e in train_err.values()]),
+        train={k: _rms([e / unit]) for k, e in train_err.items()},
+        heldout_rms=_rms([e / unit for e in held.values()]), heldout={k: _rms([e / unit]) for k, e in held.items()},
+        heldout_by_tube=by_tube, solution=sol)

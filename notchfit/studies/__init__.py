@@ -1,0 +1,1 @@
+"""Synthetic studies from recipes (reads recipes and writes studies through notchfit.io)."""

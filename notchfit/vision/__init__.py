@@ -1,0 +1,1 @@
+"""Camera model, synthetic images and the notch-corner detector (below file I/O)."""

@@ -1,0 +1,406 @@
+"""Notch-corner detector: image -> the numbered notch points in plane mm (geometry.md).
+
+The detector does **not** assume the kinematics (a detector that does looks
+perfect on images made by the same model and degrades on real geometry). It
+uses the silhouette of geometry.md ("What a camera sees") and the
+geometry's dimensions (outer radius ``R``, slot widths and depths, slot
+sides, where along a side the joints are). Stages, one module each:
+
+1. :mod:`.segment` — segment a downsampled copy: polarity (dark on light
+   or light on dark) from the image border, a quadratic background surface,
+   a 50 % threshold, the largest region, holes filled except slot-sized ones
+   (shading and a specular streak inside the tube or holder do not split it).
+2. :mod:`.outline` — bridge the slot mouths (a closing), find the slots.
+3. :mod:`.base` — separate the tube (``2R`` wide) from its holder (wider:
+   an opening) and the image border; the base end is where the tube leaves
+   them, found in any in-plane orientation (or stated: ``base=``); the free
+   end is the tip.
+4. :mod:`.numbering`, :mod:`.corners` — number the slots from the base,
+   find the tip, first corner estimates.
+5. :mod:`.refine` — sub-pixel corners from edge profiles and line fits at
+   full resolution, only near the corners; a face seen a little from the
+   side (tilt, perspective) as an ellipse arc tangent to the outer edge.
+6. :mod:`.plane` — map to the plane; check rigid-link widths, the base edge
+   and every link's corners against its drawn shape (a slot numbered one
+   off, a holder corner taken for a base point: not reported).
+
+A specular streak that splits the silhouette is filled across the tube
+(:func:`~.segment.band_directions`) and the corners located again. Without a
+calibration (``camera=None``) the scale comes from the tube's outer diameter
+(:mod:`.width`, a fronto-parallel view is assumed: the band holding the
+slots on a coarse copy, profiles across its centreline at full resolution)
+and is reported with its uncertainty in the :class:`Detection`. A camera
+JPEG's tone curve is undone first with ``tone_gamma``.
+
+Statuses: ``ok``; ``occluded`` (not visible, hidden by the holder, cut off,
+not found: NaN); ``ambiguous`` (found, but its fit or its identity is
+doubtful: NaN plane coordinates, the pixel position kept for the overlay).
+No point is ever interpolated from a model. Every tolerance is a field of
+:class:`DetectorOptions`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ...physics.geometry import Geometry, notch_layout
+from ...imaging import to_gray
+from ...units import MM
+from .options import DetectorOptions
+from .overlay import draw_overlay, overlay_with_crop
+from .pipeline import link_tolerance, locate, refine_and_finish
+from .plane import finish
+from .result import STATUSES, Detection, detections_table, empty_detection
+from .base import holder_mask
+from .dims import slot_depths, slot_widths
+from .segment import Segmentation, band_directions, downsample, fill_holes, fill_thin_lines, largest_region
+from .segment import segment as _segment
+from .view import DiameterScale, mirror_without_camera, view_orientation
+from .width import band_centreline, band_width, measure_diameter, tube_radius
+
+__all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detections_table", "draw_overlay",
+           "mirror_without_camera", "overlay_with_crop", "work_factor"]
+
+
+def _linearised(image, gamma: float):
+    """The image in linear light: ``full (v / full) ** gamma`` (``full`` = 255 for 8-bit images, 65535 for
+    16-bit, else the largest value); a table look-up for 8-bit images."""
+    img = np.asarray(image)
+    if gamma == 1.0:
+        return img
+    if img.dtype == np.uint8:
+        table = (255.0 * (np.arange(256, dtype=np.float32) / 255.0) ** gamma).astype(np.float32)
+        if img.ndim == 2:
+            return table[img]
+        return cv2.LUT(img, table)          # a float table: 8 bits would make the dark end too coarse
+    full = 65535.0 if img.dtype == np.uint16 else max(float(np.max(img)), 1e-12)
+    return (full * np.power(np.clip(img.astype(np.float32) / full, 0, None), gamma)).astype(np.float32)
+
+
+def _options(options, overrides) -> DetectorOptions:
+    opts = options if options is not None else DetectorOptions()
+    return opts.replace(**overrides) if overrides else opts
+
+
+def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base: str | None = None,
+                   options: DetectorOptions | None = None, **overrides) -> Detection:
+    """Find the numbered notch corners (geometry.md) in one image.
+
+    Parameters
+    ----------
+    image : ndarray (H, W) or (H, W, 3)
+        Raw camera image (any numeric dtype).
+    camera : CameraModel or None
+        Calibrated camera with the plane pose, matching the image size; or
+        None: the scale then comes from the tube's outer diameter (a
+        fronto-parallel view), see :attr:`Detection.assumption`.
+    geom : Geometry
+        Dimensions and slot layout (the kinematics is not used).
+    mirror : bool
+        The experiment's ``mirror`` flag (a reflected view, geometry.md). It
+        means the same with and without a camera file: without one the plane
+        frame is the image's, x right and y down, the handedness of every
+        camera file (a calibration board is seen from its printed side). With
+        the tube's tip up in the picture, ``mirror = false`` puts the
+        manipulator's +x (the right-side slots) on the image's left.
+    base : {"top", "bottom", "left", "right"}, optional
+        The image side the tube's base is at; found automatically when None
+        (the end attached to the holder or the image border).
+    options : DetectorOptions, optional
+    **overrides
+        Single options by name (e.g. ``max_sigma_px=0.2``).
+
+    Returns
+    -------
+    Detection
+
+    Raises
+    ------
+    ValueError
+        The image size differs from the camera file's, the camera has no
+        plane pose, the image is too small, or ``base`` is not a side.
+    """
+    opts = _options(options, overrides)
+    gray = to_gray(_linearised(image, opts.tone_gamma))
+    H, W = gray.shape
+    if base is not None and base not in ("top", "bottom", "left", "right"):
+        raise ValueError(f"base must be top, bottom, left or right, got {base!r}")
+    if camera is None:
+        return _uncalibrated(gray, geom, opts, mirror=mirror, base=base)
+    camera.check_image(gray)
+    if not camera.has_plane:
+        raise ValueError("the camera model has no plane pose: calibrate with --plane-image")
+    px_per_m, sgn = view_orientation(camera, (H, W), mirror)
+    f = work_factor(geom, px_per_m, opts)
+    extra = {"scale_mm_per_px": 1.0 / (px_per_m * MM), "scale_sigma": 0.0}
+    det, _ = _detect_at(gray, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base, extra=extra)
+    return det
+
+
+def work_factor(geom: Geometry, px_per_m: float, opts: DetectorOptions) -> int:
+    """The block-averaging factor of the working copy, from the tube's size in pixels (options
+    ``work_radius_px``, ``work_slot_px``): the file's size does not enter."""
+    r = min(geom.outer_radius * px_per_m / opts.work_radius_px,
+            float(slot_widths(geom).min()) * px_per_m / opts.work_slot_px)
+    return max(1, int(round(r)))
+
+
+def _segmented(gray, f, opts, cache: dict):
+    """Downsampled copy (cached per factor), its segmentation and largest region."""
+    H, W = gray.shape
+    if H // f < 16 or W // f < 16:
+        raise ValueError(f"image too small: {W}x{H} px")
+    if f not in cache:
+        small = downsample(gray, f)
+        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f, level=opts.segment_level)
+        cache[f] = (small.shape, seg)
+    return cache[f]
+
+
+def _streak_length(geom, opts) -> float:
+    """Longest background line filled across the tube [m]: ``streak_fill_R`` R, but short enough that a
+    segment 25° off the direction across the tube cannot span a slot (1.5 w)."""
+    return min(opts.streak_fill_R * geom.outer_radius, 1.5 * float(slot_widths(geom).min()))
+
+
+def _fill_streaks(mask, length_px, *, holder_radius, bridge_px, radius_px):
+    """:func:`fill_thin_lines` across the tube (a streak along it, not a slot's mouth), except next to the
+    holder (the corners where the tube meets it stay sharp); computed in the box around the largest region."""
+    _, (x0, y0, bw, bh) = largest_region(mask)
+    pad = int(2 * max(bridge_px, radius_px, length_px)) + 4
+    X0, Y0 = max(x0 - pad, 0), max(y0 - pad, 0)
+    X1, Y1 = min(x0 + bw + pad, mask.shape[1]), min(y0 + bh + pad, mask.shape[0])
+    crop = np.ascontiguousarray(mask[Y0:Y1, X0:X1])
+    filled = mask.copy()
+    filled[Y0:Y1, X0:X1] = fill_thin_lines(crop, length_px, across=band_directions(crop, bridge_px, radius_px))
+    region, _ = largest_region(filled)
+    holder = holder_mask(region, holder_radius, regrow=False)
+    if holder.any():
+        near = cv2.dilate(holder, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(length_px) + 5,) * 2))
+        filled = np.where(near > 0, mask, filled).astype(np.uint8)
+    return filled
+
+
+def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stations=False, cache=None):
+    """Stages 1-6 at a known scale. When the silhouette does not give every slot and the tip, it is located
+    again with thin background lines across the tube filled (a specular streak that splits it), and the
+    variant that locates more corners is refined. Returns (Detection, refinement or None)."""
+    m = geom.n_points
+    shape, seg = _segmented(gray, f, opts, {} if cache is None else cache)
+    if seg.mask is None:
+        return empty_detection(m, "no_manipulator", seg.message), None
+    low_m = f / px_per_m
+    R = geom.outer_radius
+    exp_area = (2 * R * (geom.tip_z - geom.base_edge_z) - float(np.sum(slot_widths(geom) * slot_depths(geom)))) \
+        / low_m ** 2
+    lay = notch_layout(geom)
+    wanted = {i for i in range(m) if lay.kind[i] != "base"}
+    tried = []
+    for fill in (0.0, _streak_length(geom, opts) / low_m):
+        mask = seg.mask if not fill else _fill_streaks(
+            seg.mask, fill, holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
+            bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
+        region, box = largest_region(mask)
+        ratio = float(region.sum()) / exp_area
+        if ratio < opts.area_range[0] or region.mean() > 0.95:
+            tried.append((None, empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is "
+                                                f"{ratio:.2f} x the tube's silhouette area (wrong geometry or "
+                                                "camera file?)")))
+        else:
+            tried.append(locate(region, box, shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base,
+                                small=seg.image, dark=seg.contrast < 0))
+        if tried[-1][0] is not None and wanted <= {s_.point for s_ in tried[-1][0]}:
+            break
+    found = [t for t in tried if t[0] is not None]
+    # slot counts that fit the opposite mirror flag are strong evidence: they win over an incomplete result
+    conflict = [t[1] for t in tried if t[0] is None and "opposite mirror flag" in t[1].message]
+    if not found or (conflict and not any(wanted <= {s_.point for s_ in t[0]} for t in found)):
+        return (conflict or [tried[0][1]])[0], None
+    specs, ctx = max(found, key=lambda t: len(t[0]))
+    return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
+                             extra=extra, stations=stations)
+
+
+def _stations(ref, n_per_edge, sgn):
+    """Points on the straight outer edge next to every ok corner, with the unit normal into the tube (S, 4)."""
+    sp = ref.specs
+    K = len(sp.C)
+    rows = []
+    for k in np.nonzero(ref.ok)[0]:
+        for e, (D, L, face) in enumerate(((-sp.Din[k], sp.Lin[k], sp.face[k]), (sp.Dout[k], sp.Lout[k],
+                                                                                 sp.face[K + k]))):
+            if face or not np.isfinite(L) or L < 8:
+                continue
+            trav = sp.Din[k] if e == 0 else sp.Dout[k]
+            inward = -sgn * np.array([trav[1], -trav[0]])
+            for s in np.linspace(0.3, 0.7, n_per_edge) * L:
+                P = sp.C[k] + s * D
+                rows.append([P[0], P[1], inward[0], inward[1]])
+    return np.array(rows).reshape(-1, 4)
+
+
+@dataclass(frozen=True)
+class RoughScale:
+    """The tube found on a coarse copy before the scale is known (no calibration).
+
+    Attributes
+    ----------
+    radius_px : float
+        The tube's radius [coarse px].
+    factor : int
+        Block-averaging factor of the coarse copy.
+    region : ndarray (h, w) uint8
+        The silhouette the tube was found in, cropped to the object's box.
+    offset : (int, int)
+        The crop's (x0, y0) in the coarse copy [coarse px].
+    seg : Segmentation
+        The coarse copy's segmentation.
+    """
+
+    radius_px: float
+    factor: int
+    region: np.ndarray
+    offset: tuple
+    seg: Segmentation
+
+    @property
+    def px_per_m(self) -> float:
+        """The rough scale [full-resolution px per m] for a tube of radius ``R`` (divide by R)."""
+        return self.radius_px * self.factor
+
+
+def _object_box(mask, pad: int):
+    """The largest region's box grown by ``pad`` and clipped to the mask: (x0, y0, x1, y1)."""
+    _, (x0, y0, bw, bh) = largest_region(mask)
+    h, w = mask.shape
+    return max(x0 - pad, 0), max(y0 - pad, 0), min(x0 + bw + pad, w), min(y0 + bh + pad, h)
+
+
+def _rough_scale(gray, geom, opts, cache):
+    """The tube's radius on a coarse copy (:class:`RoughScale`), or (None, message). Again with thin
+    background lines filled across the tube (a streak may have split the silhouette). The coarse copy's
+    size follows the file's (the tube's size is not known yet); the work is done in the box around the
+    object, so a small tube in a large frame costs little."""
+    H, W = gray.shape
+    R = geom.outer_radius
+    fc = max(1, int(round(max(H, W) / (opts.lowres_long_side_px / 2.5))))
+    shape_c, seg_c = _segmented(gray, fc, opts, cache)
+    if seg_c.mask is None:
+        return None, seg_c.message
+    max_close = int(opts.uncal_close_frac * max(shape_c))
+    x0, y0, x1, y1 = _object_box(seg_c.mask, max_close + 4)
+    mask = np.ascontiguousarray(seg_c.mask[y0:y1, x0:x1])
+
+    def radius(m_):
+        reg = largest_region(m_)[0]
+        return (*tube_radius(reg, geom, max_close_px=max_close, close_factor=opts.close_slot_factor,
+                             area_range=opts.rough_slot_area_range, filled=fill_holes(reg),
+                             max_radius_px=0.25 * min(shape_c)), reg)
+
+    R_lo, n_slots, reg = radius(mask)
+    if np.isfinite(R_lo):
+        # a streak splits the tube into two bands of half its width, each with the slots beside it: the
+        # filled silhouette's band is the tube when it holds as many slots and is wider
+        across = band_directions(mask, opts.close_slot_factor * float(slot_widths(geom).max()) / R * R_lo + 1, R_lo)
+        R2, n2, reg2 = radius(fill_thin_lines(mask, _streak_length(geom, opts) / R * R_lo, across=across))
+        if np.isfinite(R2) and (n2 > n_slots or (n2 == n_slots and R2 > R_lo)):
+            R_lo, reg = R2, reg2
+    if not np.isfinite(R_lo):
+        return None, "no tube found: no band of constant width in the silhouette"
+    return RoughScale(float(R_lo), fc, reg, (x0, y0), seg_c), ""
+
+
+def _band_widths(gray, geom, opts, rough: RoughScale):
+    """The tube's width [px] across its centreline where it has its full width (profiles at full
+    resolution, at most ``4 width_stations`` of them)."""
+    R_lo, fc, reg = rough.radius_px, rough.factor, rough.region
+    w_, d_ = float(np.median(slot_widths(geom))), float(np.median(slot_depths(geom)))
+    pts = band_centreline(reg, R_lo, slot_width=w_, slot_depth=d_, radius=geom.outer_radius,
+                          close_factor=opts.close_slot_factor, area_range=opts.rough_slot_area_range)
+    if len(pts) < 3:
+        return np.zeros(0)
+    pts = pts[np.linspace(0, len(pts) - 1, min(len(pts), 4 * opts.width_stations)).astype(int)]
+    ang = band_directions(reg, opts.close_slot_factor * float(slot_widths(geom).max()) / geom.outer_radius * R_lo
+                          + 1, R_lo)[pts[:, 1].astype(int), pts[:, 0].astype(int)]
+    fine = np.isfinite(ang)
+    centres = (pts[fine] + rough.offset) * fc + (fc - 1) / 2.0
+    normals = np.stack([np.cos(ang[fine]), np.sin(ang[fine])], 1)
+    return band_width(gray, centres, normals, 2 * R_lo * fc, rough.seg.contrast)
+
+
+def _scale_extra(widths, R):
+    """The scale from measured widths (outliers beyond 3 MAD dropped): (px per m, Detection extras), or None."""
+    widths = widths[np.isfinite(widths)]
+    if len(widths) >= 3:
+        med = float(np.median(widths))
+        mad = 1.4826 * float(np.median(np.abs(widths - med)))
+        widths = widths[np.abs(widths - med) <= max(3 * mad, 0.5)]
+    if len(widths) < 3:
+        return None
+    wpx = float(np.mean(widths))
+    sw = float(np.std(widths, ddof=1) / math.sqrt(len(widths)))
+    mm_px = 2 * R / MM / wpx
+    text = (f"no calibration: fronto-parallel view assumed; scale {mm_px:.6f} mm/px from the tube's outer "
+            f"diameter {2 * R / MM:.3f} mm (geometry) measured as {wpx:.2f} ± {sw:.2f} px over {len(widths)} "
+            "profiles; plane frame = image axes in mm (x right, y down, as a calibration board lying upright gives them); a view tilted by a degrees shrinks one "
+            "direction by cos a, and the diameter's tolerance scales every length")
+    return wpx / (2 * R), {"scale_mm_per_px": mm_px, "scale_sigma": mm_px * sw / wpx, "assumption": text}
+
+
+def _uncalibrated(gray, geom, opts, *, mirror, base):
+    """The scale from the tube's diameter: a rough width on a coarse copy, the width across the tube's
+    centreline at full resolution, one detection at that scale (a detection at the rough scale and
+    widths next to its corners where the centreline gives too few)."""
+    m = geom.n_points
+    H, W = gray.shape
+    R = geom.outer_radius
+    sgn = view_orientation(DiameterScale(1.0, (W, H)), (H, W), mirror)[1]
+    cache = {}
+    rough, why = _rough_scale(gray, geom, opts, cache)
+    if rough is None:
+        return empty_detection(m, "no_manipulator", why)
+    scale = _scale_extra(_band_widths(gray, geom, opts, rough), R)
+    if scale is not None:
+        px_per_m, extra = scale
+        cam = DiameterScale(1 / px_per_m, (W, H))
+        return _detect_at(gray, cam, geom, opts, f=work_factor(geom, px_per_m, opts), sgn=sgn,
+                          base=base, cache=cache, px_per_m=px_per_m, extra=extra)[0]
+    return _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
+
+
+def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
+    """A detection at the rough scale, widths next to its refined corners, the corners mapped again."""
+    m = geom.n_points
+    H, W = gray.shape
+    R = geom.outer_radius
+    px_per_m = rough.px_per_m / R
+    f = work_factor(geom, px_per_m, opts)
+    kw = dict(f=f, sgn=sgn, base=base, cache=cache)
+    # the rough scale can be a few % off: no scale or base-edge check before the measured scale
+    det, ref = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts.replace(scale_tol=math.inf,
+                          base_edge_tol=math.inf), px_per_m=px_per_m, extra={}, stations=True, **kw)
+    if ref is None or not ref.ok.any():
+        return det
+    st = _stations(ref, opts.width_stations, sgn)
+    widths = measure_diameter(ref.img, ref.off, st, 2 * R * px_per_m, _segmented(gray, f, opts, cache)[1].contrast,
+                              ref.blur) if len(st) else np.zeros(0)
+    scale = _scale_extra(widths, R)
+    if scale is None:
+        return empty_detection(m, "partial", "the tube's width could not be measured (no calibration): fewer "
+                                             "than 3 profiles across straight links", det.contour_px)
+    rough_ppm = px_per_m
+    px_per_m, extra = scale
+    cam = DiameterScale(1 / px_per_m, (W, H))
+    if abs(px_per_m / rough_ppm - 1) <= opts.rescale_tol and ref.plane_input is not None:
+        # the corners in pixels do not depend on the scale beyond the profile lengths: map them again
+        p = ref.plane_input
+        return finish(cam, geom, p.pts_px, p.ideal, p.cov, p.status, p.messages, p.blur, p.contour_px,
+                      scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=p.side,
+                      link_tol=link_tolerance(geom, opts), **extra)
+    kw["f"] = work_factor(geom, px_per_m, opts)
+    det, _ = _detect_at(gray, cam, geom, opts, px_per_m=px_per_m, extra=extra, **kw)
+    return det
