@@ -91,6 +91,23 @@ def test_identify_recovers_the_material_of_a_synthetic_wrist(one_wrist):
     assert res.model.slot_depth_offset == tuple(tube.depth_offsets)
 
 
+def test_a_parameter_the_data_cannot_determine_is_fixed_and_said(tmp_path):
+    """A wrist loaded only within its linear range (peaks 0.2-0.3 N: the outer fibre never reaches
+    strain_lower) says nothing of the plateau: E_se and strain_lower are reported as not determined,
+    fixed at their start values, never printed as a number with an error bar many times itself;
+    E_lin stays identified (docs/models.md, the material law)."""
+    exps = _study(tmp_path / "lin", _trials("L", 2, (0.2, 0.3)))
+    res = identify(exps, free=("E_lin", "E_se", "strain_lower"), heldout=False)
+    assert {"E_se", "strain_lower"} <= set(res.fixed) and "E_lin" in res.free
+    assert not set(res.fixed) & set(res.free)
+    assert res.identifiability["E_se"].verdict == "not determined"
+    text = res.summary()
+    assert "E_se_Pa" in text and "not determined by these data" in text
+    d = res.as_dict()
+    assert "E_se_Pa" in d["fixed_at_prior"] and "E_se_Pa" not in d["params"]
+    assert d["identifiability"]["E_se_Pa"]["verdict"] == "not determined"
+
+
 def test_material_from_two_wrists_predicts_a_third(tmp_path, capsys):
     """Two wrists of one stock (5-notch asymmetric, 4-notch tip-first pre-curved) identified together
     through the CLI; `simulate --model model.toml` predicts a third wrist of another geometry (its rest

@@ -107,7 +107,7 @@ class Identifiability:
 
 
 def assess(jacobian, names, values, scales, *, weak_se: float = 0.1, max_se: float = 0.5,
-           null_ratio: float = 1e-4, null_weight_max: float = 0.5) -> Identifiability:
+           null_ratio: float = 1e-10, null_weight_max: float = 0.25) -> Identifiability:
     """Identifiability of each parameter from the Jacobian of the weighted residuals.
 
     Parameters
@@ -124,10 +124,11 @@ def assess(jacobian, names, values, scales, *, weak_se: float = 0.1, max_se: flo
     max_se : float
         ``se / scale`` above which it is not determined (the data leave half its range open).
     null_ratio : float
-        A singular value of the scaled information below ``null_ratio`` times the largest marks a
-        near-null direction.
+        An eigenvalue of the scaled information below ``null_ratio`` times the largest marks a
+        near-null direction (1e-10: beyond what double-precision finite differences resolve).
     null_weight_max : float
-        A parameter whose squared share in the near-null directions exceeds this is not determined.
+        A parameter whose squared share in the near-null directions exceeds this is not determined
+        (two parameters seen only as their sum share one such direction half and half).
 
     Returns
     -------
@@ -152,7 +153,7 @@ def assess(jacobian, names, values, scales, *, weak_se: float = 0.1, max_se: flo
     keep = ~null
     cov_scaled = (Vt[keep].T / sv[keep] ** 2) @ Vt[keep] if keep.any() else np.zeros((len(names),) * 2)
     rel = np.sqrt(np.clip(np.diag(cov_scaled), 0.0, None))
-    rel = np.where(weight > 1e-12, np.inf, rel) if null.any() else rel
+    rel = np.where(weight > null_weight_max, np.inf, rel)       # its spread along a null direction is unbounded
     out = []
     for i, n in enumerate(names):
         if weight[i] > null_weight_max or rel[i] > max_se:

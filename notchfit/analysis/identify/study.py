@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import multiprocessing
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -14,7 +14,8 @@ from ...physics.friction import FrictionParams
 from ...physics.friction_params import PARAM_KEYS
 from ...units import DEG, MM
 from ..estimation.observations import METRICS, metric_unit, observe_study
-from ..estimation.solve import folds, se_values, tube_folds
+from ..estimation.identifiability import Identifiability, assess
+from ..estimation.solve import folds, forward_jacobian, se_values, tube_folds
 from .problem import Solution, errors, make_problem, predict, solve, with_values
 from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free,
                     parse_free, specs_for)
@@ -103,6 +104,12 @@ class Identification:
         angles and depths as drawn).
     solution : Solution
         The fit on every experiment (cost, evaluations, convergence).
+    identifiability : Identifiability or None
+        What the data determine: a verdict per free parameter of the fit on every experiment
+        (:func:`notchfit.analysis.estimation.identifiability.assess`).
+    fixed : dict
+        Parameters the data did not determine, fixed at their start values (the base model's) and
+        fitted no further: name -> value (SI). They are not among :attr:`free`.
     """
 
     metric: str
@@ -119,6 +126,8 @@ class Identification:
     heldout: dict
     heldout_by_tube: dict = field(default_factory=dict)
     solution: Solution | None = field(default=None, repr=False)
+    identifiability: Identifiability | None = field(default=None, repr=False)
+    fixed: dict = field(default_factory=dict)
 
     @property
     def unit(self) -> str:
@@ -131,6 +140,8 @@ class Identification:
         unit, data = self.unit, self.as_dict()
         lines = [f"identify: {len(self.experiment_tubes)} experiments, {len(self.tubes)} tube(s), errors in {unit}"]
         lines += [f"  {key:18s} = {v:.5g} ± {data['se'][key]:.2g}" for key, v in data["params"].items()]
+        lines += [f"  {PARAM_KEYS[f]:18s}   not determined by these data: fixed at its start value {v:.5g}"
+                  for f, v in self.fixed.items()]
         for tube, fit in self.tubes.items():
             if REST in self.tube_free:
                 lines.append(f"  {tube}: rest angles [deg] " + ", ".join(f"{v / DEG:.2f}" for v in fit.rest_angles))
@@ -160,6 +171,13 @@ class Identification:
             "heldout": dict(self.heldout), "train": dict(self.train),
             "heldout_by_geometry": dict(self.heldout_by_tube),
             "tubes": {t: f.as_dict() for t, f in self.tubes.items()},
+            # parameters the data do not determine: fixed at their start value, never printed as a number
+            # plus or minus many times itself; the verdicts of the first fit, per free parameter
+            "fixed_at_prior": {key[f]: v for f, v in self.fixed.items()},
+            "identifiability": None if self.identifiability is None else {
+                key.get(p.name, p.name): {"verdict": p.verdict, "relative_se": p.relative_se,
+                                          "null_weight": p.null_weight}
+                for p in self.identifiability.parameters if p.name in key},
             "fit": None if sol is None else {"cost": sol.cost, "n_residuals": sol.n_residuals,
                                              "success": sol.success, "message": sol.message, "nfev": sol.nfev,
                                              "starts": sol.starts},
@@ -251,7 +269,8 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
              f_scale: float = 3.0, max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6,
              diff_rel: float = 2e-3, rest_step: float = 2e-4, rest_range: float = REST_RANGE,
              depth_range: float = DEPTH_RANGE, depth_sigma: float = DEPTH_TOLERANCE,
-             depth_common: float | None = DEPTH_COMMON, sim_kw: dict | None = None) -> Identification:
+             depth_common: float | None = DEPTH_COMMON, sim_kw: dict | None = None,
+             fix_undetermined: bool = True) -> Identification:
     """Identify the model's parameters on a study; held-out errors by leaving experiments (and tubes) out.
 
     Parameters
@@ -281,6 +300,10 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     sim_kw : dict, optional
         Options of :func:`notchfit.physics.friction.simulate` during the fits (default
         :data:`FIT_SOLVER`); the reported errors always use its defaults.
+    fix_undetermined : bool
+        When the fit on every experiment leaves a shared parameter undetermined
+        (:func:`notchfit.analysis.estimation.identifiability.assess` on its Jacobian), fix it at its
+        start value and identify again without it (:attr:`Identification.fixed`).
 
     Returns
     -------
@@ -302,7 +325,18 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
                     start_method=multiprocessing.get_start_method())
     if res.failures:
         raise ValueError("identify: " + "; ".join(f"the fit {r.key}: {r.error}" for r in res.failures))
-    return _result(obs, base, free, excess, tasks, res.values())
+    result = _result(obs, base, free, excess, tasks, res.values(), diff_rel)
+    drop = [f for f in result.identifiability.undetermined() if f in free] if fix_undetermined else []
+    if not drop:
+        return result
+    start = next(iter(base.values()))
+    again = identify(exps, free=tuple(f for f in free if f not in drop), model=model, heldout=heldout,
+                     by_tube=by_tube, jobs=jobs, scheduler=scheduler, n_starts=n_starts, loss=loss,
+                     f_scale=f_scale, max_nfev=max_nfev, ftol=ftol, xtol=xtol, diff_rel=diff_rel,
+                     rest_step=rest_step, rest_range=rest_range, depth_range=depth_range,
+                     depth_sigma=depth_sigma, depth_common=depth_common, sim_kw=sim_kw, fix_undetermined=False)
+    return replace(again, identifiability=result.identifiability,
+                   fixed={f: float(getattr(start, f)) for f in drop})
 
 
 def _tube_fits(obs, pb, sol, fitted) -> dict:
@@ -322,7 +356,18 @@ def _tube_fits(obs, pb, sol, fitted) -> dict:
     return out
 
 
-def _result(obs, base, free, excess, tasks, outs) -> Identification:
+def _identifiability(pb, sol, diff_rel: float) -> Identifiability:
+    """Verdicts on the fit on every experiment, from its Jacobian in the optimiser's coordinates (each
+    parameter against its bounds' width; the per-tube unknowns take part, unnamed)."""
+    x = np.asarray(sol.x, dtype=float)
+    J = forward_jacobian(pb, x, pb.steps(x, diff_rel))
+    width = np.asarray(pb.hi, float) - np.asarray(pb.lo, float)
+    scales = np.where(np.isfinite(width) & (width > 0), width, np.maximum(np.abs(x), 1.0))
+    names = [s.name for s in pb.specs] + [f"per-tube {i}" for i in range(x.size - len(pb.specs))]
+    return assess(J, names, x, scales)
+
+
+def _result(obs, base, free, excess, tasks, outs, diff_rel: float = 2e-3) -> Identification:
     """Collect the full fit and the held-out predictions."""
     pb, sol, fitted, _ = outs[0]
     _, unit = metric_unit(obs[0].metric)
@@ -344,4 +389,4 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
         experiment_tubes={o.name: o.tube for o in obs}, train_rms=_rms([e / unit for e in train_err.values()]),
         train={k: _rms([e / unit]) for k, e in train_err.items()},
         heldout_rms=_rms([e / unit for e in held.values()]), heldout={k: _rms([e / unit]) for k, e in held.items()},
-        heldout_by_tube=by_tube, solution=sol)
+        heldout_by_tube=by_tube, solution=sol, identifiability=_identifiability(pb, sol, diff_rel))
