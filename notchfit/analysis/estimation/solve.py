@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -54,6 +54,9 @@ class Solution:
         Residual evaluations, probes and Jacobians included.
     starts : int
         Least-squares runs.
+    jacobian : ndarray or None
+        The forward-difference Jacobian of the whitened residuals at ``x`` that the standard
+        errors came from (None when they were not computed).
     """
 
     x: np.ndarray
@@ -64,6 +67,7 @@ class Solution:
     message: str
     nfev: int
     starts: int
+    jacobian: np.ndarray | None = field(default=None, repr=False)
 
 
 def _cost(pb: Problem, x) -> float:
@@ -122,7 +126,7 @@ def forward_jacobian(pb: Problem, x, h) -> np.ndarray:
     return J
 
 
-def standard_errors(pb: Problem, x, h) -> np.ndarray:
+def standard_errors(pb: Problem, x, h, jacobian=None) -> np.ndarray:
     """Standard errors of ``x``: per parameter the larger of the Gauss–Newton and the cluster-robust estimate.
 
     Gauss–Newton: ``s² (JᵀJ)⁻¹`` with ``s²`` the residual variance (exact for
@@ -131,9 +135,10 @@ def standard_errors(pb: Problem, x, h) -> np.ndarray:
     jackknife over clusters in its one-step form (CR3),
     ``(G−1)/G Σ_g (d_g − d̄)(d_g − d̄)ᵀ`` with ``d_g = (JᵀJ − J_gᵀJ_g)⁻¹ J_gᵀ r_g``,
     which also holds where a few samples carry most of the information
-    (high leverage), where the plain sandwich is biased low.
+    (high leverage), where the plain sandwich is biased low. ``jacobian``: the
+    Jacobian at ``x`` when the caller has it (else forward differences with ``h``).
     """
-    J = forward_jacobian(pb, x, h)
+    J = forward_jacobian(pb, x, h) if jacobian is None else jacobian
     r = pb.residuals(x)
     keep = pb.measured()
     cl = pb.clusters()
@@ -194,12 +199,13 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
         if best is None or res.cost < best.cost:
             best = res
     h = pb.steps(best.x, diff_rel, block_steps)
-    se = standard_errors(pb, best.x, h) if errors else np.full(best.x.size, np.nan)
+    J = forward_jacobian(pb, best.x, h) if errors else None
+    se = standard_errors(pb, best.x, h, J) if errors else np.full(best.x.size, np.nan)
     cost = 0.5 * float(np.sum(pb.residuals(best.x) ** 2))          # the priors' terms included
     if not math.isfinite(cost):
         raise ValueError("the least-squares cost is not finite at its optimum")
     return Solution(best.x, se, cost, int(pb.measured().sum()), bool(best.success), str(best.message),
-                    nfev + (best.x.size + 1 if errors else 0), len(starts))
+                    nfev + (best.x.size + 1 if errors else 0), len(starts), J)
 
 
 # ----------------------------------------------------------------------------- leave-one-out

@@ -15,7 +15,7 @@ from ...physics.friction_params import PARAM_KEYS
 from ...units import DEG, MM
 from ..estimation.observations import METRICS, metric_unit, observe_study
 from ..estimation.identifiability import Identifiability, assess
-from ..estimation.solve import folds, forward_jacobian, se_values, tube_folds
+from ..estimation.solve import folds, se_values, tube_folds
 from .problem import Solution, errors, make_problem, predict, solve, with_values
 from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free,
                     parse_free, specs_for)
@@ -303,7 +303,8 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     fix_undetermined : bool
         When the fit on every experiment leaves a shared parameter undetermined
         (:func:`notchfit.analysis.estimation.identifiability.assess` on its Jacobian), fix it at its
-        start value and identify again without it (:attr:`Identification.fixed`).
+        start value and make every fit without it (:attr:`Identification.fixed`). The fit on every
+        experiment therefore runs before the held-out fits.
 
     Returns
     -------
@@ -318,25 +319,37 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
                    diff_rel=diff_rel, rest_step=rest_step, rest_range=rest_range, depth_range=depth_range,
                    depth_sigma=depth_sigma, depth_common=depth_common,
                    sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
-    keys, tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube)
+    run = dict(jobs=jobs, scheduler=scheduler, heldout=heldout, by_tube=by_tube)
+    first_fit = _run(obs, base, free, model, excess, options, dict(run, heldout=False, by_tube=False))[0]
+    verdicts = _identifiability(first_fit[0], first_fit[1])
+    drop = [f for f in verdicts.undetermined() if f in free] if fix_undetermined else []
+    if drop:
+        # a parameter the data do not determine stays at its start value; every fit is made without it
+        free = tuple(f for f in free if f not in drop)
+        outs = _run(obs, base, free, model, excess, options, run)
+    else:
+        outs = [first_fit] + _run(obs, base, free, model, excess, options, run, skip_all=True)
+    tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube)[1]
+    result = _result(obs, base, free, excess, tasks, outs)
+    start = next(iter(base.values()))
+    return replace(result, identifiability=verdicts, fixed={f: float(getattr(start, f)) for f in drop})
+
+
+def _run(obs, base, free, model, excess, options, run: dict, skip_all: bool = False) -> list:
+    """The fits of :func:`_tasks` on :func:`notchfit.batch.run_batch` (without the fit on every
+    experiment when ``skip_all``); their outputs in task order."""
+    keys, tasks = _tasks(obs, base, free, model, excess, options, run["heldout"], run["by_tube"])
+    if skip_all:
+        keys, tasks = keys[1:], tasks[1:]
+    if not tasks:
+        return []
     # the platform's default start method (fork on Linux), as the diagnosis's folds: spawned workers
     # re-import notchfit and reload the kernels, several seconds for fits of about one second
-    res = run_batch(_fit, tasks, keys=keys, jobs=jobs, scheduler=scheduler, desc="identify",
+    res = run_batch(_fit, tasks, keys=keys, jobs=run["jobs"], scheduler=run["scheduler"], desc="identify",
                     start_method=multiprocessing.get_start_method())
     if res.failures:
         raise ValueError("identify: " + "; ".join(f"the fit {r.key}: {r.error}" for r in res.failures))
-    result = _result(obs, base, free, excess, tasks, res.values(), diff_rel)
-    drop = [f for f in result.identifiability.undetermined() if f in free] if fix_undetermined else []
-    if not drop:
-        return result
-    start = next(iter(base.values()))
-    again = identify(exps, free=tuple(f for f in free if f not in drop), model=model, heldout=heldout,
-                     by_tube=by_tube, jobs=jobs, scheduler=scheduler, n_starts=n_starts, loss=loss,
-                     f_scale=f_scale, max_nfev=max_nfev, ftol=ftol, xtol=xtol, diff_rel=diff_rel,
-                     rest_step=rest_step, rest_range=rest_range, depth_range=depth_range,
-                     depth_sigma=depth_sigma, depth_common=depth_common, sim_kw=sim_kw, fix_undetermined=False)
-    return replace(again, identifiability=result.identifiability,
-                   fixed={f: float(getattr(start, f)) for f in drop})
+    return res.values()
 
 
 def _tube_fits(obs, pb, sol, fitted) -> dict:
@@ -356,18 +369,19 @@ def _tube_fits(obs, pb, sol, fitted) -> dict:
     return out
 
 
-def _identifiability(pb, sol, diff_rel: float) -> Identifiability:
-    """Verdicts on the fit on every experiment, from its Jacobian in the optimiser's coordinates (each
-    parameter against its bounds' width; the per-tube unknowns take part, unnamed)."""
+def _identifiability(pb, sol) -> Identifiability:
+    """Verdicts on the fit on every experiment, from the Jacobian its standard errors came from, in the
+    optimiser's coordinates (each parameter against its bounds' width; the per-tube unknowns take part,
+    unnamed)."""
     x = np.asarray(sol.x, dtype=float)
-    J = forward_jacobian(pb, x, pb.steps(x, diff_rel))
+    J = sol.jacobian
     width = np.asarray(pb.hi, float) - np.asarray(pb.lo, float)
     scales = np.where(np.isfinite(width) & (width > 0), width, np.maximum(np.abs(x), 1.0))
     names = [s.name for s in pb.specs] + [f"per-tube {i}" for i in range(x.size - len(pb.specs))]
     return assess(J, names, x, scales)
 
 
-def _result(obs, base, free, excess, tasks, outs, diff_rel: float = 2e-3) -> Identification:
+def _result(obs, base, free, excess, tasks, outs) -> Identification:
     """Collect the full fit and the held-out predictions."""
     pb, sol, fitted, _ = outs[0]
     _, unit = metric_unit(obs[0].metric)
@@ -389,4 +403,4 @@ def _result(obs, base, free, excess, tasks, outs, diff_rel: float = 2e-3) -> Ide
         experiment_tubes={o.name: o.tube for o in obs}, train_rms=_rms([e / unit for e in train_err.values()]),
         train={k: _rms([e / unit]) for k, e in train_err.items()},
         heldout_rms=_rms([e / unit for e in held.values()]), heldout={k: _rms([e / unit]) for k, e in held.items()},
-        heldout_by_tube=by_tube, solution=sol, identifiability=_identifiability(pb, sol, diff_rel))
+        heldout_by_tube=by_tube, solution=sol)
