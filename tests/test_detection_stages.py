@@ -362,3 +362,32 @@ def test_a_specular_line_brighter_than_the_background_stays_inside_the_tube():
     assert region[40:80, 20:140].mean() > 0.99
     split = segment(img.astype(np.float32), level=0.35, opposite=np.inf)
     assert largest_region(split.mask)[0][40:80, 20:140].mean() < 0.6
+
+
+
+@pytest.mark.parametrize("deg", [15.0, 30.0, 53.0])
+def test_a_face_seen_far_from_the_side_is_measured_on_its_arc_or_not_at_all(deg):
+    """A slot face seen from the side bulges by R sin β: a straight line meets the outer edge several px
+    off, towards the face's far rim (on a thick tube through a phone lens, nearer the slot's other corner
+    than its own). The arc model finds the corner up to ``max_sin`` (before, arcs were fitted only within
+    11° of the side); at 53°, beyond it, the corner is not found rather than put where the line meets the
+    edge. Crossings on the outer edge (u = 0) and on the arc, 0.05 px noise, R = 40 px."""
+    from notchfit.vision.detection.refine import curved_face_corners
+
+    rng = np.random.default_rng(4)
+    R, b, X = 40.0, math.sin(math.radians(deg)), np.array([120.4, 90.6])
+    v = np.arange(95.0, 130.0)
+    limb = np.stack([np.full_like(v, X[0]), v], 1)
+    u = np.arange(3.0, 1.4 * R)
+    face = np.stack([X[0] - u, X[1] - b * np.sqrt(u * (2 * R - u))], 1)
+    pts = np.concatenate([limb, face]) + rng.normal(0, 0.05, (len(v) + len(u), 2))
+    grp = np.r_[np.zeros(len(v), int), np.ones(len(u), int)]
+    c, dd, *_ = robust_group_lines(pts, grp, 2)
+    X_line = intersect(c[0], dd[0], c[1], dd[1])
+    assert np.linalg.norm(X_line - X) > 0.2 * R * b
+    Xc, _, okc = curved_face_corners(pts, grp, 1, c, dd, np.array([False, True]), X_line[None], np.eye(2)[None] * 0.01,
+                                     np.array([True]), radius_px=R, start_px=3.0)
+    if deg < 40:
+        assert okc[0] and np.linalg.norm(Xc[0] - X) < 0.3, (Xc[0], X_line)
+    else:
+        assert not okc[0]

@@ -328,7 +328,7 @@ def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor:
 
 def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: float, s2_floor: float = 0.0,
                         min_points: int = 5, significance: float = 16.0, start_px: float = 0.0,
-                        max_start: float = 0.1, max_sin: float = 0.2, partner=None, lone_sigma: float = 6.0,
+                        max_start: float = 0.1, max_sin: float = 0.7, partner=None, lone_sigma: float = 6.0,
                         max_bulge_px: float = 1.0, fit=None):
     """Corners where a circular face meets the outer edge, the face seen a little from the side.
 
@@ -347,7 +347,11 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
     ``max_start`` R of where the profiles start (``start_px`` from the
     corner; the arc cannot be extrapolated from a face seen only far from
     its corner, as next to a nearly closed mouth) and
-    ``|b| ≤ max_sin`` (a view within about 11° of the side).
+    ``|b| ≤ max_sin`` (a view within about 44° of the side). A face whose arc
+    is significant with ``|b|`` beyond that leaves its corner not ok: a
+    straight line would meet the limb about ``0.5 R |b|`` off, on the face's
+    far rim (a phone lens seeing a thick tube's slots 20° from the side puts
+    a slot's corner nearer its partner's true position than its own).
 
     Parameters
     ----------
@@ -371,9 +375,10 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
         checked for being seen only far from its corner.
     """
     X, cov, okc = X.copy(), cov.copy(), okc.copy()
-    fits, far = _corner_arcs(pts, grp, K, c, dd, curved, okc, radius_px=radius_px, s2_floor=s2_floor,
-                             min_points=min_points, significance=significance, max_sin=max_sin,
-                             max_u0=start_px + max_start * radius_px, fit=curved if fit is None else fit)
+    fits, far, steep = _corner_arcs(pts, grp, K, c, dd, curved, okc, radius_px=radius_px, s2_floor=s2_floor,
+                                    min_points=min_points, significance=significance, max_sin=max_sin,
+                                    max_u0=start_px + max_start * radius_px, fit=curved if fit is None else fit)
+    okc[steep] = False
     used = []
     for k, ((v0, var_v0, b, sd_b), limb_e) in fits.items():
         q = -1 if partner is None else int(partner[k])
@@ -402,7 +407,8 @@ def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_po
                  max_u0, fit):
     """The arc model of every curved face in its limb's frame (``u`` across from the limb, ``v`` along it),
     all faces in one batched fit: {corner: ((v0, var v0, b, sd b), limb edge)} where the arc is significant,
-    and the corners whose face's crossings start beyond ``max_u0`` from the limb."""
+    the corners whose face's crossings start beyond ``max_u0`` from the limb, and the corners whose arc is
+    significant but seen more than ``max_sin`` from the side."""
     cand = [(k, fe, le) for k in range(K) for fe, le in ((k, K + k), (K + k, k))
             if curved[fe] and not curved[le] and okc[k]]
     us, vs, gs, far = [], [], [], []
@@ -425,20 +431,21 @@ def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_po
         vs.append(v[near])
         gs.append(np.full(int(near.sum()), g))
     if not us:
-        return {}, far
+        return {}, far, []
     u, v, gid = np.concatenate(us), np.concatenate(vs), np.concatenate(gs)
     G = len(cand)
     line = _face_fits(u, v, gid, G, radius_px, curved=False)
     ell = _face_fits(u, v, gid, G, radius_px, curved=True)
     gain = line[2] * (line[3] - 2) - ell[2] * (ell[3] - 3)
-    ok = (np.isfinite(ell[0][:, 0]) & np.isfinite(line[0][:, 0]) & (gain > significance * np.maximum(ell[2], s2_floor))
-          & (np.abs(ell[0][:, 2]) <= max_sin))
+    sig = np.isfinite(ell[0][:, 0]) & np.isfinite(line[0][:, 0]) & (gain > significance * np.maximum(ell[2], s2_floor))
+    ok = sig & (np.abs(ell[0][:, 2]) <= max_sin)
+    steep = [cand[g][0] for g in np.nonzero(sig & ~ok)[0]]
     fits = {}
     for g in np.nonzero(ok)[0]:
         k, _, le = cand[g]
         fits[k] = ((ell[0][g, 0], max(ell[1][g, 0, 0], s2_floor / ell[3][g]), ell[0][g, 2],
                     math.sqrt(max(ell[1][g, 2, 2], 0.0))), le)
-    return fits, far
+    return fits, far, steep
 
 
 def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
