@@ -21,7 +21,8 @@ import numpy as np
 
 from .lines import group_median, robust_group_lines, unit
 
-__all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "refine_pass",
+__all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "face_view_cov",
+           "refine_pass",
            "sample_profiles"]
 
 
@@ -448,6 +449,87 @@ def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_po
     return fits, far, steep
 
 
+def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, factor: float = 0.5,
+                  significance: float = 9.0) -> np.ndarray:
+    """Covariance (K, 2, 2) [ideal px²] along the outer edge of corners whose circular face was fitted as a
+    straight line, from how far the camera sees that face from the side.
+
+    The face is a circle of radius ``R`` about the tube's axis; a view ray at
+    angle β to its plane sees it as an ellipse ``b = R sin β`` wide along the
+    axis, tangent to the outer edge at the corner. A straight line through
+    the visible part of that arc meets the outer edge about ``factor b`` off
+    the corner (0.46-0.54 measured on the physically based printed tube,
+    whose faces are too short for the arc to be told from a line), to one
+    side or the other as the face is seen from its front or its back: a
+    standard deviation of ``factor b`` along the edge. ``sin β`` is the view
+    ray's component along the tube's axis (the outer edge's direction taken
+    to the plane, then to the camera's frame). The term is given only where
+    the face's crossings allow that arc: where the arc ``v = v0 + c u ± b
+    sqrt(u (2R - u))`` fits them worse than the straight line by more than
+    ``significance`` times their residual variance (a flat outline, as a
+    silhouette drawn in the plane, is a straight line along its whole
+    length), the face is straight and the line's corner stands.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        With the plane's pose.
+    X : ndarray (K, 2)
+        Ideal corners [px].
+    dd : ndarray (2K, 2)
+        Unit directions of every corner's incoming (0..K-1) and outgoing (K..2K-1) edge [ideal px].
+    curved : ndarray (2K,) bool
+        The edges that are circular faces.
+    use : ndarray (K,) bool
+        The corners to consider.
+    pts, grp : ndarray (P, 2), (P,)
+        Undistorted edge crossings [px] and their edge 0..2K-1.
+    radius_px : float
+        The tube's radius [ideal px].
+    """
+    K = len(X)
+    out = np.zeros((K, 2, 2))
+    Hinv = np.linalg.inv(camera.plane_homography)
+    Kinv = np.linalg.inv(camera.camera_matrix)
+    Rm = camera.plane_rotation
+    for k in np.nonzero(use)[0]:
+        if curved[k] == curved[K + k]:
+            continue                                    # no face, or two (the tip seen end-on)
+        fe = k if curved[k] else K + k
+        d_limb = dd[K + k] if curved[k] else dd[k]
+        ends = np.stack([X[k], X[k] + 5.0 * d_limb])
+        pl = np.c_[ends, np.ones(2)] @ Hinv.T
+        pl = pl[:, :2] / pl[:, 2:]
+        axis2 = pl[1] - pl[0]
+        ray = Kinv @ np.array([X[k, 0], X[k, 1], 1.0])
+        n2, nr = np.linalg.norm(axis2), np.linalg.norm(ray)
+        if not (n2 > 0 and nr > 0 and np.all(np.isfinite(d_limb))):
+            continue
+        sin_b = abs(float(ray @ (Rm[:, :2] @ (axis2 / n2)))) / nr
+        if _arc_allowed(pts[grp == fe] - X[k], d_limb, sin_b, radius_px, significance):
+            out[k] = (factor * radius_px * sin_b) ** 2 * np.outer(d_limb, d_limb)
+    return out
+
+
+def _arc_allowed(rel, d_limb, sin_b: float, radius_px: float, significance: float) -> bool:
+    """Whether a face's crossings (relative to the corner) fit the arc of a face seen ``asin(sin_b)`` from
+    the side (bulging either way) not significantly worse than a straight line."""
+    u = np.abs(rel @ np.array([-d_limb[1], d_limb[0]]))
+    v = rel @ d_limb
+    near = u <= 2 * radius_px
+    if near.sum() < 6:
+        return True
+    u, v = u[near], v[near]
+    A = np.c_[np.ones_like(u), u]
+    g = np.sqrt(np.clip(u * (2 * radius_px - u), 0, None))
+    rss = []
+    for target in (v, v - sin_b * g, v + sin_b * g):
+        coef = np.linalg.lstsq(A, target, rcond=None)[0]
+        rss.append(float(np.sum((target - A @ coef) ** 2)))
+    s2 = max(rss[0] / max(len(u) - 2, 1), 1e-6)
+    return min(rss[1], rss[2]) <= rss[0] + significance * s2
+
+
 def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
     """Raw-image edge directions for the next pass; a corner with one good line is put on it."""
     K = len(sp.C)
@@ -480,7 +562,7 @@ def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
 
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, lim, min_points, contrast,
                 h_face=None, blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12,
-                arc_gate: float = 2.0):
+                arc_gate: float = 2.0, view_bias: float = 0.5):
     """One pass of edge-profile line fits for all corners at once.
 
     Parameters
@@ -503,7 +585,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         profiles reach at least ``curved_reach`` R each way (an arc seen 7°
         from the side leaves its chord by 0.12 R). Only faces whose line fit
         leaves ``arc_gate`` times the straight edges' residual variance are
-        fitted again as arcs.
+        fitted again as arcs. A curved face left a straight line adds
+        :func:`face_view_cov` (``view_bias``) to the returned systematic
+        covariance when the camera knows the plane's pose.
 
     Returns
     -------
@@ -550,9 +634,16 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     noise2 = float(np.median(s2_line[straight])) if straight.any() else 0.0
     curved = None if sp.curved is None else sp.curved & (s2_line > arc_gate * max(noise2, s2_floor))
     if curved is not None and np.isfinite(radius_px) and sp.curved.any():
+        X_line = X
         X, cov, okc = curved_face_corners(und, pr.edge[valid], K, c, dd, sp.curved, X, cov, okc, fit=curved,
                                           radius_px=radius_px, s2_floor=s2_floor, min_points=min_points,
                                           start_px=s0, partner=sp.partner)
+        # a face left straight meets the limb off its corner by about half its arc's bulge, which the
+        # camera's view of the plane tells (no calibration: not known, not added)
+        on_line = okc & np.all(X == X_line, axis=1)
+        if hasattr(camera, "plane_rotation") and on_line.any():
+            cov_sys = cov_sys + face_view_cov(camera, X, dd, sp.curved, on_line, und, pr.edge[valid],
+                                              radius_px=radius_px, factor=view_bias)
     Cn = np.full((K, 2), np.nan)
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])
