@@ -391,3 +391,33 @@ def test_a_face_seen_far_from_the_side_is_measured_on_its_arc_or_not_at_all(deg)
         assert okc[0] and np.linalg.norm(Xc[0] - X) < 0.3, (Xc[0], X_line)
     else:
         assert not okc[0]
+
+
+def test_face_seen_from_the_side_adds_half_its_bulge_to_sigma_unless_the_face_is_flat():
+    """A corner 500 px off the optical axis along the tube (focal 1000 px, the plane facing the camera):
+    its face is seen β = asin(0.447) from the side and bulges by R sin β = 17.9 px (R = 40 px). A short face
+    (crossings 3-16 px from the limb, on that arc) cannot tell the arc from a line: σ along the outer edge
+    is 0.5 R sin β (what a line's corner is off on the physically based printed tube). A face that is a
+    straight line over 70 px (a silhouette drawn flat in the plane) rules the arc out: no term."""
+    from notchfit.vision.camera import CameraModel
+    from notchfit.vision.detection.refine import face_view_cov
+
+    cam = CameraModel.synthetic(focal_px=1000.0, tilt_deg=(0.0, 0.0), dist=(0.0, 0.0, 0.0, 0.0, 0.0))
+    K_ = cam.camera_matrix
+    R, X = 40.0, np.array([[K_[0, 2] + 500.0, K_[1, 2]]])
+    dd = np.array([[1.0, 0.0], [0.0, 1.0]])                  # limb along x (incoming), face across it
+    curved = np.array([False, True])
+    rng = np.random.default_rng(6)
+    # the plane's x axis as the camera sees it: the synthetic plane may be turned in the image
+    H_inv = np.linalg.inv(cam.plane_homography)
+    ends = np.c_[np.array([X[0], X[0] + [5.0, 0.0]]), np.ones(2)] @ H_inv.T
+    axis = cam.plane_rotation[:, :2] @ np.diff(ends[:, :2] / ends[:, 2:], axis=0)[0]
+    ray = np.linalg.solve(K_, [X[0, 0], X[0, 1], 1.0])
+    sin_b = abs(ray @ axis) / (np.linalg.norm(ray) * np.linalg.norm(axis))
+    assert 0.4 < sin_b < 0.5
+    for u_max, flat, want in ((16.0, False, (0.5 * R * sin_b) ** 2), (70.0, True, 0.0)):
+        u = np.arange(3.0, u_max)
+        v = np.zeros_like(u) if flat else sin_b * np.sqrt(u * (2 * R - u))
+        pts = X[0] + np.stack([v, u], 1) + rng.normal(0, 0.05, (len(u), 2))
+        cov = face_view_cov(cam, X, dd, curved, np.array([True]), pts, np.ones(len(u), int), radius_px=R)
+        assert np.allclose(cov[0], want * np.outer(dd[0], dd[0]), rtol=1e-9, atol=1e-9), (u_max, cov[0])
