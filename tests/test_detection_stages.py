@@ -421,3 +421,22 @@ def test_face_seen_from_the_side_adds_half_its_bulge_to_sigma_unless_the_face_is
         pts = X[0] + np.stack([v, u], 1) + rng.normal(0, 0.05, (len(u), 2))
         cov = face_view_cov(cam, X, dd, curved, np.array([True]), pts, np.ones(len(u), int), radius_px=R)
         assert np.allclose(cov[0], want * np.outer(dd[0], dd[0]), rtol=1e-9, atol=1e-9), (u_max, cov[0])
+
+
+def test_without_a_camera_the_face_term_assumes_a_normal_lens():
+    """Without a camera file the view is taken as the plane facing a lens whose focal length is the
+    image's diagonal, centred: a corner 400 px right of the centre on a tube along the image's x axis
+    sees its face at sin β = 400 / sqrt(400² + diagonal²)."""
+    from notchfit.vision.detection.refine import face_view_cov
+
+    W, H, R = 1600, 1200, 30.0
+    cam = DiameterScale(1e-5, (W, H))
+    X = np.array([[(W - 1) / 2 + 400.0, (H - 1) / 2]])
+    dd = np.array([[1.0, 0.0], [0.0, 1.0]])
+    sin_b = 400.0 / math.hypot(400.0, math.hypot(W, H))
+    u = np.arange(3.0, 14.0)
+    pts = X[0] + np.stack([sin_b * np.sqrt(u * (2 * R - u)), u], 1)    # a short face on its arc
+    cov = face_view_cov(cam, X, dd, np.array([False, True]), np.array([True]), pts, np.ones(len(u), int),
+                        radius_px=R)
+    assert cov[0, 0, 0] == pytest.approx((0.5 * R * sin_b) ** 2, rel=1e-9)
+    assert cov[0, 1, 1] == pytest.approx(0.0, abs=1e-12)

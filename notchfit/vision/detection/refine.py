@@ -472,8 +472,8 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
 
     Parameters
     ----------
-    camera : CameraModel
-        With the plane's pose.
+    camera : CameraModel or DiameterScale
+        With the plane's pose (``camera_matrix``, ``plane_rotation``, ``plane_homography``).
     X : ndarray (K, 2)
         Ideal corners [px].
     dd : ndarray (2K, 2)
@@ -489,45 +489,53 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
     """
     K = len(X)
     out = np.zeros((K, 2, 2))
-    Hinv = np.linalg.inv(camera.plane_homography)
-    Kinv = np.linalg.inv(camera.camera_matrix)
-    Rm = camera.plane_rotation
-    for k in np.nonzero(use)[0]:
-        if curved[k] == curved[K + k]:
-            continue                                    # no face, or two (the tip seen end-on)
-        fe = k if curved[k] else K + k
-        d_limb = dd[K + k] if curved[k] else dd[k]
-        ends = np.stack([X[k], X[k] + 5.0 * d_limb])
-        pl = np.c_[ends, np.ones(2)] @ Hinv.T
-        pl = pl[:, :2] / pl[:, 2:]
-        axis2 = pl[1] - pl[0]
-        ray = Kinv @ np.array([X[k, 0], X[k, 1], 1.0])
-        n2, nr = np.linalg.norm(axis2), np.linalg.norm(ray)
-        if not (n2 > 0 and nr > 0 and np.all(np.isfinite(d_limb))):
-            continue
-        sin_b = abs(float(ray @ (Rm[:, :2] @ (axis2 / n2)))) / nr
-        if _arc_allowed(pts[grp == fe] - X[k], d_limb, sin_b, radius_px, significance):
-            out[k] = (factor * radius_px * sin_b) ** 2 * np.outer(d_limb, d_limb)
+    ks = np.nonzero(use & (curved[:K] != curved[K:]))[0]    # one face (not two: the tip seen end-on)
+    if not len(ks):
+        return out
+    fe = np.where(curved[ks], ks, K + ks)
+    d_limb = np.where(curved[ks][:, None], dd[K + ks], dd[ks])
+    # the outer edge's direction in the plane, then in the camera's frame; the view ray at the corner
+    ends = np.concatenate([X[ks], X[ks] + 5.0 * d_limb])
+    pl = np.c_[ends, np.ones(len(ends))] @ np.linalg.inv(camera.plane_homography).T
+    pl = pl[:, :2] / pl[:, 2:]
+    axis = (pl[len(ks):] - pl[:len(ks)]) @ camera.plane_rotation[:, :2].T
+    ray = np.c_[X[ks], np.ones(len(ks))] @ np.linalg.inv(camera.camera_matrix).T
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sin_b = np.abs(np.sum(ray * axis, 1)) / (np.linalg.norm(ray, axis=1) * np.linalg.norm(axis, axis=1))
+    allowed = _arcs_allowed(pts, grp, X[ks], fe, d_limb, sin_b, radius_px, significance)
+    var = np.where(np.isfinite(sin_b) & allowed, (factor * radius_px * sin_b) ** 2, 0.0)
+    out[ks] = var[:, None, None] * d_limb[:, :, None] * d_limb[:, None, :]
     return out
 
 
-def _arc_allowed(rel, d_limb, sin_b: float, radius_px: float, significance: float) -> bool:
-    """Whether a face's crossings (relative to the corner) fit the arc of a face seen ``asin(sin_b)`` from
-    the side (bulging either way) not significantly worse than a straight line."""
-    u = np.abs(rel @ np.array([-d_limb[1], d_limb[0]]))
-    v = rel @ d_limb
+def _arcs_allowed(pts, grp, X, fe, d_limb, sin_b, radius_px: float, significance: float,
+                  min_points: int = 6) -> np.ndarray:
+    """(n,) bool: whether each face's crossings (edge ``fe``, corner ``X``) fit the arc of a face seen
+    ``asin(sin_b)`` from the side, bulging either way, not significantly worse than a straight line: the
+    residual sums of ``v = v0 + c u (± sin_b g(u))`` in closed form, all faces at once."""
+    n = len(fe)
+    slot = np.full(max(int(grp.max()) + 1 if len(grp) else 0, int(fe.max()) + 1), -1)
+    slot[fe] = np.arange(n)
+    sel = slot[grp]
+    keep = sel >= 0
+    q, P = sel[keep], pts[keep] - X[sel[keep]]
+    d = d_limb[q]
+    u = np.abs(P[:, 1] * d[:, 0] - P[:, 0] * d[:, 1])
+    v = np.sum(P * d, 1)
     near = u <= 2 * radius_px
-    if near.sum() < 6:
-        return True
-    u, v = u[near], v[near]
-    A = np.c_[np.ones_like(u), u]
+    q, u, v = q[near], u[near], v[near]
     g = np.sqrt(np.clip(u * (2 * radius_px - u), 0, None))
+    S = lambda w: np.bincount(q, w, n)
+    N, Su, Suu = S(np.ones_like(u)), S(u), S(u * u)
+    det = N * Suu - Su * Su
     rss = []
-    for target in (v, v - sin_b * g, v + sin_b * g):
-        coef = np.linalg.lstsq(A, target, rcond=None)[0]
-        rss.append(float(np.sum((target - A @ coef) ** 2)))
-    s2 = max(rss[0] / max(len(u) - 2, 1), 1e-6)
-    return min(rss[1], rss[2]) <= rss[0] + significance * s2
+    for t in (v, v - sin_b[q] * g, v + sin_b[q] * g):
+        St, Sut, Stt = S(t), S(u * t), S(t * t)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rss.append(Stt - (Suu * St * St - 2 * Su * St * Sut + N * Sut * Sut) / det)
+    s2 = np.maximum(rss[0] / np.maximum(N - 2, 1), 1e-6)
+    ok = np.minimum(rss[1], rss[2]) <= rss[0] + significance * s2
+    return ok | (N < min_points) | ~(det > 0)
 
 
 def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
@@ -639,9 +647,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
                                           radius_px=radius_px, s2_floor=s2_floor, min_points=min_points,
                                           start_px=s0, partner=sp.partner)
         # a face left straight meets the limb off its corner by about half its arc's bulge, which the
-        # camera's view of the plane tells (no calibration: not known, not added)
+        # camera's view of the plane tells (without a camera file, the view DiameterScale assumes)
         on_line = okc & np.all(X == X_line, axis=1)
-        if hasattr(camera, "plane_rotation") and on_line.any():
+        if on_line.any():
             cov_sys = cov_sys + face_view_cov(camera, X, dd, sp.curved, on_line, und, pr.edge[valid],
                                               radius_px=radius_px, factor=view_bias)
     Cn = np.full((K, 2), np.nan)

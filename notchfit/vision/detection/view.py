@@ -19,6 +19,15 @@ class DiameterScale:
     pixels to the plane with this handedness). ``mirror`` therefore means
     the same with and without a camera file. There is no lens distortion.
 
+    How far the view looks along the tube at a pixel is not known without a
+    camera file; :attr:`camera_matrix`, :attr:`plane_rotation` and
+    :attr:`plane_homography` describe the view assumed for that (the
+    uncertainty of a slot face seen from the side): the plane facing a
+    pinhole camera whose focal length is the image's diagonal (a normal lens,
+    about 43 mm on a full-frame sensor; a phone's wide lens is shorter, so
+    its faces are seen further from the side than assumed) with its
+    principal point at the image's centre.
+
     Parameters
     ----------
     m_per_px : float
@@ -31,6 +40,11 @@ class DiameterScale:
     def __init__(self, m_per_px: float, image_size):
         self.m_per_px = float(m_per_px)
         self.image_size = (int(image_size[0]), int(image_size[1]))
+        W, H = self.image_size
+        f = math.hypot(W, H)
+        self.camera_matrix = np.array([[f, 0.0, (W - 1) / 2.0], [0.0, f, (H - 1) / 2.0], [0.0, 0.0, 1.0]])
+        self.plane_rotation = np.eye(3)
+        self.plane_homography = np.diag([1.0 / self.m_per_px, 1.0 / self.m_per_px, 1.0])
 
     def check_image(self, image) -> None:
         """Any image size fits (the scale is the image's own)."""
