@@ -57,7 +57,8 @@ from .plane import finish
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
 from .dims import slot_depths, slot_widths
-from .segment import Segmentation, band_directions, downsample, fill_holes, fill_thin_lines, largest_region
+from .segment import (Segmentation, band_directions, chroma_distance, downsample, fill_holes, fill_thin_lines,
+                      largest_region)
 from .segment import segment as _segment
 from .view import DiameterScale, mirror_without_camera, view_orientation
 from .width import band_centreline, band_width, measure_diameter, tube_radius
@@ -125,19 +126,22 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
         plane pose, the image is too small, or ``base`` is not a side.
     """
     opts = _options(options, overrides)
-    gray = to_gray(_linearised(image, opts.tone_gamma))
+    lin = _linearised(image, opts.tone_gamma)
+    gray = to_gray(lin)
+    colour = lin[..., :3] if np.ndim(lin) == 3 and np.shape(lin)[2] >= 3 else None
     H, W = gray.shape
     if base is not None and base not in ("top", "bottom", "left", "right"):
         raise ValueError(f"base must be top, bottom, left or right, got {base!r}")
     if camera is None:
-        return _uncalibrated(gray, geom, opts, mirror=mirror, base=base)
+        return _uncalibrated(gray, geom, opts, mirror=mirror, base=base, colour=colour)
     camera.check_image(gray)
     if not camera.has_plane:
         raise ValueError("the camera model has no plane pose: calibrate with --plane-image")
     px_per_m, sgn = view_orientation(camera, (H, W), mirror)
     f = work_factor(geom, px_per_m, opts)
     extra = {"scale_mm_per_px": 1.0 / (px_per_m * MM), "scale_sigma": 0.0}
-    det, _ = _detect_at(gray, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base, extra=extra)
+    det, _ = _detect_at(gray, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base, extra=extra,
+                        cache={"colour": colour})
     return det
 
 
@@ -159,6 +163,18 @@ def _segmented(gray, f, opts, cache: dict):
         seg = _segment(small, min_snr=opts.min_snr, noise_scale=f, level=opts.segment_level)
         cache[f] = (small.shape, seg)
     return cache[f]
+
+
+def _colour_mask(cache, f: int, opts):
+    """The object mask of the working copy's distance from the backdrop's colour (:func:`chroma_distance`):
+    a shadow or shading on a coloured card keeps its colour, a neutral metal tube does not. None for a gray
+    image or when that distance shows no object."""
+    colour = cache.get("colour")
+    if colour is None:
+        return None
+    seg = _segment(chroma_distance(downsample(colour, f)), min_snr=opts.min_snr, noise_scale=f,
+                   level=opts.segment_level)
+    return seg.mask
 
 
 def _streak_length(geom, opts) -> float:
@@ -190,7 +206,8 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
     again with thin background lines across the tube filled (a specular streak that splits it), and the
     variant that locates more corners is refined. Returns (Detection, refinement or None)."""
     m = geom.n_points
-    shape, seg = _segmented(gray, f, opts, {} if cache is None else cache)
+    cache = {} if cache is None else cache
+    shape, seg = _segmented(gray, f, opts, cache)
     if seg.mask is None:
         return empty_detection(m, "no_manipulator", seg.message), None
     low_m = f / px_per_m
@@ -200,10 +217,17 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
     lay = notch_layout(geom)
     wanted = {i for i in range(m) if lay.kind[i] != "base"}
     tried = []
-    for fill in (0.0, _streak_length(geom, opts) / low_m):
-        mask = seg.mask if not fill else _fill_streaks(
-            seg.mask, fill, holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
-            bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
+    for variant in ("threshold", "streaks", "colour"):
+        if variant == "threshold":
+            mask = seg.mask
+        elif variant == "streaks":
+            mask = _fill_streaks(seg.mask, _streak_length(geom, opts) / low_m,
+                                 holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
+                                 bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
+        else:
+            mask = _colour_mask(cache, f, opts)
+            if mask is None:
+                break
         region, box = largest_region(mask)
         ratio = float(region.sum()) / exp_area
         if ratio < opts.area_range[0] or region.mean() > 0.95:
@@ -351,7 +375,7 @@ def _scale_extra(widths, R):
     return wpx / (2 * R), {"scale_mm_per_px": mm_px, "scale_sigma": mm_px * sw / wpx, "assumption": text}
 
 
-def _uncalibrated(gray, geom, opts, *, mirror, base):
+def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
     """The scale from the tube's diameter: a rough width on a coarse copy, the width across the tube's
     centreline at full resolution, one detection at that scale (a detection at the rough scale and
     widths next to its corners where the centreline gives too few)."""
@@ -359,7 +383,7 @@ def _uncalibrated(gray, geom, opts, *, mirror, base):
     H, W = gray.shape
     R = geom.outer_radius
     sgn = view_orientation(DiameterScale(1.0, (W, H)), (H, W), mirror)[1]
-    cache = {}
+    cache = {"colour": colour}
     rough, why = _rough_scale(gray, geom, opts, cache)
     if rough is None:
         return empty_detection(m, "no_manipulator", why)

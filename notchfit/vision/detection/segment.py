@@ -18,8 +18,8 @@ import numpy as np
 
 from .lines import otsu, poly2
 
-__all__ = ["Segmentation", "band_directions", "close_disk", "downsample", "fill_holes", "fill_thin_lines",
-           "largest_region", "segment"]
+__all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "downsample", "fill_holes",
+           "fill_thin_lines", "largest_region", "segment"]
 
 
 @dataclass(frozen=True)
@@ -48,14 +48,39 @@ class Segmentation:
 
 
 def downsample(gray, factor: int) -> np.ndarray:
-    """Block average by an integer ``factor`` (float32; the trailing rows/columns that do not fill a block are dropped)."""
+    """Block average by an integer ``factor`` (float32; the trailing rows/columns that do not fill a block are
+    dropped); a colour image (H, W, C) channel by channel."""
     f = int(factor)
-    H, W = gray.shape
+    H, W = gray.shape[:2]
     hs, ws = H // f, W // f
     g = gray[:hs * f, :ws * f]
     if f == 1:
         return np.asarray(g, np.float32)
     return cv2.resize(np.asarray(g, np.float32), (ws, hs), interpolation=cv2.INTER_AREA)
+
+
+def chroma_distance(small_bgr, *, dark: float = 8.0) -> np.ndarray:
+    """How far each pixel's colour is from the backdrop's, whatever its brightness (h, w) float32.
+
+    The chromaticity ``((R - B) / S, (G - (R + B) / 2) / S)`` with ``S = R + G + B + 3 dark`` (``dark`` [DN]
+    keeps the black end from amplifying noise) does not change when a shadow or the backdrop's shading
+    scales all three channels alike; a neutral metal tube, its chuck and its highlights on a warm-grey
+    card, or a white printed tube on blue paper, differ from the card in it. The distance from the median
+    chromaticity of the image's border (the backdrop), times 255.
+
+    Parameters
+    ----------
+    small_bgr : ndarray (h, w, 3)
+        A downsampled colour copy (BGR).
+    dark : float
+        Added to every channel in the denominator [DN].
+    """
+    c = np.asarray(small_bgr, np.float32)
+    S = c.sum(axis=2) + np.float32(3 * dark)
+    ch = np.stack([(c[..., 2] - c[..., 0]) / S, (c[..., 1] - 0.5 * (c[..., 0] + c[..., 2])) / S], axis=2)
+    border = np.concatenate([ch[0], ch[-1], ch[:, 0], ch[:, -1]])
+    ref = np.median(border, axis=0).astype(np.float32)
+    return np.float32(255.0) * np.sqrt(np.sum((ch - ref) ** 2, axis=2))
 
 
 def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_points: int = 6000,
