@@ -440,3 +440,73 @@ def test_without_a_camera_the_face_term_assumes_a_normal_lens():
                         radius_px=R)
     assert cov[0, 0, 0] == pytest.approx((0.5 * R * sin_b) ** 2, rel=1e-9)
     assert cov[0, 1, 1] == pytest.approx(0.0, abs=1e-12)
+
+
+def _warm_card_scene(rng):
+    """A warm-grey card (BGR 150, 170, 185) under a soft shadow as dark as a neutral tube (40 % of the
+    light over a band 60 px wide, soft edges), and the neutral tube (BGR 95 each, 30 px wide) beside it
+    with a bright neutral highlight stripe (230) and a neutral wire 2 px wide leaving its end."""
+    H, W = 160, 220
+    vv, uu = np.mgrid[0:H, 0:W].astype(float)
+    shade = 1.0 - 0.4 * np.exp(-((uu - 60.0) / 25.0) ** 2)              # the shadow left of the tube
+    img = np.stack([150.0 * shade, 170.0 * shade, 185.0 * shade], 2)
+    tube = (uu >= 95) & (uu < 125) & (vv >= 20) & (vv < 130)
+    img[tube] = 95.0
+    img[tube & (uu >= 115) & (uu < 119)] = 230.0                       # highlight stripe, brighter than the card
+    wire = (vv >= 129) & (vv < 131) & (uu >= 110) & (uu < 200)
+    img[wire] = 60.0
+    img = img + rng.normal(0, 1.0, img.shape)
+    return img.astype(np.float32), tube, wire
+
+
+def test_colour_distance_finds_a_neutral_tube_on_a_warm_card_in_a_shadow():
+    """Known answer: the colour distance from the card is near 0 on the card, in its shadow as well,
+    and large on the neutral tube and its highlight; segmented, it gives the tube (stripe included) and
+    not the shadow, where a threshold on the gray copy takes the shadow with the tube."""
+    from notchfit.imaging import to_gray
+    from notchfit.vision.detection.segment import chroma_distance
+
+    img, tube, wire = _warm_card_scene(np.random.default_rng(7))
+    d = chroma_distance(img)
+    card = ~tube & ~wire
+    assert np.percentile(d[card], 99) < 3.0 and np.median(d[tube]) > 15.0
+    mask = largest_region(segment(d).mask)[0].astype(bool)
+    inner = tube & (np.abs(np.mgrid[0:160, 0:220][1] - 110) < 13)        # the tube away from its blurred rim
+    assert mask[inner].all() and not mask[card].any()
+    gray = largest_region(segment(to_gray(img), level=0.35).mask)[0].astype(bool)
+    assert gray[card].sum() > 500                                        # the shadow joins the gray one
+
+
+def test_remove_thin_takes_a_wire_and_keeps_the_backbone():
+    """A band 30 px wide with slots leaving a backbone 4 px wide over 12 px, and a wire 2 px wide and 90 px
+    long at its end: the wire is removed, the backbone and the band kept."""
+    from notchfit.vision.detection.segment import remove_thin
+
+    m = np.zeros((160, 220), np.uint8)
+    m[20:130, 95:125] = 1
+    for v0 in (40, 70, 100):
+        m[v0:v0 + 12, 99:125] = 0                                      # slots from the right: backbone 95-98
+    m[129:131, 110:200] = 1                                            # the wire
+    out = remove_thin(m, thin_px=4.0, max_length_px=18.0)
+    assert not out[129:131, 130:200].any()
+    assert out[20:129, 95:125].sum() == m[20:129, 95:125].sum()
+
+
+def test_link_width_beside_a_corner_tells_an_inner_edge_from_the_outer_one():
+    """A tube 2R = 40 px wide (full-resolution px; the mask at a working factor of 2): a slot corner on its
+    outer edge finds the tube 2R wide beside it; a corner found on an edge 8 px inside the tube (a
+    highlight's boundary where the polished limb mirrors the backdrop) finds it 20 % narrower."""
+    from types import SimpleNamespace
+
+    from notchfit.vision.detection.pipeline import link_widths
+
+    f, R_px, m_per_px = 2, 20.0, 1e-5
+    mask = np.zeros((100, 100), np.uint8)
+    mask[:, 30:50] = 1                                                # full px 60..100: the band
+    C = np.array([[99.5, 80.0], [91.5, 80.0]])                         # on the outer edge; 8 px inside it
+    specs = SimpleNamespace(face=np.array([True, True, False, False]),  # incoming edge = the slot face
+                            Din=np.array([[1.0, 0.0], [1.0, 0.0]]), Dout=np.array([[0.0, -1.0], [0.0, -1.0]]))
+    w = link_widths(SimpleNamespace(C=C, specs=specs), mask, f, DiameterScale(m_per_px, (200, 200)),
+                    1.0 / m_per_px, R_px * m_per_px)
+    assert w[0] / (2 * R_px * m_per_px) == pytest.approx(1.0, abs=0.04)
+    assert w[1] / (2 * R_px * m_per_px) < 0.85

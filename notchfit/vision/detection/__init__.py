@@ -58,7 +58,7 @@ from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
 from .dims import slot_depths, slot_widths
 from .segment import (Segmentation, band_directions, chroma_distance, downsample, fill_holes, fill_thin_lines,
-                      largest_region)
+                      largest_region, remove_thin)
 from .segment import segment as _segment
 from .view import DiameterScale, mirror_without_camera, view_orientation
 from .width import band_centreline, band_width, measure_diameter, tube_radius
@@ -165,16 +165,15 @@ def _segmented(gray, f, opts, cache: dict):
     return cache[f]
 
 
-def _colour_mask(cache, f: int, opts):
-    """The object mask of the working copy's distance from the backdrop's colour (:func:`chroma_distance`):
+def _colour_segmentation(cache, f: int, opts) -> Segmentation | None:
+    """The segmentation of the working copy's distance from the backdrop's colour (:func:`chroma_distance`):
     a shadow or shading on a coloured card keeps its colour, a neutral metal tube does not. None for a gray
-    image or when that distance shows no object."""
+    image."""
     colour = cache.get("colour")
     if colour is None:
         return None
-    seg = _segment(chroma_distance(downsample(colour, f)), min_snr=opts.min_snr, noise_scale=f,
-                   level=opts.segment_level)
-    return seg.mask
+    return _segment(chroma_distance(downsample(colour, f)), min_snr=opts.min_snr, noise_scale=f,
+                    level=opts.segment_level)
 
 
 def _streak_length(geom, opts) -> float:
@@ -225,9 +224,12 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
                                  holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
                                  bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
         else:
-            mask = _colour_mask(cache, f, opts)
-            if mask is None:
+            seg_c = _colour_segmentation(cache, f, opts)
+            if seg_c is None or seg_c.mask is None:
                 break
+            # a wire or a tendon is as neutral as the tube, and a grid line as coloured: thin lines go
+            thin = min(2 * R - float(slot_depths(geom).max()), R) / low_m
+            mask = remove_thin(seg_c.mask, thin_px=thin, max_length_px=1.5 * float(slot_widths(geom).max()) / low_m)
         region, box = largest_region(mask)
         ratio = float(region.sum()) / exp_area
         if ratio < opts.area_range[0] or region.mean() > 0.95:
@@ -244,9 +246,13 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
     conflict = [t[1] for t in tried if t[0] is None and "opposite mirror flag" in t[1].message]
     if not found or (conflict and not any(wanted <= {s_.point for s_ in t[0]} for t in found)):
         return (conflict or [tried[0][1]])[0], None
-    specs, ctx = max(found, key=lambda t: len(t[0]))
+    best = max(range(len(tried)), key=lambda k: -1 if tried[k][0] is None else len(tried[k][0]))
+    specs, ctx = tried[best]
+    # corners found on the colour silhouette are confirmed by the tube's width on it: a polished limb that
+    # mirrors the backdrop is missing from it, and an edge inside the tube then passes for the outer edge
+    by_colour = best == 2
     return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
-                             extra=extra, stations=stations)
+                             extra=extra, stations=stations, width_mask=mask if by_colour else None)
 
 
 def _stations(ref, n_per_edge, sgn):

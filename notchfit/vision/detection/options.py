@@ -84,6 +84,11 @@ class DetectorOptions:
         [px]; multiplied by ``factor / 2`` like the profile lengths.
     max_sigma_px : float
         A corner whose standard uncertainty exceeds this is ambiguous [px].
+    width_tol : float
+        Corners found on the colour silhouette: the tube's width beside a
+        slot corner, across its outer edge, must be ``2R`` within this
+        relative tolerance (a corner on an edge inside the tube finds it
+        narrower).
     min_edge_points : int
         Fewest valid edge crossings per edge line.
     profile_step_px : float
@@ -145,6 +150,7 @@ class DetectorOptions:
     scale_tol: float = 0.05
     max_shift_px: float = 10.0
     max_sigma_px: float = 0.3
+    width_tol: float = 0.06
     min_edge_points: int = 5
     profile_step_px: float = 0.5
     stage1_half_px: float = 7.0

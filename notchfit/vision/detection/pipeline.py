@@ -422,6 +422,41 @@ def statuses(ref: Refinement, m, status, shape, opts):
     return status, pts_px, ideal, cov
 
 
+def link_widths(ref: Refinement, mask, f: int, camera, px_per_m: float, radius: float) -> np.ndarray:
+    """The tube's width [m] beside each refined slot corner, across its outer edge, on a working-copy mask
+    (K,); NaN for other corners.
+
+    From the point ``0.3 R`` along the corner's outer edge away from its
+    slot, along the normal into the object, to where the mask ends; mapped to
+    the plane. A link is ``2R`` wide there: a corner whose outer edge is an
+    edge inside the tube (the boundary of a highlight, where the limb mirrors
+    the backdrop) finds it narrower.
+    """
+    sp = ref.specs
+    K = len(ref.C)
+    out = np.full(K, np.nan)
+    h, w = mask.shape
+    R_px = radius * px_per_m
+    lo = lambda P: np.rint((np.asarray(P) - (f - 1) / 2.0) / f).astype(int)
+    inside = lambda q: bool(0 <= q[0] < w and 0 <= q[1] < h and mask[q[1], q[0]])
+    t = np.arange(0.3 * R_px, 3.0 * R_px, 0.5 * f)
+    for k in range(K):
+        if sp.face[k] == sp.face[K + k] or not np.all(np.isfinite(ref.C[k])):
+            continue
+        d = sp.Dout[k] if sp.face[k] else -sp.Din[k]
+        P = ref.C[k] + 0.3 * R_px * d
+        for n in (np.array([-d[1], d[0]]), np.array([d[1], -d[0]])):
+            if not inside(lo(P + 0.3 * R_px * n)):
+                continue
+            ray = lo(P[None, :] + t[:, None] * n[None, :])
+            hit = [j for j, q in enumerate(ray) if not inside(q)]
+            if hit:
+                ends = camera.pixel_to_plane(np.array([P, P + t[hit[0]] * n]))
+                out[k] = float(np.linalg.norm(ends[1] - ends[0]))
+            break
+    return out
+
+
 def link_tolerance(geom, opts):
     """(relative, absolute [m]) tolerance of the rigid-link check, or None at a rough scale (no checks)."""
     if not math.isfinite(opts.scale_tol):
@@ -430,8 +465,11 @@ def link_tolerance(geom, opts):
 
 
 def refine_and_finish(gray, seg, specs, ctx: Located, camera, geom, opts, *, f, px_per_m, sgn, extra=None,
-                      stations=None):
-    """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, Refinement or None)."""
+                      stations=None, width_mask=None):
+    """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, Refinement or None).
+
+    ``width_mask``: a working-copy silhouette on which each ok slot corner's link must be ``2R`` wide
+    (within ``width_tol``, :func:`link_widths`), else the corner is ambiguous."""
     m = geom.n_points
     extra = extra or {}
     status, msg = list(ctx.status), list(ctx.messages)
@@ -443,6 +481,13 @@ def refine_and_finish(gray, seg, specs, ctx: Located, camera, geom, opts, *, f, 
         ref = refine_corners(gray, specs, camera, full=ctx.full, px_per_m=px_per_m, sgn=sgn,
                              contrast=seg.contrast, f=f, opts=opts, extra_px=far, geom=geom)
         status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
+        if width_mask is not None:
+            wid = link_widths(ref, width_mask, f, camera, px_per_m, geom.outer_radius)
+            for k in np.nonzero(np.abs(wid / (2 * geom.outer_radius) - 1) > opts.width_tol)[0]:
+                i = ref.pidx[k]
+                if status[i] == "ok":
+                    status[i] = "ambiguous"
+                    ideal[i], cov[i] = np.nan, np.nan
         blur = ref.blur
         ref.plane_input = PlaneInput(pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
                                      ctx.contour_px, ctx.side)

@@ -19,7 +19,7 @@ import numpy as np
 from .lines import otsu, poly2
 
 __all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "downsample", "fill_holes",
-           "fill_thin_lines", "largest_region", "segment"]
+           "fill_thin_lines", "largest_region", "remove_thin", "segment"]
 
 
 @dataclass(frozen=True)
@@ -238,6 +238,26 @@ def fill_holes(region, *, keep_area=(0.0, 0.0)) -> np.ndarray:
     out = region.copy()
     cv2.drawContours(out, holes, -1, 1, thickness=-1)
     return out
+
+
+def remove_thin(mask, *, thin_px: float, max_length_px: float) -> np.ndarray:
+    """The mask without its thin, long parts (uint8): a wire, a tendon loop, a grid line.
+
+    The pixels that an opening by a disk of radius ``0.35 thin_px`` (at
+    least 1 px) removes are grouped into 8-connected parts; a part longer
+    (its box's diagonal) than ``max_length_px`` is removed. ``thin_px`` is
+    the narrowest part of the tube that must stay (the backbone left by the
+    slots: it is thin too, but only as long as a slot is wide).
+    """
+    m = np.asarray(mask, np.uint8)
+    r = max(int(round(0.35 * thin_px)), 1)
+    opened = cv2.morphologyEx(m, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2))
+    n, lab, st, _ = cv2.connectedComponentsWithStats((m & (1 - opened)).astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return m
+    long_ = np.hypot(st[:, cv2.CC_STAT_WIDTH], st[:, cv2.CC_STAT_HEIGHT]) > max_length_px
+    long_[0] = False
+    return (m & ~long_[lab]).astype(np.uint8)
 
 
 def close_disk(mask, r: int):
