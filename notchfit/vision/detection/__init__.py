@@ -57,8 +57,8 @@ from .plane import finish
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
 from .dims import slot_depths, slot_widths
-from .segment import (Segmentation, band_directions, chroma_distance, downsample, fill_holes, fill_thin_lines,
-                      largest_region, remove_thin)
+from .segment import (Segmentation, band_directions, chroma_distance, close_disk, downsample, fill_holes,
+                      fill_thin_lines, largest_region, remove_thin)
 from .segment import segment as _segment
 from .view import DiameterScale, mirror_without_camera, view_orientation
 from .width import band_centreline, band_width, measure_diameter, tube_radius
@@ -230,6 +230,8 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
             # a wire or a tendon is as neutral as the tube, and a grid line as coloured: thin lines go
             thin = min(2 * R - float(slot_depths(geom).max()), R) / low_m
             mask = remove_thin(seg_c.mask, thin_px=thin, max_length_px=1.5 * float(slot_widths(geom).max()) / low_m)
+            # and gaps of a pixel or two closed (a backbone whose highlight mirrors the card)
+            mask = close_disk(mask, opts.colour_close_px) if opts.colour_close_px > 0 else mask
         region, box = largest_region(mask)
         ratio = float(region.sum()) / exp_area
         if ratio < opts.area_range[0] or region.mean() > 0.95:

@@ -84,6 +84,9 @@ class DetectorOptions:
         [px]; multiplied by ``factor / 2`` like the profile lengths.
     max_sigma_px : float
         A corner whose standard uncertainty exceeds this is ambiguous [px].
+    colour_close_px : int
+        The colour silhouette is closed by a disk of this radius [working
+        px] (gaps of a pixel or two where a highlight mirrors the card).
     width_tol : float
         Corners found on the colour silhouette: the tube's width beside a
         slot corner, across its outer edge, must be ``2R`` within this
@@ -151,6 +154,7 @@ class DetectorOptions:
     max_shift_px: float = 10.0
     max_sigma_px: float = 0.3
     width_tol: float = 0.06
+    colour_close_px: int = 1
     min_edge_points: int = 5
     profile_step_px: float = 0.5
     stage1_half_px: float = 7.0
