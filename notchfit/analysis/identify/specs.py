@@ -44,17 +44,22 @@ from ..estimation.specs import BASELINE, CAPSTAN_MU, MATERIAL, ParamSpec
 from ...physics.friction_params import PARAM_KEYS, FrictionParams, default_params
 
 __all__ = ["DEPTH", "DEPTH_COMMON", "DEPTH_RANGE", "DEPTH_TOLERANCE", "MATERIAL",
-           "REST", "REST_RANGE", "SPECS", "TUBE_FREE", "base_model", "default_free", "parse_free", "specs_for"]
+           "REST", "REST_RANGE", "REST_SIGMA_GEOMETRY", "REST_SIGMA_MIN", "SPECS", "TUBE_FREE", "base_model", "default_free", "parse_free", "specs_for"]
 
 #: The name of the per-tube, per-joint rest angles in ``--free``.
 REST = "rest_angle"
 #: Rest angles are fitted within this distance of the geometry file's [rad] (~11°).
 REST_RANGE = 0.2
+#: Prior σ of a rest angle that no trial measured at zero force: the geometry file's value [rad] (1°).
+REST_SIGMA_GEOMETRY = 0.0175
+#: The smallest prior σ of a rest angle [rad] (0.05°): a rest angle is never known better than this.
+REST_SIGMA_MIN = 8.7e-4
 #: The name of the per-tube, per-notch cut depths in ``--free``.
 DEPTH = "slot_depth"
 #: Cut depths are fitted within this distance of the geometry file's [m] ...
 DEPTH_RANGE = 60e-6
-#: ... with a zero-mean Gaussian prior of this standard deviation [m] (the cutting tolerance) ...
+#: ... with a zero-mean Gaussian prior of this standard deviation [m] (the cutting tolerance), unless the
+#: geometry file states its own (``slot_depth_tolerance_mm``) ...
 DEPTH_TOLERANCE = 15e-6
 #: ... and the mean of a tube's offsets held near 0 [m]: a depth error common to a tube's
 #: notches scales its stiffness like the material does, so it is left to the shared material.

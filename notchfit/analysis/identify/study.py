@@ -17,8 +17,8 @@ from ..estimation.observations import METRICS, metric_unit, observe_study
 from ..estimation.identifiability import Identifiability, assess
 from ..estimation.solve import folds, se_values, tube_folds
 from .problem import Solution, errors, make_problem, predict, solve, with_values
-from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free,
-                    parse_free, specs_for)
+from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, REST, REST_RANGE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN,
+                    base_model, default_free, parse_free, specs_for)
 
 __all__ = ["FIT_SOLVER", "Identification", "TubeFit", "identify"]
 
@@ -45,6 +45,11 @@ class TubeFit:
         Identified offsets from the geometry's depths (0 when not identified) and their standard errors.
     model : FrictionParams
         The tube's model: the shared values with its rest angles and cut depths.
+    rest_prior, rest_prior_sd : ndarray (n,) [rad]
+        The prior of the rest angles: measured at zero force in the tube's trials (or the geometry's)
+        and its standard deviation (NaN: no prior).
+    depth_prior_sd : float [m]
+        The prior standard deviation of each cut-depth offset (the tolerance; NaN: not identified).
     """
 
     name: str
@@ -55,14 +60,22 @@ class TubeFit:
     depth_offsets: np.ndarray = field(repr=False)
     depth_se: np.ndarray = field(repr=False)
     model: FrictionParams = field(repr=False)
+    rest_prior: np.ndarray | None = field(default=None, repr=False)
+    rest_prior_sd: np.ndarray | None = field(default=None, repr=False)
+    depth_prior_sd: float = math.nan
 
     def as_dict(self) -> dict:
         """Degrees and millimetres (µm for the depth offsets), as in ``identify.json``."""
         deg = lambda a: [math.degrees(float(v)) for v in a]  # noqa: E731
         um = lambda a: [float(v) * 1e6 for v in a]  # noqa: E731
+        nan = np.full(len(self.rest_angles), math.nan)
         return {"experiments": list(self.experiments), "rest_angle_deg": deg(self.rest_angles),
-                "rest_angle_se_deg": deg(self.rest_se), "slot_depth_mm": [float(v) / MM for v in self.slot_depths],
-                "slot_depth_offset_um": um(self.depth_offsets), "slot_depth_offset_se_um": um(self.depth_se)}
+                "rest_angle_se_deg": deg(self.rest_se),
+                "rest_angle_prior_deg": deg(nan if self.rest_prior is None else self.rest_prior),
+                "rest_angle_prior_sd_deg": deg(nan if self.rest_prior_sd is None else self.rest_prior_sd),
+                "slot_depth_mm": [float(v) / MM for v in self.slot_depths],
+                "slot_depth_offset_um": um(self.depth_offsets), "slot_depth_offset_se_um": um(self.depth_se),
+                "slot_depth_prior_sd_um": float(self.depth_prior_sd) * 1e6}
 
 
 @dataclass(frozen=True)
@@ -145,6 +158,9 @@ class Identification:
         for tube, fit in self.tubes.items():
             if REST in self.tube_free:
                 lines.append(f"  {tube}: rest angles [deg] " + ", ".join(f"{v / DEG:.2f}" for v in fit.rest_angles))
+                if fit.rest_prior is not None and np.isfinite(fit.rest_prior).any():
+                    lines.append(f"  {tube}: their prior (zero-force trials, else geometry) [deg] " + ", ".join(
+                        f"{m / DEG:.2f} ± {sd / DEG:.2f}" for m, sd in zip(fit.rest_prior, fit.rest_prior_sd)))
             if DEPTH in self.tube_free:
                 lines.append(f"  {tube}: cut depths [mm] " + ", ".join(f"{v / MM:.4f}" for v in fit.slot_depths))
         held = "" if math.isnan(self.heldout_rms) else (f"; held-out rms {self.heldout_rms:.3f} {unit} "
@@ -203,6 +219,11 @@ class _Task:
     options: dict
 
 
+#: The options of :func:`_Task.options` that build the problem (the others solve it).
+_PROBLEM_OPTIONS = ("sim_kw", "rest_range", "depth_range", "depth_sigma", "depth_common", "rest_prior",
+                    "rest_sigma_geometry", "rest_sigma_min")
+
+
 def _fit(task: _Task):
     """Fit on the training experiments; predict the test ones (a batch item)."""
     with threadpool_limits(limits=1):
@@ -210,8 +231,7 @@ def _fit(task: _Task):
         models = [task.base[o.tube] for o in train]
         specs = specs_for(task.free, models, start=task.start)
         opt = dict(task.options)
-        prob_kw = {k: opt.pop(k) for k in ("sim_kw", "rest_range", "depth_range", "depth_sigma", "depth_common")
-                   if k in opt}
+        prob_kw = {k: opt.pop(k) for k in _PROBLEM_OPTIONS if k in opt}
         pb = make_problem(train, task.base, specs, rest=REST in task.free, depth=DEPTH in task.free,
                           excess=task.excess, **prob_kw)
         sol = solve(pb, **opt)
@@ -268,9 +288,10 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
              by_tube: bool = True, jobs: int = 1, scheduler=None, n_starts: int = 2, loss: str = "linear",
              f_scale: float = 3.0, max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6,
              diff_rel: float = 2e-3, rest_step: float = 2e-4, rest_range: float = REST_RANGE,
-             depth_range: float = DEPTH_RANGE, depth_sigma: float = DEPTH_TOLERANCE,
-             depth_common: float | None = DEPTH_COMMON, sim_kw: dict | None = None,
-             fix_undetermined: bool = True) -> Identification:
+             depth_range: float = DEPTH_RANGE, depth_sigma: float | None = None,
+             depth_common: float | None = DEPTH_COMMON, rest_prior: bool = True,
+             rest_sigma_geometry: float = REST_SIGMA_GEOMETRY, rest_sigma_min: float = REST_SIGMA_MIN,
+             sim_kw: dict | None = None, fix_undetermined: bool = True) -> Identification:
     """Identify the model's parameters on a study; held-out errors by leaving experiments (and tubes) out.
 
     Parameters
@@ -295,8 +316,14 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     rest_range : float
         How far the rest angles may move from the geometry's [rad].
     depth_range, depth_sigma, depth_common : float
-        Cut-depth offsets: bound, Gaussian prior per notch (the cutting tolerance) and
-        of a tube's mean (None: free) [m] (:func:`notchfit.analysis.identify.problem.make_problem`).
+        Cut-depth offsets: bound, Gaussian prior per notch (the cutting tolerance; None: each
+        geometry's ``slot_depth_tolerance_mm``, else 15 µm) and of a tube's mean (None: free) [m]
+        (:func:`notchfit.analysis.identify.problem.make_problem`).
+    rest_prior, rest_sigma_geometry, rest_sigma_min :
+        Tie each tube's rest angles to the angles its trials measured at zero force, with their
+        standard error (else to the geometry's, σ ``rest_sigma_geometry`` [rad]; at least
+        ``rest_sigma_min`` [rad]); False: rest angles free within ``rest_range`` (the behaviour
+        before the prior).
     sim_kw : dict, optional
         Options of :func:`notchfit.physics.friction.simulate` during the fits (default
         :data:`FIT_SOLVER`); the reported errors always use its defaults.
@@ -317,7 +344,8 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     excess = max(first.mu_s - first.mu_d, 0.0)
     options = dict(n_starts=n_starts, loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol, xtol=xtol,
                    diff_rel=diff_rel, rest_step=rest_step, rest_range=rest_range, depth_range=depth_range,
-                   depth_sigma=depth_sigma, depth_common=depth_common,
+                   depth_sigma=depth_sigma, depth_common=depth_common, rest_prior=rest_prior,
+                   rest_sigma_geometry=rest_sigma_geometry, rest_sigma_min=rest_sigma_min,
                    sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
     run = dict(jobs=jobs, scheduler=scheduler, heldout=heldout, by_tube=by_tube)
     first_fit = _run(obs, base, free, model, excess, options, dict(run, heldout=False, by_tube=False))[0]
@@ -352,20 +380,42 @@ def _run(obs, base, free, model, excess, options, run: dict, skip_all: bool = Fa
     return res.values()
 
 
+def _block_priors(pb) -> dict:
+    """Tube -> {block name: (mean, sd) (n,), (n,)} of the per-unknown prior rows of its blocks."""
+    single = (pb.prior != 0).sum(axis=1) == 1
+    mean_sd = {}
+    offset = np.zeros(pb.prior.shape[0]) if pb.prior_offset is None else pb.prior_offset
+    for r in np.flatnonzero(single):
+        i = int(np.flatnonzero(pb.prior[r])[0])
+        w = float(pb.prior[r, i])
+        mean_sd[i] = (float(offset[r]) / w, 1.0 / abs(w))
+    out, i = {}, pb.k
+    for b in pb.blocks:
+        rows = [mean_sd.get(k, (math.nan, math.nan)) for k in range(i, i + b.size)]
+        out.setdefault(b.owner, {})[b.name] = (np.array([m for m, _ in rows]), np.array([s for _, s in rows]))
+        i += b.size
+    return out
+
+
 def _tube_fits(obs, pb, sol, fitted) -> dict:
     """Tube -> :class:`TubeFit` of the full fit."""
     se_of = pb.tube_values(sol.se)
+    priors = _block_priors(pb)
     out = {}
     for t in dict.fromkeys(o.tube for o in obs):
         geom = next(o.geom for o in obs if o.tube == t)
         p, n = fitted[t], geom.n_joints
         nan = np.full(n, math.nan)
+        rest_prior = priors.get(t, {}).get("rest_angle", (None, None))
+        depth_sd = priors.get(t, {}).get("slot_depth_offset", (None, nan))[1]
         out[t] = TubeFit(name=t, experiments=tuple(o.name for o in obs if o.tube == t),
                          rest_angles=p.rest_angles(geom), rest_se=se_of.get(t, {}).get("rest_angle", nan),
                          slot_depths=p.depth_geometry(geom).slot_depths,
                          depth_offsets=np.zeros(n) if p.slot_depth_offset is None
                          else np.broadcast_to(np.asarray(p.slot_depth_offset, float), (n,)).copy(),
-                         depth_se=se_of.get(t, {}).get("slot_depth_offset", nan), model=p)
+                         depth_se=se_of.get(t, {}).get("slot_depth_offset", nan), model=p,
+                         rest_prior=rest_prior[0], rest_prior_sd=rest_prior[1],
+                         depth_prior_sd=float(depth_sd[0]) if np.size(depth_sd) else math.nan)
     return out
 
 
