@@ -15,7 +15,9 @@ from ...physics.friction_params import PARAM_KEYS
 from ...units import DEG, MM
 from ..estimation.observations import METRICS, metric_unit, observe_study
 from ..estimation.identifiability import Identifiability, assess
+from ..estimation.problem import measure_registered
 from ..estimation.solve import folds, se_values, tube_folds
+from ..lack_of_fit import Trial, lack_of_fit_summary, study_lack_of_fit
 from .problem import Solution, errors, make_problem, predict, solve, with_values
 from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, REST, REST_RANGE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN,
                     base_model, default_free, parse_free, specs_for)
@@ -123,6 +125,10 @@ class Identification:
     fixed : dict
         Parameters the data did not determine, fixed at their start values (the base model's) and
         fitted no further: name -> value (SI). They are not among :attr:`free`.
+    lack_of_fit : dict
+        Tube -> :class:`notchfit.analysis.lack_of_fit.LackOfFit` of the fit on every experiment: the
+        trials' scatter (pure error) and the error beyond it, per notch and per force range, with
+        its F test (in :attr:`unit`).
     """
 
     metric: str
@@ -141,6 +147,7 @@ class Identification:
     solution: Solution | None = field(default=None, repr=False)
     identifiability: Identifiability | None = field(default=None, repr=False)
     fixed: dict = field(default_factory=dict)
+    lack_of_fit: dict = field(default_factory=dict, repr=False)
 
     @property
     def unit(self) -> str:
@@ -169,6 +176,8 @@ class Identification:
         lines += [f"  {name:12s} held out {v:.3f} {unit}" for name, v in self.heldout.items()]
         lines += [f"  tube {tube}: predicted from the other tubes' fit {v:.3f} {unit}"
                   for tube, v in self.heldout_by_tube.items()]
+        if self.lack_of_fit:
+            lines.append(lack_of_fit_summary(self.lack_of_fit))
         return "\n".join(lines)
 
     def as_dict(self) -> dict:
@@ -190,6 +199,7 @@ class Identification:
             # parameters the data do not determine: fixed at their start value, never printed as a number
             # plus or minus many times itself; the verdicts of the first fit, per free parameter
             "fixed_at_prior": {key[f]: v for f, v in self.fixed.items()},
+            "lack_of_fit": {t: lof.as_dict() for t, lof in self.lack_of_fit.items()},
             "identifiability": None if self.identifiability is None else {
                 key.get(p.name, p.name): {"verdict": p.verdict, "relative_se": p.relative_se,
                                           "null_weight": p.null_weight}
@@ -438,7 +448,8 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
     vals = pb.values(sol.x)
     se = se_values(pb, sol.x, sol.se)
     tubes = _tube_fits(obs, pb, sol, fitted)
-    train_err = {o.name: errors(o, predict(o, fitted[o.tube])) for o in obs}
+    theta = {o.name: predict(o, fitted[o.tube]) for o in obs}
+    train_err = {o.name: errors(o, theta[o.name]) for o in obs}
     held, by_tube = {}, {}
     for task, (_, _, _, preds) in zip(tasks[1:], outs[1:]):
         if task.kind == "experiment":
@@ -453,4 +464,27 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
         experiment_tubes={o.name: o.tube for o in obs}, train_rms=_rms([e / unit for e in train_err.values()]),
         train={k: _rms([e / unit]) for k, e in train_err.items()},
         heldout_rms=_rms([e / unit for e in held.values()]), heldout={k: _rms([e / unit]) for k, e in held.items()},
-        heldout_by_tube=by_tube, solution=sol)
+        heldout_by_tube=by_tube, solution=sol, lack_of_fit=_lack_of_fit(obs, pb, theta))
+
+
+def _lack_of_fit(obs, pb, theta: dict, *, tol: float = 0.15) -> dict:
+    """Tube -> LackOfFit of the fit on every experiment (predicted ``theta`` by experiment), per notch
+    (angles) or point coordinate (points); the parameters counted: the shared ones and the tube's."""
+    _, unit = metric_unit(obs[0].metric)
+    per_tube = {b.owner: 0 for b in pb.blocks}
+    for b in pb.blocks:
+        per_tube[b.owner] += b.size
+    trials, labels = [], None
+    for o in obs:
+        pred = measure_registered(o, theta[o.name])
+        S = o.time.size
+        if o.metric == "points":
+            labels = [f"point {i + 1}" for i in range(o.measured.shape[1]) for _ in "xy"]
+        trials.append(Trial(o.name, o.tube, o.measured.reshape(S, -1), np.asarray(pred, float).reshape(S, -1),
+                            o.pulled_tension))
+    out = {}
+    for t in dict.fromkeys(o.tube for o in obs):
+        out.update(study_lack_of_fit([tr for tr in trials if tr.tube == t], n_params=pb.k + per_tube.get(t, 0),
+                                     unit=METRICS[obs[0].metric], scale=1.0 / unit, tol=tol,
+                                     response_labels=labels))
+    return out
