@@ -74,6 +74,8 @@ def _model_metadata(result, data: dict) -> dict:
     meta = {"source": "notchfit identify", "metric": result.unit, "free": data["free"] + data["free_per_tube"],
             "se": data["se"],
             "train_rms": result.train_rms, "heldout_rms": result.heldout_rms, "tubes": list(result.tubes)}
+    if data.get("prediction"):
+        meta["prediction"] = data["prediction"]     # the prediction bands of `simulate --model`
     if len(meta["tubes"]) > 1:
         meta["note"] = ("shared parameters of every tube; each tube's rest angles and cut depths are in "
                         "its model_<tube>.toml")

@@ -14,12 +14,13 @@ from ...physics.friction import FrictionParams
 from ...physics.friction_params import PARAM_KEYS
 from ...units import DEG, MM
 from ..estimation.observations import METRICS, metric_unit, observe_study
+from ..estimation.bands import NewTubePrior
 from ..estimation.identifiability import Identifiability, assess
 from ..estimation.problem import measure_registered
 from ..estimation.solve import folds, se_values, tube_folds
 from ..lack_of_fit import Trial, lack_of_fit_summary, study_lack_of_fit
 from .problem import Solution, errors, make_problem, predict, solve, with_values
-from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, REST, REST_RANGE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN,
+from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN,
                     base_model, default_free, parse_free, specs_for)
 
 __all__ = ["FIT_SOLVER", "Identification", "TubeFit", "identify"]
@@ -129,6 +130,10 @@ class Identification:
         Tube -> :class:`notchfit.analysis.lack_of_fit.LackOfFit` of the fit on every experiment: the
         trials' scatter (pure error) and the error beyond it, per notch and per force range, with
         its F test (in :attr:`unit`).
+    new_tube : NewTubePrior or None
+        What the model knows of a tube it has never seen (the shared parameters' covariance, the
+        tube-to-tube scatter of rest angles and cut depths): the prediction bands of ``simulate
+        --model`` and :class:`notchfit.analysis.estimation.bands.BandPredictor`.
     """
 
     metric: str
@@ -148,6 +153,7 @@ class Identification:
     identifiability: Identifiability | None = field(default=None, repr=False)
     fixed: dict = field(default_factory=dict)
     lack_of_fit: dict = field(default_factory=dict, repr=False)
+    new_tube: NewTubePrior | None = field(default=None, repr=False)
 
     @property
     def unit(self) -> str:
@@ -200,6 +206,7 @@ class Identification:
             # plus or minus many times itself; the verdicts of the first fit, per free parameter
             "fixed_at_prior": {key[f]: v for f, v in self.fixed.items()},
             "lack_of_fit": {t: lof.as_dict() for t, lof in self.lack_of_fit.items()},
+            "prediction": None if self.new_tube is None else self.new_tube.as_metadata(),
             "identifiability": None if self.identifiability is None else {
                 key.get(p.name, p.name): {"verdict": p.verdict, "relative_se": p.relative_se,
                                           "null_weight": p.null_weight}
@@ -464,7 +471,35 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
         experiment_tubes={o.name: o.tube for o in obs}, train_rms=_rms([e / unit for e in train_err.values()]),
         train={k: _rms([e / unit]) for k, e in train_err.items()},
         heldout_rms=_rms([e / unit for e in held.values()]), heldout={k: _rms([e / unit]) for k, e in held.items()},
-        heldout_by_tube=by_tube, solution=sol, lack_of_fit=_lack_of_fit(obs, pb, theta))
+        heldout_by_tube=by_tube, solution=sol, lack_of_fit=_lack_of_fit(obs, pb, theta),
+        new_tube=_new_tube_prior(pb, sol, tubes, base, free))
+
+
+def _new_tube_prior(pb, sol, tubes: dict, base: dict, free, *, min_rest_sd: float = REST_SIGMA_MIN) -> NewTubePrior:
+    """:class:`NewTubePrior` of the fit on every experiment: the shared parameters' covariance in the
+    fit's coordinates (the Gauss–Newton correlations scaled to the reported standard errors, marginal
+    over the per-tube unknowns); the rest angles' tube-to-tube scatter about the geometry files'
+    (their mean square less their squared standard errors, at least ``min_rest_sd``; 0 when they were
+    not fitted); the cut depths with each drawing's tolerance (0: as drawn, when not fitted)."""
+    k = pb.k
+    se = np.asarray(sol.se[:k], float)
+    if sol.jacobian is not None and k:
+        C = np.linalg.pinv(sol.jacobian.T @ sol.jacobian)[:k, :k]
+        d = np.sqrt(np.clip(np.diag(C), 1e-300, None))
+        cov = C / np.outer(d, d) * np.outer(se, se)
+    else:
+        cov = np.diag(se ** 2)
+    rest_sd = 0.0
+    if REST in free:
+        d2, s2 = [], []
+        for t, fit in tubes.items():
+            geom_rest = base[t].rest_angles(next(o.geom for o in pb.obs if o.tube == t))
+            d2.append((fit.rest_angles - geom_rest) ** 2)
+            s2.append(np.nan_to_num(fit.rest_se) ** 2)
+        rest_sd = math.sqrt(max(float(np.mean(np.concatenate(d2)) - np.mean(np.concatenate(s2))), min_rest_sd ** 2))
+    return NewTubePrior(tuple(s.name for s in pb.specs), tuple(bool(s.log) for s in pb.specs),
+                        np.asarray(sol.x[:k], float), 0.5 * (cov + cov.T), rest_sd,
+                        None if DEPTH in free else 0.0, DEPTH_TOLERANCE)
 
 
 def _lack_of_fit(obs, pb, theta: dict, *, tol: float = 0.15) -> dict:
