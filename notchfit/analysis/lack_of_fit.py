@@ -439,7 +439,7 @@ def lack_of_fit_summary(tables: dict) -> str:
     """The :meth:`LackOfFit.summary` of each tube of :func:`study_lack_of_fit`, titled by tube when several."""
     if len(tables) == 1:
         return next(iter(tables.values())).summary()
-    return "\n".join(f"tube {tube}: " + lof.summary() for tube, lof in tables.items())
+    return "\n".join(f"{tube}: " + lof.summary() for tube, lof in tables.items())
 
 
 def shape_fit_lack_of_fit(items, models, *, tol: float = 0.15, n_ranges: int = 3, alpha: float = 0.05) -> dict:

@@ -233,7 +233,7 @@ def make_problem(obs, base: dict, specs, *, rest: bool = False, depth: bool = Fa
 
 def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: float = 3.0,
           max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6, diff_rel: float = 2e-3,
-          rest_step: float = 2e-4) -> Solution:
+          rest_step: float = 2e-4, grid: bool = True, starts=()) -> Solution:
     """Minimise the problem's cost from the best ``n_starts`` of its probe grid (the core's
     :func:`~notchfit.analysis.estimation.solve.solve`, forward differences).
 
@@ -250,7 +250,13 @@ def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: floa
         Finite-difference step: relative for the parameters (their log for log-scale ones).
     rest_step : float
         Finite-difference step of the rest angles [rad].
+    grid : bool
+        Start from the best of the probe grid; False: one run from the problem's start (a warm
+        start, e.g. a held-out refit from the fit on every experiment).
+    starts : sequence of ndarray
+        Further starts (optimiser coordinates), each one more run.
     """
-    starts, nprobe = grid_starts(pb, n_starts)
+    first, nprobe = grid_starts(pb, n_starts) if grid else ([pb.x0], 0)
+    starts = list(first) + [np.asarray(x, float) for x in starts]
     return solve_problem(pb, starts, jac="forward", loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol,
                          xtol=xtol, diff_rel=diff_rel, block_steps={"rest_angle": rest_step}, nfev=nprobe)

@@ -76,13 +76,16 @@ SPECS = {
     "theta_mid": ParamSpec("theta_mid", 0.005, 0.5, 0.07, log=True),
     "theta_stop": ParamSpec("theta_stop", 0.01, 1.0, 0.14, log=True),
     "stop_ratio": ParamSpec("stop_ratio", 2.0, 500.0, 20.7, log=True),
+    # the tension–compression asymmetry of the plateau's onset (compression over tension, 1.2-1.5 for
+    # superelastic nitinol): probes on both sides of the symmetric law
+    "strain_ratio": ParamSpec("strain_ratio", 0.7, 2.5, 1.0, log=True, probes=(1.0, 1.5)),
     **{s.name: s for c in REGISTRY.values() if c.identifiable for s in c.params},
 }
 
 
 #: The spring law a parameter acts through (the others act on every tube).
 _LAW_OF = {**{k: "rates" for k in ("k_lin", "k_mid", "k_stop", "theta_mid", "theta_stop")},
-           **{k: "material" for k in ("E_lin", "E_se", "strain_lower", "stop_ratio", DEPTH)}}
+           **{k: "material" for k in ("E_lin", "E_se", "strain_lower", "stop_ratio", "strain_ratio", DEPTH)}}
 
 
 def parse_free(names) -> tuple[str, ...]:

@@ -234,6 +234,7 @@ class _Task:
     start: FrictionParams | None
     excess: float
     options: dict
+    warm: tuple | None = None
 
 
 #: The options of :func:`_Task.options` that build the problem (the others solve it).
@@ -251,6 +252,13 @@ def _fit(task: _Task):
         prob_kw = {k: opt.pop(k) for k in _PROBLEM_OPTIONS if k in opt}
         pb = make_problem(train, task.base, specs, rest=REST in task.free, depth=DEPTH in task.free,
                           excess=task.excess, **prob_kw)
+        if task.warm is not None:
+            x_warm = _warm_x(pb, *task.warm)
+            if task.kind == "tube":          # the headline figure: the grid's best and the warm start compete
+                opt.update(starts=(x_warm,), n_starts=1)
+            else:                            # one experiment less: one run from the fit on every experiment
+                pb = replace(pb, x0=x_warm)
+                opt.update(grid=False, n_starts=1)
         sol = solve(pb, **opt)
         fitted = pb.params(sol.x)
         vals = pb.values(sol.x)
@@ -260,6 +268,22 @@ def _fit(task: _Task):
             params = fitted.get(o.tube, with_values(task.base[o.tube], vals, task.excess))
             preds[o.name] = errors(o, predict(o, params))
         return pb, sol, fitted, preds
+
+
+def _warm_x(pb, params: FrictionParams, blocks: dict) -> np.ndarray:
+    """``pb``'s unknowns at the shared values of ``params`` and the per-tube values ``blocks`` (tube ->
+    {block name: values}) where it has them, clipped inside the bounds."""
+    x0 = pb.x0.copy()
+    for i, s in enumerate(pb.specs):
+        x0[i] = s.to_x(float(getattr(params, s.name)), pb.scales[i])
+    i = pb.k
+    for b in pb.blocks:
+        v = blocks.get(b.owner, {}).get(b.name)
+        if v is not None:
+            x0[i:i + b.size] = v
+        i += b.size
+    margin = 1e-9 * (pb.hi - pb.lo)
+    return np.clip(x0, pb.lo + margin, pb.hi - margin)
 
 
 def _rms(values) -> float:
@@ -281,15 +305,18 @@ def _base_models(obs, model: FrictionParams | None) -> dict:
     return out
 
 
-def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool) -> tuple[list, list]:
-    """The full fit, one fit per left-out experiment, one per left-out tube (keys and tasks)."""
+def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool,
+           warm: tuple | None = None) -> tuple[list, list]:
+    """The full fit, one fit per left-out experiment, one per left-out tube (keys and tasks). ``warm``
+    (:func:`_warm_start`): the held-out fits start from the fit on every experiment, one run without the
+    probe grid."""
     idx = tuple(range(len(obs)))
-    rest = (base, free, start, excess, options)
-    keys, tasks = ["all"], [_Task("all", obs, idx, (), *rest)]
+    keys, tasks = ["all"], [_Task("all", obs, idx, (), base, free, start, excess, options)]
+    held = (base, free, start, excess, options, warm)
 
     def held_out(kind, test):
         test = tuple(int(i) for i in test)
-        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, *rest)
+        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, *held)
 
     if heldout and len(obs) > 1:
         for f in folds(len(obs)):
@@ -308,7 +335,7 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
              depth_range: float = DEPTH_RANGE, depth_sigma: float | None = None,
              depth_common: float | None = DEPTH_COMMON, rest_prior: bool = True,
              rest_sigma_geometry: float = REST_SIGMA_GEOMETRY, rest_sigma_min: float = REST_SIGMA_MIN,
-             sim_kw: dict | None = None, fix_undetermined: bool = True) -> Identification:
+             sim_kw: dict | None = None, fix_undetermined: bool = True, warm_start: bool = True) -> Identification:
     """Identify the model's parameters on a study; held-out errors by leaving experiments (and tubes) out.
 
     Parameters
@@ -349,6 +376,10 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
         (:func:`notchfit.analysis.estimation.identifiability.assess` on its Jacobian), fix it at its
         start value and make every fit without it (:attr:`Identification.fixed`). The fit on every
         experiment therefore runs before the held-out fits.
+    warm_start : bool
+        The held-out fits start from the fit on every experiment (one least-squares run, no probe
+        grid: the data of all but one experiment or tube put the optimum near it); False: each
+        runs the full procedure from the probe grid.
 
     Returns
     -------
@@ -371,19 +402,28 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     if drop:
         # a parameter the data do not determine stays at its start value; every fit is made without it
         free = tuple(f for f in free if f not in drop)
-        outs = _run(obs, base, free, model, excess, options, run)
-    else:
-        outs = [first_fit] + _run(obs, base, free, model, excess, options, run, skip_all=True)
-    tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube)[1]
+        first_fit = _run(obs, base, free, model, excess, options, dict(run, heldout=False, by_tube=False))[0]
+    warm = _warm_start(first_fit, base, excess, model) if warm_start else None
+    outs = [first_fit] + _run(obs, base, free, model, excess, options, run, skip_all=True, warm=warm)
+    tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube, warm)[1]
     result = _result(obs, base, free, excess, tasks, outs)
     start = next(iter(base.values()))
     return replace(result, identifiability=verdicts, fixed={f: float(getattr(start, f)) for f in drop})
 
 
-def _run(obs, base, free, model, excess, options, run: dict, skip_all: bool = False) -> list:
+def _warm_start(fit, base: dict, excess: float, model: FrictionParams | None) -> tuple:
+    """Where the held-out fits start: the base model with the shared values of ``fit``, and each tube's
+    unknowns as ``fit`` found them (tube -> {block name: values})."""
+    pb, sol = fit[0], fit[1]
+    start = model if model is not None else next(iter(base.values()))
+    return with_values(start, pb.values(sol.x), excess), pb.tube_values(sol.x)
+
+
+def _run(obs, base, free, model, excess, options, run: dict, skip_all: bool = False,
+         warm: tuple | None = None) -> list:
     """The fits of :func:`_tasks` on :func:`notchfit.batch.run_batch` (without the fit on every
     experiment when ``skip_all``); their outputs in task order."""
-    keys, tasks = _tasks(obs, base, free, model, excess, options, run["heldout"], run["by_tube"])
+    keys, tasks = _tasks(obs, base, free, model, excess, options, run["heldout"], run["by_tube"], warm)
     if skip_all:
         keys, tasks = keys[1:], tasks[1:]
     if not tasks:
