@@ -55,6 +55,16 @@ def test_strain_ratio_in_model_files_and_free(tip_first, tmp_path):
     assert io.load_params(tmp_path / "b.toml").strain_ratio == 1.4
     assert parse_free(["strain_ratio"]) == ("strain_ratio",)
     spec, = specs_for(("strain_ratio",), [p])
-    assert spec.log and spec.lower < 1.0 < 1.5 < spec.upper
+    assert spec.log and spec.lower == 1.0 < 1.5 < spec.upper
     with pytest.raises(ValueError, match="spring_law = 'material'"):
         specs_for(("strain_ratio",), [FrictionParams()])
+
+
+def test_strain_ratio_is_identified_where_the_cut_face_governs(tip_first):
+    """By default only for tubes with a notch whose cut face lies >= 5 % farther from the neutral axis
+    than its back (the tip-first wrist's shallow base notch: 11 %), not for the uniform wrist (4 %)."""
+    from notchfit.analysis.identify import default_free
+    uniform = io.load_geometry(io.datasets_dir() / "geometry" / "wrist_asymmetric.toml")
+    assert "strain_ratio" not in default_free([default_params(uniform)], [uniform])
+    assert default_free([default_params(tip_first)], [tip_first])[:5] == ("E_lin", "E_se", "strain_lower",
+                                                                         "strain_ratio", "mu_d")

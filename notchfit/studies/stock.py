@@ -29,9 +29,10 @@ __all__ = ["MATERIAL_TRUTH", "StockTruth", "stock_geometries", "synthetic_stock"
 MATERIAL_TRUTH = {"E_lin": 45e9, "E_se": 3e9, "strain_lower": 0.014, "mu_d": 0.12, "mu_s": 0.13,
                   "damping_time": 1e-3}
 
-#: A third drawing: 5 notches, depths graded from base to tip, pre-curved.
+#: A third drawing: 5 notches, depths graded from base to tip (the base's shallow cuts leave a wall
+#: whose cut face lies up to 1.27 times farther from the neutral axis than its back), pre-curved.
 _WRIST_C = {"name": "wrist_c", "n_joints": 5, "outer_radius_mm": 0.81, "inner_radius_mm": 0.70,
-            "slot_width_mm": [0.6, 0.6, 0.7, 0.7, 0.7], "slot_depth_mm": [1.38, 1.40, 1.40, 1.42, 1.44],
+            "slot_width_mm": [0.6, 0.6, 0.7, 0.7, 0.7], "slot_depth_mm": [1.26, 1.30, 1.34, 1.38, 1.42],
             "p_mm": [1.4, 1.5, 1.5, 1.5], "rest_angle_rad": [0.03, 0.05, 0.04, 0.06, 0.03],
             "slot_sides": [1, 1, 1, 1, 1], "backbone": "section", "tendons": ["right"], "tendon_path": "lumen",
             "cable_radius_mm": 0.05, "base_edge_z_mm": -1.0}
@@ -84,7 +85,7 @@ def _trial(name, geom, params, rng, peak, n_up, dt, angle_sigma, tension_sigma, 
 
 
 def synthetic_stock(seed: int = 0, *, trials=(5, 4, 4), effect: dict | None = None,
-                    depth_tolerance: float = 15e-6, depth_sd: float = 10e-6, peaks=((2.2, 3.0), (1.4, 1.9), (1.6, 2.3)),
+                    depth_tolerance: float = 15e-6, depth_sd: float = 10e-6, peaks=((2.2, 3.0), (1.4, 1.9), (2.6, 3.4)),
                     n_up: int = 10, dt: float = 5.0, angle_sigma: float = np.radians(0.5),
                     tension_sigma: float = 0.005, geometries=None) -> tuple[list, StockTruth]:
     """Trials of three wrists of one stock, with the truth (module docstring).
