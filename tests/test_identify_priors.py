@@ -12,6 +12,7 @@ from notchfit.analysis.identify import make_problem, specs_for
 from notchfit.analysis.identify.problem import _rest_prior
 from notchfit.analysis.identify.specs import DEPTH_TOLERANCE, REST_SIGMA_GEOMETRY, base_model
 from notchfit.studies.recipes import recipe_from_dict
+from notchfit.studies.stock import stock_recipe
 from notchfit.studies.synth import generate_study
 
 REST_TRUE = (0.02, 0.035, -0.01, 0.05, 0.0)
@@ -21,14 +22,8 @@ ANGLE_SIGMA = np.radians(0.5)
 @pytest.fixture(scope="module")
 def precurved(tmp_path_factory):
     """Three loading-only trials of a pre-curved 5-notch wrist whose geometry file says 0 rest angles."""
-    d = {"name": "prior", "seed": 4, "geometry": "wrist_asymmetric", "observe": "angles", "base": {},
-         "fixed": {"spring_law": "material", "friction_law": "capstan", "E_lin": 45e9, "E_se": 3e9,
-                   "strain_lower": 0.014, "mu_d": 0.12, "mu_s": 0.13, "damping_time": 1e-3,
-                   "rest_angle": list(REST_TRUE)},
-         "noise": {"point_mm": 0.0, "tension_N": 0.005, "displacement_step_mm": 0.0, "angle_deg": 0.5},
-         "plane": {"tx_mm": 0.0, "ty_mm": 0.0, "phi_deg": 0.0},
-         "protocol": {"n_up": 8, "n_down": 0, "dt_s": 5.0, "pull": "right", "counter_N": 0.0},
-         "experiments": [{"name": f"T{i + 1}", "peak_N": [2.0, 2.6]} for i in range(3)]}
+    d = stock_recipe("prior", "wrist_asymmetric", [{"name": f"T{i + 1}", "peak_N": [2.0, 2.6]} for i in range(3)],
+                     seed=4, rest_angle=list(REST_TRUE))
     folder = tmp_path_factory.mktemp("prior") / "study"
     generate_study(recipe_from_dict(d), folder, force=True)
     return observe_study(io.read_study(folder), prefer="angles")

@@ -153,14 +153,10 @@ def test_fit_prints_and_records_the_lack_of_fit(tmp_path, capsys):
 
     from notchfit.cli import main
     from notchfit.studies.recipes import recipe_from_dict
+    from notchfit.studies.stock import stock_recipe
     from notchfit.studies.synth import generate_study
-    d = {"name": "lof", "seed": 3, "geometry": "wrist_tip_first", "observe": "angles", "base": {},
-         "fixed": {"spring_law": "material", "friction_law": "capstan", "E_lin": 45e9, "E_se": 3e9,
-                   "strain_lower": 0.014, "mu_d": 0.12, "mu_s": 0.13, "damping_time": 1e-3},
-         "noise": {"point_mm": 0.0, "tension_N": 0.005, "displacement_step_mm": 0.0, "angle_deg": 0.5},
-         "plane": {"tx_mm": 0.0, "ty_mm": 0.0, "phi_deg": 0.0},
-         "protocol": {"n_up": 8, "n_down": 0, "dt_s": 5.0, "pull": "right", "counter_N": 0.0},
-         "experiments": [{"name": f"T{i + 1}", "peak_N": [1.8, 1.9]} for i in range(3)]}
+    d = stock_recipe("lof", "wrist_tip_first", [{"name": f"T{i + 1}", "peak_N": [1.8, 1.9]} for i in range(3)],
+                     seed=3)
     generate_study(recipe_from_dict(d), tmp_path / "s", force=True)
     assert main(["fit", str(tmp_path / "s"), "--out", str(tmp_path / "o"), "--no-figures",
                  "--models", "cc,free"]) == 0

@@ -41,7 +41,10 @@ cable displacements) and, when the experiment has measured points, simulation_vs
 the prediction, Sec. IV-A); when it has measured joint angles (angles.csv),
 simulation_vs_angles.csv (the angle error per sample and per joint, in degrees); with Figs. 18
 (joint angles) and 19 (a and b vs tension, and the point error) as PNG and CSV; for a study,
-into OUT/<experiment>/.
+into OUT/<experiment>/. With a model file from `notchfit identify`, also prediction_band.csv:
+every notch angle's 95 % prediction interval for a tube the model has never seen (the shared
+parameters' covariance plus the tube-to-tube scatter of rest angles and cut depths), and the
+share of the measured angles inside it.
 
 Examples:
   notchfit simulate study/ --out out/

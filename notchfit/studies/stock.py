@@ -23,7 +23,7 @@ from ..io import Experiment, datasets_dir, load_geometry
 from ..physics.friction import default_params, simulate_angles
 from ..physics.geometry import Geometry, geometry_from_dict
 
-__all__ = ["MATERIAL_TRUTH", "StockTruth", "stock_geometries", "synthetic_stock"]
+__all__ = ["MATERIAL_TRUTH", "StockTruth", "stock_geometries", "stock_recipe", "synthetic_stock"]
 
 #: The stock's material and friction (superelastic nitinol, a tendon in the lumen).
 MATERIAL_TRUTH = {"E_lin": 45e9, "E_se": 3e9, "strain_lower": 0.014, "mu_d": 0.12, "mu_s": 0.13,
@@ -128,3 +128,27 @@ def synthetic_stock(seed: int = 0, *, trials=(5, 4, 4), effect: dict | None = No
             exps.append(_trial(f"{letter}{i + 1}", geom, p, rng, float(rng.uniform(lo, hi)), n_up, dt,
                                angle_sigma, tension_sigma, f"<synthetic stock {seed}>"))
     return exps, StockTruth(params, errors, effect, angle_sigma, tension_sigma)
+
+
+def stock_recipe(name: str, geometry: str, experiments, *, seed: int = 0, n_up: int = 8,
+                 **fixed) -> dict:
+    """A synth recipe (:func:`notchfit.studies.recipes.recipe_from_dict`) of loading-only trials of one wrist
+    of the stock's material (:data:`MATERIAL_TRUTH`), measured as angles (0.5° noise, 5 mN load cells).
+
+    Parameters
+    ----------
+    geometry : str
+        A shipped geometry's name or a geometry file.
+    experiments : sequence of dict
+        The recipe's experiments (``name``, ``peak_N``).
+    seed, n_up :
+        The recipe's seed and the steps from rest to the peak.
+    **fixed
+        Further truth fields (e.g. ``rest_angle``).
+    """
+    return {"name": name, "seed": seed, "geometry": geometry, "observe": "angles", "base": {},
+            "fixed": {"spring_law": "material", "friction_law": "capstan", **MATERIAL_TRUTH, **fixed},
+            "noise": {"point_mm": 0.0, "tension_N": 0.005, "displacement_step_mm": 0.0, "angle_deg": 0.5},
+            "plane": {"tx_mm": 0.0, "ty_mm": 0.0, "phi_deg": 0.0},
+            "protocol": {"n_up": n_up, "n_down": 0, "dt_s": 5.0, "pull": "right", "counter_N": 0.0},
+            "experiments": list(experiments)}

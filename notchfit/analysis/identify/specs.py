@@ -21,8 +21,10 @@ has the material of superelastic nitinol:
 * ``strain_ratio`` — the plateau's onset strain in compression over that in tension: superelastic
   nitinol transforms later in compression (1.2–1.5; Orgéas & Favier 1998, Gall et al. 1999), so a
   notch whose cut face (compressed) lies farther from the neutral axis than its back (stretched)
-  starts its plateau later than one threshold on its most strained fibre says; bounds 1–2.5, start
-  1.25; identified by default where some notch's geometry lets it act (:func:`default_free`).
+  starts its plateau later than one threshold on its most strained fibre says; bounds 0.7–2.5
+  (below 1 leaves the optimiser room around the symmetric law: with the bound at 1 it stalled there),
+  start 1 (the symmetric law); identified by default where some notch's geometry lets it act
+  (:func:`default_free`).
 
 Positive moduli and the strain threshold are fitted in log space. ``μ_s`` is
 tied to ``μ_d`` plus the base model's excess (0.01, the paper's).
@@ -92,7 +94,7 @@ SPECS = {
     "stop_ratio": ParamSpec("stop_ratio", 2.0, 500.0, 20.7, log=True),
     # the tension–compression asymmetry of the plateau's onset (compression over tension, 1.2-1.5 for
     # superelastic nitinol): probes on both sides of the symmetric law
-    "strain_ratio": ParamSpec("strain_ratio", 1.0, 2.5, 1.25, log=True, probes=(1.0, 1.5)),
+    "strain_ratio": ParamSpec("strain_ratio", 0.7, 2.5, 1.0, log=True, probes=(1.0, 1.5)),
     **{s.name: s for c in REGISTRY.values() if c.identifiable for s in c.params},
 }
 
@@ -145,7 +147,7 @@ def default_free(models, geoms) -> tuple[str, ...]:
         free += ["k_lin", "k_mid"]
     free.append("mu_d")
     real = [m for m, g in zip(models, geoms) if g.backbone == "section"]
-    if any(m.spring_law == "material" and _cut_governs(g) for m, g in zip(models, geoms)):
+    if "material" in laws and any(g.backbone == "section" and _cut_governs(g) for g in geoms):
         free.insert(free.index("mu_d"), "strain_ratio")
     if real:
         free.append(REST)
