@@ -233,7 +233,7 @@ def make_problem(obs, base: dict, specs, *, rest: bool = False, depth: bool = Fa
 
 def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: float = 3.0,
           max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6, diff_rel: float = 2e-3,
-          rest_step: float = 2e-4, grid: bool = True, starts=()) -> Solution:
+          rest_step: float = 2e-4, grid: bool = True, starts=(), errors: bool = True) -> Solution:
     """Minimise the problem's cost from the best ``n_starts`` of its probe grid (the core's
     :func:`~notchfit.analysis.estimation.solve.solve`, forward differences).
 
@@ -255,8 +255,10 @@ def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: floa
         start, e.g. a held-out refit from the fit on every experiment).
     starts : sequence of ndarray
         Further starts (optimiser coordinates), each one more run.
+    errors : bool
+        Compute the standard errors (and the Jacobian); False for a fit whose errors nobody reads.
     """
     first, nprobe = grid_starts(pb, n_starts) if grid else ([pb.x0], 0)
     starts = list(first) + [np.asarray(x, float) for x in starts]
     return solve_problem(pb, starts, jac="forward", loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol,
-                         xtol=xtol, diff_rel=diff_rel, block_steps={"rest_angle": rest_step}, nfev=nprobe)
+                         xtol=xtol, diff_rel=diff_rel, block_steps={"rest_angle": rest_step}, nfev=nprobe, errors=errors)

@@ -94,7 +94,7 @@ SPECS = {
     "stop_ratio": ParamSpec("stop_ratio", 2.0, 500.0, 20.7, log=True),
     # the tension–compression asymmetry of the plateau's onset (compression over tension, 1.2-1.5 for
     # superelastic nitinol): probes on both sides of the symmetric law
-    "strain_ratio": ParamSpec("strain_ratio", 0.7, 2.5, 1.0, log=True, probes=(1.0, 1.5)),
+    "strain_ratio": ParamSpec("strain_ratio", 0.7, 2.5, 1.0, log=True),
     **{s.name: s for c in REGISTRY.values() if c.identifiable for s in c.params},
 }
 

@@ -252,6 +252,8 @@ def _fit(task: _Task):
         prob_kw = {k: opt.pop(k) for k in _PROBLEM_OPTIONS if k in opt}
         pb = make_problem(train, task.base, specs, rest=REST in task.free, depth=DEPTH in task.free,
                           excess=task.excess, **prob_kw)
+        if task.kind != "all":
+            opt["errors"] = False            # a held-out fit predicts; its standard errors are not read
         if task.warm is not None:
             x_warm = _warm_x(pb, *task.warm)
             if task.kind == "tube":          # the headline figure: the grid's best and the warm start compete
