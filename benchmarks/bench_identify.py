@@ -16,14 +16,22 @@ and 5 mN load-cell noise, truth by the reference solver (recipe as in
 * The fits' solver options (``identify.FIT_SOLVER``) against ``simulate``'s defaults:
   max |dtheta| on the study at the identified model.
 
+* A stock of three wrists (issue 27; :func:`notchfit.studies.stock.synthetic_stock`, seed 0): 13
+  loading-only trials (5, 4, 4) of 11 samples, cut errors of 10 um, 0.5 deg noise; the fit on every
+  trial (4 shared parameters, 28 per-tube unknowns), 13 leave-one-trial-out and 3 leave-one-tube-out
+  refits, with ``--jobs 1`` and ``--jobs 2``: wall and CPU time (the parent's and its workers'),
+  beside the same with every held-out fit run from its probe grid (``warm_start=False``). Target:
+  <= 10 s on 2 cores.
+
 Usage::
 
-    python benchmarks/bench_identify.py [--jobs 1,2]
+    python benchmarks/bench_identify.py [--jobs 1,2] [--only stock]
 """
 
 from __future__ import annotations
 
 import argparse
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -39,6 +47,7 @@ from notchfit.analysis.identify.problem import whitened
 from notchfit.analysis.identify.specs import base_model, specs_for
 from notchfit.analysis.identify.study import FIT_SOLVER
 from notchfit.studies.recipes import recipe_from_dict
+from notchfit.studies.stock import synthetic_stock
 from notchfit.studies.synth import generate_study
 
 TRUTH = {"E_lin": 45e9, "E_se": 3e9, "strain_lower": 0.014, "mu_d": 0.12}
@@ -67,7 +76,7 @@ def reference_fit(exps):
     def residuals(x):
         by_tube = pb.params(x)
         out = [whitened(o, simulate(o.time, None, o.tension_right, by_tube[o.tube], o.geom).theta) for o in obs]
-        return np.concatenate(out + [pb.prior @ x])
+        return np.concatenate(out + [pb.prior_residuals(x)])
 
     t0 = time.perf_counter()
     res = least_squares(residuals, pb.x0, bounds=(pb.lo, pb.hi), method="trf", x_scale="jac",
@@ -75,15 +84,41 @@ def reference_fit(exps):
     return time.perf_counter() - t0, pb.values(res.x), res.nfev + res.njev * pb.x0.size
 
 
+def _cpu() -> float:
+    """CPU seconds of this process and its finished workers."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def bench_stock(jobs_list) -> None:
+    """identify on the 3-tube, 13-trial stock: wall and CPU time, warm-started held-out fits and not."""
+    exps, _ = synthetic_stock(0)
+    identify(exps[:2], heldout=False)                      # compile / load the kernels' cache
+    print(f"== identify on a stock of 3 wrists, {len(exps)} trials (17 fits: all, 13 trials and 3 tubes held out)")
+    for warm in (True, False):
+        for jobs in jobs_list:
+            t0, c0 = time.perf_counter(), _cpu()
+            r = identify(exps, jobs=jobs, warm_start=warm)
+            dt, cpu = time.perf_counter() - t0, _cpu() - c0
+            tubes = ", ".join(f"{k} {v:.2f}" for k, v in r.heldout_by_tube.items())
+            print(f"warm_start={warm!s:5s} --jobs {jobs}: {dt:6.1f} s wall, {cpu:6.1f} s CPU; held-out rms "
+                  f"{r.heldout_rms:.3f} deg, tubes held out: {tubes} deg")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", default="1,2")
+    ap.add_argument("--only", choices=("stock",), default=None, help="run the stock benchmark alone")
     args = ap.parse_args(argv)
+    jobs_list = [int(j) for j in args.jobs.split(",")]
+    bench_stock(jobs_list)
+    if args.only == "stock":
+        return
     with tempfile.TemporaryDirectory() as tmp:
         exps = make_study(Path(tmp) / "study")
         identify(exps[:2], heldout=False)                      # compile / load the kernels' cache
         print("== identify on 3 loading-only trials of one wrist (15 samples each)")
-        for jobs in (int(j) for j in args.jobs.split(",")):
+        for jobs in jobs_list:
             t0 = time.perf_counter()
             r = identify(exps, jobs=jobs)
             dt = time.perf_counter() - t0

@@ -89,6 +89,15 @@ def test_identify_recovers_the_material_of_a_synthetic_wrist(one_wrist):
     # the shared model of a one-tube study carries its rest angles, cut depths and the quasi-static damping
     assert res.model.rest_angle == tuple(tube.rest_angles) and res.model.damping_time == pytest.approx(1e-3)
     assert res.model.slot_depth_offset == tuple(tube.depth_offsets)
+    # the lack of fit against the trials' scatter (issue 27): the true model is within the 0.5 deg scatter
+    lof = res.lack_of_fit["wrist_asymmetric"]
+    assert lof.overall.pure_error_rms == pytest.approx(ANGLE_NOISE_DEG, rel=0.2)
+    assert not lof.overall.significant(0.01) and len(lof.by_response) == 5 and len(lof.by_range) == 3
+    assert "Lack of fit against the trials' scatter" in res.summary()
+    assert res.as_dict()["lack_of_fit"]["wrist_asymmetric"]["overall"]["df_pe"] > 0
+    # the rest angles' prior: measured at zero force, reported beside the fitted ones
+    assert np.all(np.abs(tube.rest_angles - tube.rest_prior) < 3 * tube.rest_prior_sd)
+    assert res.as_dict()["tubes"]["wrist_asymmetric"]["slot_depth_prior_sd_um"] == pytest.approx(15.0)
 
 
 def test_a_parameter_the_data_cannot_determine_is_fixed_and_said(tmp_path):

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from notchfit.analysis.lack_of_fit import lack_of_fit, lack_of_fit_table, loading_direction, replicate_groups
+from notchfit.analysis.lack_of_fit import (Trial, lack_of_fit, lack_of_fit_table, loading_direction,
+                                           replicate_groups, study_lack_of_fit)
 
 
 def _replicated(rng, *, groups=12, reps=4, sigma=0.3, bias=0.0):
@@ -110,3 +111,60 @@ def test_replicate_groups_do_not_chain_along_a_ramp():
 
 def test_loading_direction():
     assert loading_direction([0.0, 1.0, 2.0, 2.0, 1.0], tol=0.01).tolist() == [0, 1, 1, 0, -1]
+
+
+def _trials(rng, *, n_trials=4, sigma=0.01, bias_joint=None, bias=0.0, above=np.inf):
+    """Loading ramps of one 3-joint tube: each trial's set-points jittered by 0.03 N (near replicates), the
+    response 0.2 rad/N; the model exact except ``bias`` on ``bias_joint`` above the tension ``above``."""
+    out = []
+    for i in range(n_trials):
+        T = np.r_[0.0, np.linspace(0.5, 3.0, 6)] + np.r_[0.0, rng.uniform(-0.03, 0.03, 6)]
+        truth = np.outer(T, [0.2, 0.15, 0.1])
+        pred = truth.copy()
+        if bias_joint is not None:
+            pred[T > above, bias_joint] += bias
+        out.append(Trial(f"T{i}", "tube", truth + rng.normal(0.0, sigma, truth.shape), pred, T))
+    return out
+
+
+def test_study_lack_of_fit_near_replicates_and_where_the_model_misses():
+    """Near replicates (set-points within 0.03 N on a 0.2 rad/N slope): the scatter is the noise, not the
+    slope's 6 mrad of spread; a 0.05 rad bias of joint 3 above 2 N is found on joint 3 and in the top force
+    range only."""
+    rng = np.random.default_rng(7)
+    ok = study_lack_of_fit(_trials(rng), unit="rad")["tube"]
+    assert ok.overall.pure_error_rms == pytest.approx(0.01, rel=0.3)
+    assert not ok.overall.significant(0.01)
+    bad = study_lack_of_fit(_trials(rng, bias_joint=2, bias=0.05, above=2.0), unit="rad")["tube"]
+    assert bad.overall.significant(0.001)
+    sig = {r.label for r in bad.by_response if r.significant(0.001)}
+    assert sig == {"joint 3"}
+    top = max(bad.by_range, key=lambda r: float(r.label.split("-")[1].split()[0]))
+    assert top.significant(0.001) and top.lack_of_fit_rms > 0.02
+    assert not any(r.significant(0.001) for r in bad.by_range if r is not top)
+    assert "joint 3" in bad.summary() and bad.as_dict()["overall"]["df_pe"] > 0
+
+
+def test_fit_prints_and_records_the_lack_of_fit(tmp_path, capsys):
+    """notchfit fit: each shape model's lack of fit against the trials' scatter is printed and written to
+    fit_run.json (lack_of_fit: model -> tube -> rows); constant curvature misses a tip-first wrist's
+    uneven bending far beyond the 0.5 deg scatter."""
+    import json
+
+    from notchfit.cli import main
+    from notchfit.studies.recipes import recipe_from_dict
+    from notchfit.studies.stock import stock_recipe
+    from notchfit.studies.synth import generate_study
+    d = stock_recipe("lof", "wrist_tip_first", [{"name": f"T{i + 1}", "peak_N": [1.8, 1.9]} for i in range(3)],
+                     seed=3)
+    generate_study(recipe_from_dict(d), tmp_path / "s", force=True)
+    assert main(["fit", str(tmp_path / "s"), "--out", str(tmp_path / "o"), "--no-figures",
+                 "--models", "cc,free"]) == 0
+    out = capsys.readouterr().out
+    assert "cc: Lack of fit against the trials' scatter" in out
+    lof = json.loads((tmp_path / "o" / "fit_run.json").read_text())["lack_of_fit"]
+    cc = lof["cc"]["wrist_tip_first"]
+    assert cc["unit"] == "deg" and cc["overall"]["p_value"] < 1e-6
+    assert cc["overall"]["pure_error_rms"] == pytest.approx(0.5, rel=0.35)
+    assert [r["label"] for r in cc["by_response"]] == [f"joint {j}" for j in range(1, 5)]
+    assert len(cc["by_range"]) >= 2

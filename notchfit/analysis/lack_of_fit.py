@@ -8,7 +8,11 @@ Sec. 2.1; NIST/SEMATECH e-Handbook of Statistical Methods, Sec. 4.4.4.3)
 splits the residual sum of squares of a model's predictions ``ŷ`` into
 
 * the **pure error** ``SS_pe = Σ_g Σ_{i∈g} (y_i − ȳ_g)²`` of the replicate
-  groups ``g`` (``N − G`` degrees of freedom: the scatter), and
+  groups ``g`` (``N − G`` degrees of freedom: the scatter; for near replicates,
+  whose inputs differ within a tolerance, the deviations are taken of the
+  residuals ``y_i − ŷ_i`` from their group mean, so that what the model
+  predicts for the input's difference is not counted as scatter — for exact
+  replicates the two are the same), and
 * the **lack of fit** ``SS_lof = Σ_g n_g (ȳ_g − ŷ_g)²`` of the group means
   against the model (``G − p`` degrees of freedom),
 
@@ -31,8 +35,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-__all__ = ["LackOfFit", "LackOfFitRow", "lack_of_fit", "lack_of_fit_table", "loading_direction",
-           "replicate_groups"]
+from ..physics.cables import pulled_side
+from ..physics.notches import notch_points
+from ..units import DEG, MM
+
+__all__ = ["LackOfFit", "LackOfFitRow", "Trial", "lack_of_fit", "lack_of_fit_summary", "lack_of_fit_table",
+           "loading_direction", "replicate_groups", "shape_fit_lack_of_fit", "study_lack_of_fit"]
 
 
 @dataclass(frozen=True)
@@ -234,7 +242,10 @@ def _row(label, y, yhat, groups, n_params) -> LackOfFitRow:
         uniq, inv, counts = np.unique(g, return_inverse=True, return_counts=True)
         ybar = np.bincount(inv, yc) / counts
         pbar = np.bincount(inv, pc) / counts
-        ss_pe += float(np.sum((yc - ybar[inv]) ** 2))
+        # the scatter about the group's mean residual: replicates at slightly different inputs differ by
+        # what the model predicts for them, which is not scatter (exact replicates: y − ȳ_g itself)
+        rc = yc - pc
+        ss_pe += float(np.sum((rc - (ybar - pbar)[inv]) ** 2))
         ss_lof += float(np.sum(counts * (ybar - pbar) ** 2))
         ss_res += float(np.sum((yc - pc) ** 2))
         n_obs += len(yc)
@@ -317,7 +328,8 @@ def lack_of_fit_table(measured, predicted, groups, force, *, n_params: int = 0, 
     n_ranges : int
         Number of force ranges (quantile bins of ``force``; fewer where the tensions repeat).
     response_labels : sequence of str, optional
-        Label of each response column (default ``"joint 1"``, ...).
+        Label of each response column (default ``"joint 1"``, ...); columns with the same label
+        make one row (the two coordinates of a notch point).
     alpha : float
         Significance level of the verdicts.
 
@@ -333,8 +345,11 @@ def lack_of_fit_table(measured, predicted, groups, force, *, n_params: int = 0, 
     names = list(response_labels) if response_labels is not None else [f"joint {j + 1}" for j in range(k)]
     overall = lack_of_fit(y, yhat, g, n_params=n_params, scale=scale)
     per_col = -(-n_params // k) if k else 0
-    by_resp = tuple(lack_of_fit(y[:, j], yhat[:, j], g, n_params=per_col, scale=scale, label=names[j])
-                    for j in range(k))
+    cols: dict = {}
+    for j, name in enumerate(names):              # columns that share a label are one response (a point's x, y)
+        cols.setdefault(name, []).append(j)
+    by_resp = tuple(lack_of_fit(y[:, idx], yhat[:, idx], g, n_params=per_col * len(idx), scale=scale, label=name)
+                    for name, idx in cols.items())
     finite = f[np.isfinite(f) & (g >= 0)]
     by_range: list[LackOfFitRow] = []
     if finite.size:
@@ -350,3 +365,132 @@ def lack_of_fit_table(measured, predicted, groups, force, *, n_params: int = 0, 
             by_range.append(lack_of_fit(y[inside], yhat[inside], g[inside], n_params=0, scale=scale,
                                         label=f"{lo:.2f}-{hi:.2f} N"))
     return LackOfFit(overall, by_resp, tuple(by_range), unit, alpha)
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One trial's responses for :func:`study_lack_of_fit`.
+
+    Attributes
+    ----------
+    name : str
+        The trial (experiment).
+    tube : str
+        Its tube: trials of one tube are compared; each tube gets its own table.
+    measured, predicted : ndarray (S, k)
+        Observations and the model's predictions, one column per response (NaN = missing).
+    tension : ndarray (S,) [N]
+        The pulled tendon's tension of each sample (the input the replicates share).
+    """
+
+    name: str
+    tube: str
+    measured: np.ndarray
+    predicted: np.ndarray
+    tension: np.ndarray
+
+
+def study_lack_of_fit(trials, *, n_params: int = 0, params_per_group: int = 0, unit: str = "",
+                      scale: float = 1.0, tol: float = 0.15, n_ranges: int = 3, response_labels=None,
+                      alpha: float = 0.05) -> dict:
+    """Pure error and lack of fit of a study, one :class:`LackOfFit` per tube.
+
+    Replicates are samples of different trials of one tube taken in the same direction of loading
+    (:func:`loading_direction`) at tensions within ``tol`` (:func:`replicate_groups`).
+
+    Parameters
+    ----------
+    trials : iterable of Trial
+    n_params : int
+        Parameters fitted to a tube's data (shared and per-tube; 0 for held-out predictions).
+    params_per_group : int
+        Parameters fitted per replicate group in addition (a shape model fitted sample by sample).
+    unit, scale, n_ranges, alpha :
+        As :func:`lack_of_fit_table`.
+    tol : float [N]
+        Tension tolerance of a replicate (:func:`replicate_groups`).
+    response_labels : sequence of str, optional
+        Label of each response column (default ``"joint 1"``, ...).
+
+    Returns
+    -------
+    dict
+        Tube -> LackOfFit, in the order the tubes first appear.
+    """
+    by_tube: dict = {}
+    for t in trials:
+        by_tube.setdefault(t.tube, []).append(t)
+    out = {}
+    for tube, ts in by_tube.items():
+        y = np.vstack([np.asarray(t.measured, float) for t in ts])
+        yhat = np.vstack([np.asarray(t.predicted, float) for t in ts])
+        force = np.concatenate([np.asarray(t.tension, float) for t in ts])
+        trial = np.concatenate([np.full(len(t.tension), i) for i, t in enumerate(ts)])
+        direction = np.concatenate([loading_direction(t.tension, tol=tol / 3.0) for t in ts])
+        groups = replicate_groups(trial, direction, force, tol=tol)
+        n_groups = int(np.unique(groups[groups >= 0]).size)
+        out[tube] = lack_of_fit_table(y, yhat, groups, force, n_params=n_params + params_per_group * n_groups,
+                                      unit=unit, scale=scale, n_ranges=n_ranges,
+                                      response_labels=response_labels, alpha=alpha)
+    return out
+
+
+def lack_of_fit_summary(tables: dict) -> str:
+    """The :meth:`LackOfFit.summary` of each tube of :func:`study_lack_of_fit`, titled by tube when several."""
+    if len(tables) == 1:
+        return next(iter(tables.values())).summary()
+    return "\n".join(f"{tube}: " + lof.summary() for tube, lof in tables.items())
+
+
+def shape_fit_lack_of_fit(items, models, *, tol: float = 0.15, n_ranges: int = 3, alpha: float = 0.05) -> dict:
+    """Pure error and lack of fit of ``notchfit fit``'s shape models (Sec. IV-A), per model and tube.
+
+    Each sample is fitted on its own, so every replicate group costs the model's ``k``
+    parameters (``params_per_group``); the lack of fit is the shape the model cannot take
+    (a constant curvature where the notches bend unevenly), against the trials' scatter.
+
+    Parameters
+    ----------
+    items : iterable of (name, tube, tension_left, tension_right, result)
+        One per experiment: its tensions (S,) [N] and its fit, an
+        :class:`~notchfit.analysis.fitting.angles.AngleFit` (joint angles, degrees) or an
+        :class:`~notchfit.analysis.fitting.results.ExperimentFit` (notch points in the plane, mm).
+    models : sequence of str
+    tol, n_ranges, alpha :
+        As :func:`study_lack_of_fit`.
+
+    Returns
+    -------
+    dict
+        Model -> tube -> LackOfFit. A tube is compared in the kind of its first experiment; an
+        experiment of the other kind is left out.
+    """
+    items = list(items)
+    kind_of: dict = {}
+    for name, tube, _, _, res in items:
+        kind_of.setdefault(tube, hasattr(res, "measured"))
+    out = {}
+    for model in models:
+        out[model] = {}
+        for tube, angles in kind_of.items():
+            trials, k, labels = [], 0, None
+            for name, t, tl, tr, res in items:
+                if t != tube or hasattr(res, "measured") != angles:
+                    continue
+                tension = tr if pulled_side(tl, tr) > 0 else tl
+                if angles:
+                    f = res.get(model)
+                    meas, pred, k = res.measured, f.theta, f.params.shape[1]
+                else:
+                    theta = res.theta(model)
+                    pred = res.transform.to_plane(notch_points(np.nan_to_num(theta), res.geom))
+                    pred[~np.isfinite(theta).all(axis=1)] = np.nan
+                    meas, k = res.points, res.params(model).shape[1]
+                    labels = [f"point {i + 1}" for i in range(meas.shape[1]) for _ in "xy"]
+                S = meas.shape[0]
+                trials.append(Trial(name, tube, meas.reshape(S, -1), np.asarray(pred, float).reshape(S, -1),
+                                    np.asarray(tension, float)))
+            out[model].update(study_lack_of_fit(trials, params_per_group=k, unit="deg" if angles else "mm",
+                                                scale=1.0 / (DEG if angles else MM), tol=tol, n_ranges=n_ranges,
+                                                response_labels=labels, alpha=alpha))
+    return out

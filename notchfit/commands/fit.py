@@ -10,6 +10,8 @@ from .. import io
 from ..batch import run_batch
 from ..figures.fitting import experiment_figures, fig12_sample_index
 from ..analysis.fitting import StudyFit, angle_fits_table, failed_fits, fit_angles, fit_experiment, fits_table, jointwise_table, pointwise_table
+from ..analysis.estimation.observations import tube_labels
+from ..analysis.lack_of_fit import shape_fit_lack_of_fit
 from ..progress import bar as progress_bar
 from ..physics.shapes import get_model
 from ..units import MM
@@ -152,10 +154,13 @@ def run(args) -> int:
         failed = {r.key: r.error for r in res.failures}
         failed.update(problems)
         bad_samples = _write_outputs(exps, res, run_, study, failed, figures=not args.no_figures)
+        lof = _lack_of_fit(exps, res, models)
         io.write_json_atomic(io.provenance("fit", args.input, models=list(models), experiments=names,
-                                           failures=failed, failed_samples=bad_samples),
+                                           failures=failed, failed_samples=bad_samples,
+                                           lack_of_fit={m: {t: v.as_dict() for t, v in d.items()}
+                                                        for m, d in lof.items()}),
                              run_.path("fit_run.json"))
-    _print_summary(res, len(exps) + len(problems), failed, bad_samples, args.out)
+    _print_summary(res, len(exps) + len(problems), failed, bad_samples, args.out, lof)
     return EXIT_ITEMS_FAILED if (failed or bad_samples) else 0
 
 
@@ -207,12 +212,20 @@ def _write_angle_fits(value, run_, sub, name, bad_samples) -> None:
         bad_samples.append(f"{name} sample {row.sample} ({row.model}): {getattr(row, 'message', '')}")
 
 
-def _print_summary(res, n_total, failed, bad_samples, out):
+def _lack_of_fit(exps, res, models) -> dict:
+    """Model -> tube -> LackOfFit of the fitted experiments (:func:`shape_fit_lack_of_fit`)."""
+    ok = [(e, r.value["result"]) for e, r in zip(exps, res.items) if r.ok]
+    tubes = tube_labels([e.geometry for e, _ in ok])
+    return shape_fit_lack_of_fit([(e.name, t, e.tension_left, e.tension_right, v) for (e, v), t in zip(ok, tubes)],
+                                 models)
+
+
+def _print_summary(res, n_total, failed, bad_samples, out, lof=None):
     def rows(key):
         frames = [r.value[key] for r in res.items if r.ok and key in r.value]
         return pd.concat(frames, ignore_index=True) if frames else None
 
-    study = StudyFit(rows("fits"), rows("angle_fits"), sum(r.ok for r in res.items), n_total, res.seconds)
+    study = StudyFit(rows("fits"), rows("angle_fits"), sum(r.ok for r in res.items), n_total, res.seconds, lof)
     print(f"{study.summary()}; outputs in {out}")
     list_failures(failed, limit=len(failed))
     for s in bad_samples[:20]:

@@ -21,9 +21,11 @@ fitted scalar parameters (tubes cut from one stock share the material); each rea
 own rest angles.
 
 Free parameters (--free, comma-separated; field names or model-file keys): by default the
-material law's E_lin, E_se, strain_lower (or the seed tube's k_lin, k_mid), mu_d, and for every
-real tube (section backbone) each notch's rest angle (rest_angle) and effective cut depth
-(slot_depth, with a prior of the cutting tolerance, 15 um). Bounds and starts come from physics
+material law's E_lin, E_se, strain_lower (or the seed tube's k_lin, k_mid), its tension-compression
+asymmetry strain_ratio where a notch's section lets it act, mu_d, and for every real tube (section
+backbone) each notch's rest angle (rest_angle, tied to the angles its trials measured at zero force,
+with their standard error) and effective cut depth (slot_depth, tied to the drawing with the
+geometry's slot_depth_tolerance_mm, default 15 um). Bounds and starts come from physics
 (docs/models.md, "Identification"); the fit starts from the best of a grid of probes. --model
 FILE gives the values of everything not fitted (and the starts); without it a real tube's
 model gets the quasi-static damping time (1 ms).
@@ -33,10 +35,14 @@ else notch points (notch_points.csv or detect's detections.csv: errors in mm). H
 experiment predicted by a model fitted without it (leave one experiment out) and, with several
 tubes, each tube's experiments predicted by a model fitted on the other tubes, from its geometry.
 
+Where trials repeat, it prints the trial-to-trial scatter and the lack of fit beyond it, per
+notch and per force range, with its F test.
+
 Writes into --out: model.toml (the identified model, read by `notchfit simulate --model` and
 notchfit.io.load_params; with several tubes it holds the shared parameters, and
-model_<tube>.toml each tube's model with its rest angles), identify.json (free parameters,
-values, standard errors, metric, training and held-out errors) and identify_run.json.
+model_<tube>.toml each tube's model with its rest angles; [metadata.prediction]: what simulate
+needs for the prediction bands of a new tube), identify.json (free parameters, values, standard
+errors, metric, training and held-out errors, lack of fit) and identify_run.json.
 
 Examples:
   notchfit identify wrists/ --out ident/ --jobs 2
@@ -74,6 +80,8 @@ def _model_metadata(result, data: dict) -> dict:
     meta = {"source": "notchfit identify", "metric": result.unit, "free": data["free"] + data["free_per_tube"],
             "se": data["se"],
             "train_rms": result.train_rms, "heldout_rms": result.heldout_rms, "tubes": list(result.tubes)}
+    if data.get("prediction"):
+        meta["prediction"] = data["prediction"]     # the prediction bands of `simulate --model`
     if len(meta["tubes"]) > 1:
         meta["note"] = ("shared parameters of every tube; each tube's rest angles and cut depths are in "
                         "its model_<tube>.toml")

@@ -9,6 +9,8 @@ import numpy as np
 
 from .. import io
 from ..batch import run_batch
+from ..analysis.estimation.bands import NewTubePrior, band_table, tube_band
+from ..analysis.fitting.angles import DEFAULT_ANGLE_SIGMA
 from ..analysis.comparison import angle_comparison_table, compare_angles, compare_simulation, comparison_table
 from ..figures.friction import plot_fig18, plot_fig19
 from ..physics.friction import FrictionParams, default_params, simulate, simulation_table
@@ -39,7 +41,10 @@ cable displacements) and, when the experiment has measured points, simulation_vs
 the prediction, Sec. IV-A); when it has measured joint angles (angles.csv),
 simulation_vs_angles.csv (the angle error per sample and per joint, in degrees); with Figs. 18
 (joint angles) and 19 (a and b vs tension, and the point error) as PNG and CSV; for a study,
-into OUT/<experiment>/.
+into OUT/<experiment>/. With a model file from `notchfit identify`, also prediction_band.csv:
+every notch angle's 95 % prediction interval for a tube the model has never seen (the shared
+parameters' covariance plus the tube-to-tube scatter of rest angles and cut depths), and the
+share of the measured angles inside it.
 
 Examples:
   notchfit simulate study/ --out out/
@@ -90,6 +95,8 @@ def simulate_one(item: dict) -> dict:
     res = simulate(item["time"], item["tension_left"], item["tension_right"], item["params"],
                    item["geometry"], method=item["method"], ramp_time=item["ramp_time"])
     out = {"result": res, "table": simulation_table(res, item["samples"])}
+    if item.get("band") is not None:
+        out.update(_band(item))
     if item.get("angles") is not None:
         comp = compare_angles(res, item["angles"], sigma=item.get("angle_sigma"), samples=item["samples"])
         out.update(angle_comparison=comp, angle_compare=angle_comparison_table(comp, res))
@@ -101,6 +108,21 @@ def simulate_one(item: dict) -> dict:
         except (ValueError, np.linalg.LinAlgError) as exc:
             # the simulation stands; only the comparison with the measured points failed
             out["compare_error"] = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def _band(item: dict) -> dict:
+    """The 95 % prediction band of every notch angle (the model file's ``[metadata.prediction]``), with the
+    measured angles' coverage when the experiment has some."""
+    g = item["geometry"]
+    band = tube_band(item["params"], g, item["time"], item["tension_left"] if "left" in g.tendons else None,
+                     item["tension_right"] if "right" in g.tendons else None,
+                     NewTubePrior.from_metadata(item["band"]), noise_sd=item["band_noise"],
+                     ramp_time=item["ramp_time"])
+    table = band_table(band, item["samples"], item.get("angles"))
+    out = {"band": table}
+    if item.get("angles") is not None:
+        out["band_coverage"] = band.coverage(item["angles"])
     return out
 
 
@@ -125,6 +147,19 @@ def _experiment_params(exps, args) -> dict:
     return {e.name: parse_params(args.model, args.param, base=default_params(e.geometry)) for e in exps}
 
 
+def _prediction_table(model_file):
+    """``[metadata.prediction]`` of the model file (written by identify: the bands' covariance), or None."""
+    if model_file is None:
+        return None
+    table = io.load_toml(model_file, what="friction parameter file").data.get("metadata", {}).get("prediction")
+    if table is not None:
+        try:
+            NewTubePrior.from_metadata(table)
+        except ValueError as exc:
+            raise ValueError(f"{model_file}: [metadata.prediction]: {exc}") from None
+    return table
+
+
 def _params_record(params: dict) -> dict:
     """The run record's ``params``: one table when every experiment shares it, else one per experiment."""
     first = next(iter(params.values()), None)
@@ -146,13 +181,16 @@ def _measured_points(exps, args) -> dict:
 
 
 def _items(exps, params: dict, args) -> list[dict]:
-    """One batch item per experiment: the measured tensions (clipped at 0 N), the points and angles, if any."""
+    """One batch item per experiment: the measured tensions (clipped at 0 N), the points and angles, if any,
+    and the model file's prediction table (bands), if it has one."""
     pts = _measured_points(exps, args)
+    band = _prediction_table(args.model)
     return [{"time": e.time, "tension_left": e.tension_left,
              "tension_right": e.tension_right, "params": params[e.name], "geometry": e.geometry,
              "method": args.method, "samples": [int(s) for s in e.sample_ids], "points": pts.get(e.name),
              "mirror": e.mirror, "sigma": e.point_sigma, "ramp_time": e.ramp_time or 0.0,
-             "angles": e.angles, "angle_sigma": e.angle_sigma} for e in exps]
+             "angles": e.angles, "angle_sigma": e.angle_sigma, "band": band,
+             "band_noise": (e.angle_sigma or DEFAULT_ANGLE_SIGMA) if e.angles is not None else 0.0} for e in exps]
 
 
 def run(args) -> int:
@@ -205,6 +243,8 @@ def _write_outputs(exps, res, run_, study, failed: dict, *, figures: bool) -> No
                 failed[f"{e.name} comparison with the points"] = r.value["compare_error"]
             if "angle_compare" in r.value:
                 io.write_table_atomic(r.value["angle_compare"], run_.path(sub / "simulation_vs_angles.csv"))
+            if "band" in r.value:
+                io.write_table_atomic(r.value["band"], run_.path(sub / "prediction_band.csv"))
             if "compare" in r.value:
                 io.write_table_atomic(r.value["compare"], run_.path(sub / "simulation_vs_measured.csv"))
             if ("compare" in r.value or "angle_compare" in r.value) and figures:
@@ -220,8 +260,10 @@ def _angle_record(exps, res) -> dict:
              if r.ok and "angle_comparison" in r.value}
     if not comps:
         return {}
+    cover = {e.name: r.value["band_coverage"] for e, r in zip(exps, res.items) if r.ok and "band_coverage" in r.value}
     return {"angle_rms_deg": {k: c.rms / DEG for k, c in comps.items()},
-            "angle_rms_deg_by_joint": {k: [float(v) for v in c.joint_rms / DEG] for k, c in comps.items()}}
+            "angle_rms_deg_by_joint": {k: [float(v) for v in c.joint_rms / DEG] for k, c in comps.items()},
+            **({"band_coverage": cover} if cover else {})}
 
 
 def _print_summary(exps, res, failed, out, n_unread: int = 0) -> None:
@@ -231,6 +273,9 @@ def _print_summary(exps, res, failed, out, n_unread: int = 0) -> None:
             per = ", ".join(f"{v:.2f}" for v in c.joint_rms / DEG)
             print(f"  {e.name:10s} prediction rms {c.rms / DEG:.3f} deg over {int(np.isfinite(c.theta_meas).sum())} "
                   f"measured angles (per joint: {per})")
+        if r.ok and "band_coverage" in r.value:
+            print(f"  {e.name:10s} 95 % prediction band covers {100 * r.value['band_coverage']:.1f} % of the measured "
+                  "angles (prediction_band.csv)")
         if r.ok and "compare" in r.value:
             c = r.value["compare"]
             v = c["point_rms_mm"].to_numpy(float)

@@ -70,6 +70,7 @@ PARAM_KEYS = {
     "E_se": "E_se_Pa",
     "strain_lower": "strain_lower",
     "stop_ratio": "stop_ratio",
+    "strain_ratio": "strain_ratio",
     "rest_angle": "rest_angle_rad",
     "slot_depth_offset": "slot_depth_offset_m",
 }
@@ -180,6 +181,9 @@ class FrictionParams:
     stop_ratio : float
         Slot-closure stop rate over the linear rate (material law; the seed's
         ``k_stop / k_lin``).
+    strain_ratio : float
+        Onset strain of the plateau in compression over that in tension (material law; 1: one
+        threshold for the most strained fibre; superelastic nitinol: 1.2-1.5).
     rest_angle : float, tuple of n floats, or None
         Rest angles ``θ0_j`` [rad] of the tube this model was identified on
         (``notchfit identify``), in place of the geometry's ``rest_angle_rad``;
@@ -219,6 +223,7 @@ class FrictionParams:
     E_se: float = 4e9
     strain_lower: float = 0.015
     stop_ratio: float = paper.FRICTION_K_STOP / paper.FRICTION_K_LIN
+    strain_ratio: float = 1.0
     rest_angle: float | tuple | None = None
     slot_depth_offset: float | tuple | None = None
 
@@ -239,7 +244,7 @@ class FrictionParams:
         if self.friction_law not in FRICTION_LAWS:
             raise ValueError(f"friction_law must be one of {FRICTION_LAWS}, got {self.friction_law!r}")
         for name in ("k_lin", "k_mid", "k_stop", "b", "v_thr", "theta_mid", "E_lin", "E_se", "strain_lower",
-                     "stop_ratio"):
+                     "stop_ratio", "strain_ratio"):
             v = getattr(self, name)
             if (min(v) if isinstance(v, tuple) else v) <= 0:
                 raise ValueError(f"friction parameter {name} must be positive, got {getattr(self, name)}")
@@ -353,7 +358,7 @@ class FrictionParams:
         n = geom.n_joints
         if self.spring_law == "material":
             sp = material_spring(self.depth_geometry(geom), self.E_lin, self.E_se, self.strain_lower,
-                                 self.stop_ratio, rest_angles=self.rest_angles(geom))
+                                 self.stop_ratio, rest_angles=self.rest_angles(geom), strain_ratio=self.strain_ratio)
             return sp.with_scale(self.joint_scale(n))
         sp = self.spring(n)
         b = np.broadcast_to(sp.breaks, (n, 2))

@@ -44,6 +44,7 @@ _LENGTH_KEYS = {
     "cable_radius_mm": "cable_radius",
     "channel_radius_mm": "channel_radius",
     "mount_half_width_mm": "mount_half_width",
+    "slot_depth_tolerance_mm": "slot_depth_tolerance",
 }
 _SIGNED_LENGTH_KEYS = {
     "base_edge_z_mm": "base_edge_z",
@@ -138,6 +139,10 @@ class Geometry:
         the detector needs the dimensions and the slots only). A geometry file
         without any tendon key (``tendons``, ``tendon_path``, the channel and
         cable radii) is such a geometry; what needs a tendon then says so.
+    slot_depth_tolerance : float or None
+        Standard deviation of a cut depth about the drawing's [m] (the cutting and
+        measuring tolerance; ``slot_depth_tolerance_mm``); None: not given (``identify``
+        then assumes its default of 15 µm).
     tendon_path : {"channel", "lumen"}
         ``"channel"``: in channels at ``±r_x`` (the seed tube); ``"lumen"``: free
         in the lumen along the inner wall on its side.
@@ -169,6 +174,7 @@ class Geometry:
     tendons: tuple[str, ...] = ("left", "right")
     tendon_path: str = "channel"
     tip_face_z: float | None = None
+    slot_depth_tolerance: float | None = None
 
     def __post_init__(self) -> None:
         n = self.n_joints
@@ -207,7 +213,8 @@ class Geometry:
         for f in ("p", "slot_width", "slot_depth"):
             _finite_positive(f, getattr(self, f))
         _finite_positive("rest_angle", self.rest_angle, positive=False)
-        for f in (*_CHANNEL_FIELDS, "cable_E", "cable_A", "cable_L0", "mount_half_width", "inner_radius"):
+        for f in (*_CHANNEL_FIELDS, "cable_E", "cable_A", "cable_L0", "mount_half_width", "inner_radius",
+                  "slot_depth_tolerance"):
             if getattr(self, f) is not None:
                 _finite_positive(f, getattr(self, f), positive=f != "inner_radius")
         for f in ("base_edge_z", "mount_bottom_z", "tip_face_z"):
@@ -243,7 +250,8 @@ class Geometry:
         """Lengths within :data:`MAX_LENGTH` (the cable's within :data:`MAX_CABLE_LENGTH`), channels and mount
         consistent with the tube."""
         for f in ("p", "outer_radius", "slot_width", "slot_depth", "inner_radius", "r_x", "r_z", "cable_radius",
-                  "channel_radius", "mount_half_width", "base_edge_z", "mount_bottom_z", "tip_face_z"):
+                  "channel_radius", "mount_half_width", "base_edge_z", "mount_bottom_z", "tip_face_z",
+                  "slot_depth_tolerance"):
             v = getattr(self, f)
             if v is not None and np.any(np.abs(np.asarray(v, dtype=float)) > MAX_LENGTH):
                 raise ValueError(f"geometry field {f!r} is larger than {MAX_LENGTH} m: a unit error?")
@@ -424,7 +432,7 @@ def geometry_from_dict(data: dict, origin: str = "<dict>", *, line_of=None) -> G
         ``tendon_path = "channel"``, the default), the mount, ``name``,
         ``slot_sides`` (``"alternating"`` or a list of -1/+1),
         ``inner_radius_mm``, ``rest_angle_rad``, ``backbone``, ``tendons``,
-        ``tendon_path``, ``tip_face_z_mm``. ``p_mm``, ``slot_width_mm``,
+        ``tendon_path``, ``tip_face_z_mm``, ``slot_depth_tolerance_mm``. ``p_mm``, ``slot_width_mm``,
         ``slot_depth_mm`` and ``rest_angle_rad`` take one number or a list
         (``n_joints`` values, ``n_joints - 1`` for ``p_mm``), base to tip.
     origin : str

@@ -12,6 +12,10 @@ the same order. Fed the samples of a history one by one it returns what
 tested to 1e-9 rad), at a cost per sample that does not grow with the
 history.
 
+Each notch angle's prediction interval (the identified parameters' covariance and the
+tube-to-tube scatter of an identified model) comes from one predictor per sigma point:
+:meth:`notchfit.analysis.estimation.bands.BandPredictor.for_tube`.
+
 Input protocol (as :func:`notchfit.physics.friction.simulate`): the model starts at
 rest (θ = θ0, no tension, every link sticking) ``settle_time`` before the
 first sample; between samples the tensions move linearly to the new sample's

@@ -150,13 +150,17 @@ def friction_spring(k_lin: float = paper.FRICTION_K_LIN, k_mid: float = paper.FR
 
 def material_spring(geom: Geometry, E_lin: float, E_se: float, strain_lower: float,
                     stop_ratio: float = paper.FRICTION_K_STOP / paper.FRICTION_K_LIN, *,
-                    rest_angles=None) -> PiecewiseLinearSpring:
+                    rest_angles=None, strain_ratio: float = 1.0) -> PiecewiseLinearSpring:
     """Per-joint spring of a notched tube from its material and section (module docstring).
 
     Joint ``j`` (deflection ``δ = θ_j - θ0_j`` from its rest angle; the law is odd in ``δ``):
 
-    * ``k_j = E_lin I_j / h_j`` for ``|δ| < ε_lower h_j / c_j`` (``c_j`` = distance of the
-      most strained fibre from the neutral axis, the larger of the back and cut fibres);
+    * ``k_j = E_lin I_j / h_j`` for ``|δ| < min(ε_lower h_j / c_back,j, r ε_lower h_j / c_cut,j)``:
+      the plateau starts where the back fibre (in tension when the joint bends toward its slot)
+      reaches ``ε_lower`` or the cut fibre (in compression) reaches ``r ε_lower``; ``r = 1``
+      (default) is one threshold for the most strained fibre, ``c_j = max(c_back, c_cut)``; superelastic
+      nitinol transforms at 1.2-1.5 times the strain in compression (its tension–compression
+      asymmetry: Orgéas & Favier, Acta Mater. 46(15), 1998; Gall et al., Acta Mater. 47(4), 1999);
     * ``E_se I_j / h_j`` beyond, up to slot closure ``θ_c,j - σ_j θ0_j`` (the slot on side
       ``σ_j`` closes at ``θ_j = σ_j θ_c,j``; a rest angle toward the slot uses some of the gap);
     * ``stop_ratio k_j`` once the slot is closed (default: the seed paper's
@@ -177,21 +181,27 @@ def material_spring(geom: Geometry, E_lin: float, E_se: float, strain_lower: flo
         Stop rate over linear rate [-], > 0.
     rest_angles : array_like (n,) [rad], optional
         ``θ0_j`` in place of the geometry's (a model's identified rest angles).
+    strain_ratio : float
+        ``r``: the compression fibre's onset strain over the tension fibre's [-], > 0.
 
     Returns
     -------
     PiecewiseLinearSpring
         breaks (n, 2) [rad], rates (n, 3) [N m/rad].
     """
-    for name, v in (("E_lin", E_lin), ("E_se", E_se), ("strain_lower", strain_lower), ("stop_ratio", stop_ratio)):
+    for name, v in (("E_lin", E_lin), ("E_se", E_se), ("strain_lower", strain_lower), ("stop_ratio", stop_ratio),
+                    ("strain_ratio", strain_ratio)):
         if not (np.isfinite(v) and v > 0):
             raise ValueError(f"material parameter {name} must be positive, got {v!r}")
     sec = geom.section
     h = geom.slot_widths
-    fibre = np.maximum(sec.back_fibre, sec.cut_fibre)
+    if strain_ratio == 1.0:
+        onset = strain_lower * h / np.maximum(sec.back_fibre, sec.cut_fibre)
+    else:
+        onset = np.minimum(strain_lower * h / sec.back_fibre, strain_ratio * strain_lower * h / sec.cut_fibre)
     rest = geom.rest_angles if rest_angles is None else np.asarray(rest_angles, dtype=float)
     stop = geom.closure_angles - geom.sides * rest
-    mid = np.minimum(strain_lower * h / fibre, stop)
+    mid = np.minimum(onset, stop)
     k = E_lin * sec.second_moment / h
     rates = np.stack([k, E_se * sec.second_moment / h, stop_ratio * k], axis=-1)
     return PiecewiseLinearSpring(np.stack([mid, stop], axis=-1), rates)

@@ -27,15 +27,18 @@ as it arrives (the real-time estimate with its interval).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+import pandas as pd
 from scipy import stats
 
+from ...physics.friction import simulate_angles
 from ...physics.predictor import Predictor
 
-__all__ = ["BandPredictor", "PredictionBand", "prediction_band", "sigma_points"]
+__all__ = ["BandPredictor", "NewTubePrior", "PredictionBand", "band_table", "prediction_band", "sigma_points", "tube_band"]
 
 
 #: the divided-difference step: √3, the Gaussian's kurtosis (Nørgaard et al. 2000)
@@ -206,6 +209,14 @@ class BandPredictor:
         """Predictors run per sample (``2p + 1``)."""
         return len(self._predictors)
 
+    @classmethod
+    def for_tube(cls, params, geom, prior: "NewTubePrior", **kw) -> "BandPredictor":
+        """The band predictor of a tube of ``geom`` under an identified model ``params`` and its
+        :class:`NewTubePrior` (the shared covariance and the tube-to-tube scatter); ``kw`` as the
+        constructor's."""
+        mean, cov, make = prior.distribution(params, geom)
+        return cls(make, mean, cov, geom, **kw)
+
     def reset(self) -> None:
         for p in self._predictors:
             p.reset()
@@ -215,3 +226,133 @@ class BandPredictor:
         """Advance every sigma-point model to the new sample; the angles and their band."""
         thetas = [p.step(time, tension_left, tension_right).theta for p in self._predictors]
         return BandPrediction(float(time), _band(thetas, self._weights, self.noise_sd, self.level))
+
+
+# ----------------------------------------------------------------------------- a tube never measured
+@dataclass(frozen=True)
+class NewTubePrior:
+    """What an identified model knows of a tube cut from its stock that it has never seen.
+
+    The shared parameters (material, friction) are known up to the identification's covariance;
+    the tube's own — its rest angles and cut depths — vary from tube to tube: the rest angles
+    about its geometry file's with the scatter the identified tubes showed about theirs, the cut
+    depths about the drawing with the drawing's tolerance. :meth:`distribution` turns this into the
+    parameters' mean and covariance for :func:`prediction_band` or :class:`BandPredictor`.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The shared parameters (:class:`~notchfit.physics.friction.FrictionParams` fields).
+    log : tuple of bool
+        Whether each is in log coordinates (moduli, thresholds).
+    mean : ndarray (k,)
+        Their identified values, in those coordinates.
+    cov : ndarray (k, k)
+        Their covariance, in those coordinates.
+    rest_sd : float [rad]
+        Tube-to-tube standard deviation of a rest angle about the geometry file's (0: as drawn).
+    depth_sd : float or None [m]
+        Standard deviation of a cut depth about the drawing's; None: the geometry's
+        ``slot_depth_tolerance`` (else ``default_depth_sd``); 0: as drawn.
+    default_depth_sd : float [m]
+        The tolerance of a geometry that states none.
+    """
+
+    names: tuple
+    log: tuple
+    mean: np.ndarray
+    cov: np.ndarray
+    rest_sd: float = 0.0
+    depth_sd: float | None = None
+    default_depth_sd: float = 15e-6
+
+    def as_metadata(self) -> dict:
+        """A model file's ``[metadata.prediction]`` table (the covariance row by row, flattened)."""
+        d = {"names": list(self.names), "log": [bool(v) for v in self.log],
+             "mean": [float(v) for v in self.mean], "cov": [float(v) for v in np.ravel(self.cov)],
+             "rest_angle_sd_rad": float(self.rest_sd), "default_depth_sd_m": float(self.default_depth_sd)}
+        if self.depth_sd is not None:
+            d["slot_depth_sd_m"] = float(self.depth_sd)
+        return d
+
+    @classmethod
+    def from_metadata(cls, d: dict) -> "NewTubePrior":
+        """Read :meth:`as_metadata`'s table.
+
+        Raises
+        ------
+        ValueError
+            A missing key or a covariance of the wrong size.
+        """
+        try:
+            k = len(d["names"])
+            cov = np.asarray(d["cov"], dtype=float)
+            if cov.size != k * k or len(d["mean"]) != k or len(d["log"]) != k:
+                raise ValueError(f"prediction: names, log, mean and a {k}x{k} cov must agree in size")
+            return cls(tuple(d["names"]), tuple(bool(v) for v in d["log"]), np.asarray(d["mean"], float),
+                       cov.reshape(k, k), float(d.get("rest_angle_sd_rad", 0.0)), d.get("slot_depth_sd_m"),
+                       float(d.get("default_depth_sd_m", 15e-6)))
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"prediction table: missing or bad key {exc}") from None
+
+    def distribution(self, params, geom):
+        """The parameters of a new tube of ``geom`` as ``N(mean, cov)`` and the model of a draw.
+
+        The tube's own unknowns are added when ``params`` holds none of its own (a model of the
+        stock, not of one tube): its rest angles (``rest_sd``) and cut-depth offsets (the depth σ).
+
+        Returns
+        -------
+        mean : ndarray (p,)
+        cov : ndarray (p, p)
+        make_params : callable
+            ``make_params(x) -> FrictionParams``.
+        """
+        k, n = len(self.names), geom.n_joints
+        own = params.rest_angle is None and params.slot_depth_offset is None
+        depth_sd = self.depth_sd if self.depth_sd is not None else (geom.slot_depth_tolerance or self.default_depth_sd)
+        extra = [("rest_angle", params.rest_angles(geom), self.rest_sd)] if own and self.rest_sd > 0 else []
+        if own and params.spring_law == "material" and depth_sd > 0:
+            extra.append(("slot_depth_offset", np.zeros(n), depth_sd))
+        mean = np.concatenate([self.mean] + [m for _, m, _ in extra])
+        cov = np.zeros((mean.size, mean.size))
+        cov[:k, :k] = self.cov
+        for i, (_, _, sd) in enumerate(extra):
+            cov[k + i * n:k + (i + 1) * n, k + i * n:k + (i + 1) * n] = np.eye(n) * sd ** 2
+        excess = params.mu_s - params.mu_d
+
+        def make_params(x):
+            vals = {name: (math.exp(v) if lg else float(v)) for name, lg, v in zip(self.names, self.log, x[:k])}
+            if "mu_d" in vals:
+                vals["mu_s"] = vals["mu_d"] + excess
+            per = {name: tuple(float(v) for v in x[k + i * n:k + (i + 1) * n]) for i, (name, _, _) in enumerate(extra)}
+            return params.replace(**vals, **per)
+
+        return mean, cov, make_params
+
+
+def tube_band(params, geom, time, tension_left, tension_right, prior: NewTubePrior, *, noise_sd: float = 0.0,
+              level: float = 0.95, ramp_time: float = 0.0, **sim_kw) -> PredictionBand:
+    """Every notch angle of a tension history with its interval (S, n) [rad]: the model's parameters
+    and the tube's own as :meth:`NewTubePrior.distribution` says, carried by sigma points through the
+    fast solver (:func:`notchfit.physics.friction.simulate_angles`); ``noise_sd`` [rad] added in
+    quadrature for an interval that should cover measured angles."""
+    mean, cov, make = prior.distribution(params, geom)
+    return prediction_band(lambda x: simulate_angles(time, tension_left, tension_right, make(x), geom,
+                                                     ramp_time=ramp_time, **sim_kw),
+                           mean, cov, noise_sd=noise_sd, level=level)
+
+
+def band_table(band: PredictionBand, samples, measured=None) -> pd.DataFrame:
+    """A band of joint angles (S, n) as rows ``sample, joint, theta_rad, sd_rad, lower_rad, upper_rad``
+    (and ``measured_rad``, ``inside`` when ``measured`` (S, n) [rad] is given; NaN / empty where not measured)."""
+    S, n = band.mean.shape
+    rows = {"sample": np.repeat(np.asarray(samples), n), "joint": np.tile(np.arange(1, n + 1), S),
+            "theta_rad": band.mean.ravel(), "sd_rad": band.sd.ravel(), "lower_rad": band.lower.ravel(),
+            "upper_rad": band.upper.ravel()}
+    if measured is not None:
+        y = np.asarray(measured, dtype=float).ravel()
+        rows["measured_rad"] = y
+        inside = (y >= rows["lower_rad"]) & (y <= rows["upper_rad"])
+        rows["inside"] = pd.array(np.where(np.isfinite(y), inside, pd.NA), dtype="boolean")
+    return pd.DataFrame(rows)

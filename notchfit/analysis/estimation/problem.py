@@ -14,7 +14,7 @@ solver) driven by its measured tensions and protocol under the model of ``x``
 (:attr:`Problem.model`), measured like the experiment (:attr:`Problem.measure`:
 joint angles, or notch points registered in the plane, Sec. IV-A) and whitened
 by the experiment's σ (:func:`whitened`), stacked; then the rows of a
-zero-mean Gaussian prior on linear combinations of ``x``.
+Gaussian prior on linear combinations of ``x`` (whitened: ``(a·x − mean)/σ``).
 
 ``identify`` builds it with per-tube blocks and the cut-depth prior;
 ``diagnose`` with the baseline's and candidates' scalars and, for a
@@ -140,13 +140,15 @@ class Problem:
     x0, lo, hi : ndarray
         Start and bounds in optimiser coordinates.
     prior : ndarray (r, p)
-        Each row adds the residual ``prior[r] @ x``.
+        Each row adds the residual ``prior[r] @ x - prior_offset[r]`` (a Gaussian prior, whitened).
     model : callable
         ``model(obs, values, tube_blocks) -> FrictionParams``: the simulator's model of one experiment
         from the shared values (SI, by name) and its tube's blocks (``{name: (n,) values}``).
     measure : callable
         ``measure(obs, theta, values, experiment_blocks) -> predicted``: what the experiment would measure.
     sims : Simulations
+    prior_offset : ndarray (r,) or None
+        The prior rows' means (None: zero-mean priors).
     """
 
     obs: tuple
@@ -160,6 +162,12 @@ class Problem:
     model: Callable
     measure: Callable = _default_measure
     sims: Simulations = field(default_factory=Simulations)
+    prior_offset: np.ndarray | None = None
+
+    def prior_residuals(self, x) -> np.ndarray:
+        """The whitened residuals of the priors, ``prior @ x - prior_offset`` (r,)."""
+        r = self.prior @ np.asarray(x, dtype=float)
+        return r if self.prior_offset is None else r - self.prior_offset
 
     @property
     def k(self) -> int:
@@ -211,7 +219,7 @@ class Problem:
                 models[o.tube] = self.model(o, vals, tubes.get(o.tube, {}))
             theta = self.sims.theta(o, models[o.tube])
             out.append(whitened(o, self.measure(o, theta, vals, exps.get(o.name, {}))))
-        return np.concatenate(out + [self.prior @ x])
+        return np.concatenate(out + [self.prior_residuals(x)])
 
     def clusters(self) -> np.ndarray:
         """The sample each residual belongs to (cluster ids for the standard errors; -1: a prior's)."""

@@ -14,6 +14,7 @@ import pandas as pd
 
 from ...physics.shapes import get_model
 from ...units import MM
+from ..lack_of_fit import lack_of_fit_summary
 from .results import ExperimentFit
 
 __all__ = ["StudyFit", "compare_models", "failed_fits", "fit_summary", "fits_table", "pointwise_table"]
@@ -165,6 +166,9 @@ class StudyFit:
         Experiments fitted, and asked for.
     seconds : float
         Wall time of the fits [s].
+    lack_of_fit : dict or None
+        Model -> tube -> :class:`notchfit.analysis.lack_of_fit.LackOfFit`: each shape model's error
+        against the trials' scatter (:func:`notchfit.analysis.lack_of_fit.shape_fit_lack_of_fit`).
     """
 
     point_fits: pd.DataFrame | None
@@ -172,6 +176,7 @@ class StudyFit:
     n_fitted: int
     n_total: int
     seconds: float
+    lack_of_fit: dict | None = None
 
     def summary(self) -> str:
         """Per model the rms and largest error over the successful fits, then the count."""
@@ -185,6 +190,9 @@ class StudyFit:
                 rms = float(np.sqrt(np.mean(g["rms_deg"].to_numpy(float) ** 2)))
                 lines.append(f"  {model:12s} rms {rms:.3f} deg, max {g['max_deg'].max():.3f} deg over {len(g)} "
                              "samples (measured angles)")
+        for model, tables in (self.lack_of_fit or {}).items():
+            if tables:
+                lines.append(f"{model}: " + lack_of_fit_summary(tables))
         lines.append(f"fit: {self.n_fitted} of {self.n_total} experiments fitted in {self.seconds:.1f} s")
         return "\n".join(lines)
 

@@ -10,16 +10,21 @@ and — for tubes cut from one stock — new tubes from their geometry alone
    angles preferred, else notch points; experiments that share a geometry
    are one tube);
 2. fits the free parameters (:mod:`notchfit.analysis.identify.specs`: by default the
-   material law's ``E_lin``, ``E_se``, ``strain_lower`` or the seed tube's
+   material law's ``E_lin``, ``E_se``, ``strain_lower`` (and its tension–compression
+   asymmetry ``strain_ratio`` where the sections let it act) or the seed tube's
    ``k_lin``, ``k_mid``; ``μ_d``; each real tube's rest angles and effective
-   cut depths, the latter with a prior of the cutting tolerance) to every
-   experiment at once — every tube shares the scalar parameters — by bounded
-   least squares from the best of a grid of probe starts
-   (:mod:`notchfit.analysis.identify.problem`);
+   cut depths, with Gaussian priors: the angles its trials measured at zero
+   force, the drawing's tolerance) to every experiment at once — every tube
+   shares the scalar parameters — by bounded least squares from the best of a
+   grid of probe starts (:mod:`notchfit.analysis.identify.problem`);
 3. refits without each experiment and predicts it (leave one experiment
    out: ``heldout``), and, when the study has several tubes, without each
    tube and predicts its experiments from its geometry file
-   (``heldout_by_tube``).
+   (``heldout_by_tube``), each refit started from the fit on every experiment;
+4. splits the fit's error into the trials' scatter and the lack of fit beyond it
+   (:mod:`notchfit.analysis.lack_of_fit`), and says what the model knows of a tube
+   it has never seen (:class:`notchfit.analysis.estimation.bands.NewTubePrior`:
+   the prediction bands).
 
 It returns an :class:`Identification` and writes nothing; ``notchfit
 identify`` writes ``model.toml`` and ``identify.json``.

@@ -26,6 +26,7 @@ from ..estimation.observations import angle_residuals, zero_tension_samples
 from ..estimation.problem import Block, Problem, Simulations, measure_registered, predict, whitened, with_values
 from ..estimation.solve import Solution, grid_starts, standard_errors
 from ..estimation.solve import solve as solve_problem
+from .specs import DEPTH_TOLERANCE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN
 
 __all__ = ["Problem", "Solution", "errors", "make_problem", "predict", "solve", "standard_errors", "whitened",
            "with_values"]
@@ -49,25 +50,76 @@ def _tube_model(base: dict, excess: float, o, values: dict, tube: dict):
     return with_values(base[o.tube], values, excess, **tube)
 
 
+def _rest_measurements(obs, tube, base, sim_kw) -> list:
+    """Per experiment of ``tube`` with samples at rest before the first load (:func:`zero_tension_samples`):
+    ``(mean, count, sigma)`` — the mean misfit of those samples per joint [rad] (the measured angles less the
+    prediction of ``base``, whose small deflection at rest is so taken out), how many measured each joint,
+    and the experiment's angle σ [rad] (NaN for notch points: their angles have no stated σ)."""
+    out = []
+    for o in obs:
+        if o.tube != tube:
+            continue
+        idx = zero_tension_samples(o)
+        if not idx.size:
+            continue
+        d = o.theta_free[idx] - predict(o, base, sim_kw)[idx]
+        ok = np.isfinite(d)
+        count = ok.sum(axis=0)
+        mean = np.where(count > 0, np.where(ok, d, 0.0).sum(axis=0) / np.maximum(count, 1), np.nan)
+        out.append((mean, count, o.sigma if o.metric == "angles" else np.nan))
+    return out
+
+
 def _rest_start(obs, tube, base, sim_kw) -> np.ndarray:
     """Rest angles to start from: the geometry's (or the base model's), moved by the mean misfit of the
     samples taken at rest before the first load (:func:`zero_tension_samples`), where the prediction's
     small deflection is taken out."""
     geom = next(o.geom for o in obs if o.tube == tube)
     rest0 = base.rest_angles(geom)
-    diffs = []
-    for o in obs:
-        if o.tube != tube:
-            continue
-        idx = zero_tension_samples(o)
-        if idx.size:
-            th = predict(o, base, sim_kw)[idx]
-            diffs.append(o.theta_free[idx] - th)
-    if not diffs:
+    trials = _rest_measurements(obs, tube, base, sim_kw)
+    if not trials:
         return rest0
-    d = np.concatenate(diffs)
-    shift = np.where(np.isfinite(d).any(axis=0), np.nanmean(np.where(np.isfinite(d), d, np.nan), axis=0), 0.0)
-    return rest0 + np.nan_to_num(shift)
+    sums = sum(np.nan_to_num(m) * c for m, c, _ in trials)
+    counts = sum(c for _, c, _ in trials)
+    return rest0 + np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
+
+
+def _rest_prior(obs, tube, base, sim_kw, *, geometry_sigma: float = REST_SIGMA_GEOMETRY,
+                min_sigma: float = REST_SIGMA_MIN) -> tuple[np.ndarray, np.ndarray]:
+    """The prior of one tube's rest angles: mean and standard deviation per joint [rad] (n,), (n,).
+
+    The rest angle is a measurement: the angles of the tube's own trials at zero force
+    (:func:`_rest_measurements`), averaged over the trials, with the larger of two
+    standard errors — the angle noise over all those samples (``σ_θ / √N``) and the
+    trial-to-trial scatter of the trials' means (``s / √T``, two trials or more) — and
+    at least ``min_sigma``. A joint no trial measured at rest is tied to the geometry
+    file's (or the base model's) rest angle with ``geometry_sigma``.
+    """
+    geom = next(o.geom for o in obs if o.tube == tube)
+    rest0 = base.rest_angles(geom)
+    mean, sigma = rest0.copy(), np.full(rest0.shape, float(geometry_sigma))
+    trials = _rest_measurements(obs, tube, base, sim_kw)
+    if not trials:
+        return mean, sigma
+    M = np.array([m for m, _, _ in trials])                    # (T, n) per-trial mean misfits
+    C = np.array([c for _, c, _ in trials], dtype=float)
+    noise = np.array([sg for _, _, sg in trials])
+    n_tot = C.sum(axis=0)
+    has = n_tot > 0
+    mean[has] = rest0[has] + (np.nansum(np.nan_to_num(M) * C, axis=0)[has] / n_tot[has])
+    # noise: the trials' stated σ (angles), or, for angles from notch points, the spread of the rest samples
+    sig_theta = float(np.nanmax(noise)) if np.isfinite(noise).any() else np.nan
+    sem_noise = sig_theta / np.sqrt(np.maximum(n_tot, 1)) if np.isfinite(sig_theta) else np.zeros_like(n_tot)
+    T = np.isfinite(M).sum(axis=0)
+    sem_trials = np.zeros(rest0.shape)
+    for j in np.flatnonzero(T >= 2):
+        v = M[np.isfinite(M[:, j]), j]
+        sem_trials[j] = v.std(ddof=1) / np.sqrt(v.size)
+    sem = np.maximum(np.maximum(sem_noise, sem_trials), min_sigma)
+    if not np.isfinite(sig_theta):                             # points with a single trial: no σ measured
+        sem = np.where(T >= 2, sem, geometry_sigma)
+    sigma[has] = sem[has]
+    return mean, sigma
 
 
 def _depth_block(geom, depth_range: float, min_wall: float):
@@ -78,26 +130,70 @@ def _depth_block(geom, depth_range: float, min_wall: float):
     return lo, hi
 
 
+def _tube_block_rows(obs, t, g, base_t, start_t, *, rest, depth, sim_kw, rest_range, closure_margin, rest_prior,
+                     rest_sigma_geometry, rest_sigma_min, depth_range, depth_sigma, depth_common, min_wall,
+                     rest_step, offset):
+    """One tube's unknowns: start, bounds, prior rows ``(indices, weights, mean, σ)`` and blocks, its first
+    unknown at ``offset`` of ``x``."""
+    n = g.n_joints
+    x0, lo, hi, rows, blocks = [], [], [], [], []
+    if rest:
+        ref, cap = base_t.rest_angles(g), closure_margin * g.closure_angles
+        lo_t, hi_t = np.maximum(ref - rest_range, -cap), np.minimum(ref + rest_range, cap)
+        if rest_prior:
+            centre, sig = _rest_prior(obs, t, start_t, sim_kw, geometry_sigma=rest_sigma_geometry,
+                                      min_sigma=rest_sigma_min)
+            x0 += list(np.clip(centre, lo_t, hi_t))
+            rows += [([offset + j], 1.0, float(centre[j]), float(sig[j])) for j in range(n)]
+        else:
+            x0 += list(np.clip(_rest_start(obs, t, start_t, sim_kw), lo_t, hi_t))
+        lo, hi = list(lo_t), list(hi_t)
+        blocks.append(Block("rest_angle", t, n, step=rest_step))
+    if depth:
+        sigma = depth_sigma if depth_sigma is not None else (g.slot_depth_tolerance or DEPTH_TOLERANCE)
+        lo_t, hi_t = _depth_block(g, max(depth_range, 4.0 * sigma), min_wall)
+        i = offset + len(x0)
+        x0, lo, hi = x0 + [0.0] * n, lo + list(lo_t), hi + list(hi_t)
+        rows += [([i + j], 1.0, 0.0, sigma) for j in range(n)]
+        if depth_common is not None:
+            rows.append((list(range(i, i + n)), 1.0 / n, 0.0, depth_common))    # the tube's mean offset
+        blocks.append(Block("slot_depth_offset", t, n, step=DEPTH_STEP))
+    return x0, lo, hi, rows, blocks
+
+
 def make_problem(obs, base: dict, specs, *, rest: bool = False, depth: bool = False, excess: float,
                  sim_kw: dict | None = None, rest_range: float = 0.2, closure_margin: float = 0.9,
-                 depth_range: float = 60e-6, depth_sigma: float = 15e-6, depth_common: float | None = 2e-6,
-                 min_wall: float = 20e-6, rest_step: float = 2e-4) -> Problem:
+                 depth_range: float = 60e-6, depth_sigma: float | None = None, depth_common: float | None = 2e-6,
+                 min_wall: float = 20e-6, rest_step: float = 2e-4, rest_prior: bool = True,
+                 rest_sigma_geometry: float = REST_SIGMA_GEOMETRY, rest_sigma_min: float = REST_SIGMA_MIN) -> Problem:
     """Build the problem of fitting ``specs`` (and each tube's rest angles and cut depths) to ``obs``.
+
+    Each tube's unknowns carry Gaussian priors, whitened residual rows ``(a·x − mean)/σ``
+    after the experiments' (:attr:`Problem.prior`, :attr:`Problem.prior_offset`).
 
     Parameters
     ----------
     base : dict
         Tube -> base FrictionParams; the tubes not in ``obs`` are ignored.
     rest, depth : bool
-        Fit each tube's rest angles (from the start of :func:`_rest_start`) and its
-        per-notch cut-depth offsets (from 0, with the Gaussian prior ``depth_sigma``).
+        Fit each tube's rest angles and its per-notch cut-depth offsets (from 0).
     rest_range : float
         Rest angles move at most this far from the geometry's [rad] ...
     closure_margin : float
         ... and stay within this fraction of each slot's closure angle.
-    depth_range, depth_sigma, min_wall : float
-        Cut-depth offsets: bound, prior standard deviation (the cutting tolerance) and
-        the thinnest wall left [m].
+    rest_prior : bool
+        Tie each tube's rest angles to their measurement (:func:`_rest_prior`: the angles of its
+        trials at zero force, with their standard error; else the geometry's with
+        ``rest_sigma_geometry``) and start from it; False: free within their bounds, started
+        from :func:`_rest_start`.
+    rest_sigma_geometry, rest_sigma_min : float
+        Prior σ of a rest angle no trial measured at rest, and the smallest prior σ [rad].
+    depth_range, min_wall : float
+        Cut-depth offsets: bound (at least 4 prior σ) and the thinnest wall left [m].
+    depth_sigma : float or None
+        Prior standard deviation of each offset [m]; None: each tube's geometry
+        ``slot_depth_tolerance`` (``slot_depth_tolerance_mm``), else
+        :data:`~notchfit.analysis.identify.specs.DEPTH_TOLERANCE` (15 µm).
     rest_step : float
         Finite-difference step of the rest angles [rad].
     depth_common : float or None
@@ -116,35 +212,28 @@ def make_problem(obs, base: dict, specs, *, rest: bool = False, depth: bool = Fa
     start_params = {t: with_values(base[t], {s.name: s.start for s in specs}, excess) for t in tubes}
     blocks = []
     for t in tubes:
-        g, n = geoms[t], geoms[t].n_joints
-        if rest:
-            ref, cap = base[t].rest_angles(g), closure_margin * g.closure_angles
-            lo_t, hi_t = np.maximum(ref - rest_range, -cap), np.minimum(ref + rest_range, cap)
-            x0 += list(np.clip(_rest_start(obs, t, start_params[t], sim_kw), lo_t, hi_t))
-            lo, hi = lo + list(lo_t), hi + list(hi_t)
-            blocks.append(Block("rest_angle", t, n, step=rest_step))
-        if depth:
-            lo_t, hi_t = _depth_block(g, depth_range, min_wall)
-            i = len(x0)
-            x0, lo, hi = x0 + [0.0] * n, lo + list(lo_t), hi + list(hi_t)
-            rows += [(list(range(i + j, i + j + 1)), depth_sigma) for j in range(n)]
-            if depth_common is not None:
-                rows.append((list(range(i, i + n)), depth_common))
-            blocks.append(Block("slot_depth_offset", t, n, step=DEPTH_STEP))
+        x_t, lo_t, hi_t, rows_t, blocks_t = _tube_block_rows(
+            obs, t, geoms[t], base[t], start_params[t], rest=rest, depth=depth, sim_kw=sim_kw,
+            rest_range=rest_range, closure_margin=closure_margin, rest_prior=rest_prior,
+            rest_sigma_geometry=rest_sigma_geometry, rest_sigma_min=rest_sigma_min, depth_range=depth_range,
+            depth_sigma=depth_sigma, depth_common=depth_common, min_wall=min_wall, rest_step=rest_step,
+            offset=len(x0))
+        x0, lo, hi, rows, blocks = x0 + x_t, lo + lo_t, hi + hi_t, rows + rows_t, blocks + blocks_t
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     x0 = np.clip(np.asarray(x0, float), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
     prior = np.zeros((len(rows), x0.size))
-    for r, (idx, sigma) in enumerate(rows):
-        prior[r, idx] = 1.0 / (len(idx) * sigma)          # one unknown / sigma, or a block's mean / sigma
+    offset = np.zeros(len(rows))
+    for r, (idx, weight, mean, sigma) in enumerate(rows):
+        prior[r, idx] = weight / sigma                # one unknown, or a block's mean, over its σ
+        offset[r] = mean / sigma
     excess = float(excess)
     return Problem(tuple(obs), tuple(specs), (1.0,) * len(specs), tuple(blocks), x0, lo, hi, prior,
-                   model=partial(_tube_model, base, excess),
-                   sims=Simulations(sim_kw))
+                   model=partial(_tube_model, base, excess), sims=Simulations(sim_kw), prior_offset=offset)
 
 
 def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: float = 3.0,
           max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6, diff_rel: float = 2e-3,
-          rest_step: float = 2e-4) -> Solution:
+          rest_step: float = 2e-4, grid: bool = True, starts=(), errors: bool = True) -> Solution:
     """Minimise the problem's cost from the best ``n_starts`` of its probe grid (the core's
     :func:`~notchfit.analysis.estimation.solve.solve`, forward differences).
 
@@ -161,7 +250,15 @@ def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: floa
         Finite-difference step: relative for the parameters (their log for log-scale ones).
     rest_step : float
         Finite-difference step of the rest angles [rad].
+    grid : bool
+        Start from the best of the probe grid; False: one run from the problem's start (a warm
+        start, e.g. a held-out refit from the fit on every experiment).
+    starts : sequence of ndarray
+        Further starts (optimiser coordinates), each one more run.
+    errors : bool
+        Compute the standard errors (and the Jacobian); False for a fit whose errors nobody reads.
     """
-    starts, nprobe = grid_starts(pb, n_starts)
+    first, nprobe = grid_starts(pb, n_starts) if grid else ([pb.x0], 0)
+    starts = list(first) + [np.asarray(x, float) for x in starts]
     return solve_problem(pb, starts, jac="forward", loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol,
-                         xtol=xtol, diff_rel=diff_rel, block_steps={"rest_angle": rest_step}, nfev=nprobe)
+                         xtol=xtol, diff_rel=diff_rel, block_steps={"rest_angle": rest_step}, nfev=nprobe, errors=errors)

@@ -14,11 +14,14 @@ from ...physics.friction import FrictionParams
 from ...physics.friction_params import PARAM_KEYS
 from ...units import DEG, MM
 from ..estimation.observations import METRICS, metric_unit, observe_study
+from ..estimation.bands import NewTubePrior
 from ..estimation.identifiability import Identifiability, assess
+from ..estimation.problem import measure_registered
 from ..estimation.solve import folds, se_values, tube_folds
+from ..lack_of_fit import Trial, lack_of_fit_summary, study_lack_of_fit
 from .problem import Solution, errors, make_problem, predict, solve, with_values
-from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, base_model, default_free,
-                    parse_free, specs_for)
+from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN,
+                    base_model, default_free, parse_free, specs_for)
 
 __all__ = ["FIT_SOLVER", "Identification", "TubeFit", "identify"]
 
@@ -45,6 +48,11 @@ class TubeFit:
         Identified offsets from the geometry's depths (0 when not identified) and their standard errors.
     model : FrictionParams
         The tube's model: the shared values with its rest angles and cut depths.
+    rest_prior, rest_prior_sd : ndarray (n,) [rad]
+        The prior of the rest angles: measured at zero force in the tube's trials (or the geometry's)
+        and its standard deviation (NaN: no prior).
+    depth_prior_sd : float [m]
+        The prior standard deviation of each cut-depth offset (the tolerance; NaN: not identified).
     """
 
     name: str
@@ -55,14 +63,22 @@ class TubeFit:
     depth_offsets: np.ndarray = field(repr=False)
     depth_se: np.ndarray = field(repr=False)
     model: FrictionParams = field(repr=False)
+    rest_prior: np.ndarray | None = field(default=None, repr=False)
+    rest_prior_sd: np.ndarray | None = field(default=None, repr=False)
+    depth_prior_sd: float = math.nan
 
     def as_dict(self) -> dict:
         """Degrees and millimetres (µm for the depth offsets), as in ``identify.json``."""
         deg = lambda a: [math.degrees(float(v)) for v in a]  # noqa: E731
         um = lambda a: [float(v) * 1e6 for v in a]  # noqa: E731
+        nan = np.full(len(self.rest_angles), math.nan)
         return {"experiments": list(self.experiments), "rest_angle_deg": deg(self.rest_angles),
-                "rest_angle_se_deg": deg(self.rest_se), "slot_depth_mm": [float(v) / MM for v in self.slot_depths],
-                "slot_depth_offset_um": um(self.depth_offsets), "slot_depth_offset_se_um": um(self.depth_se)}
+                "rest_angle_se_deg": deg(self.rest_se),
+                "rest_angle_prior_deg": deg(nan if self.rest_prior is None else self.rest_prior),
+                "rest_angle_prior_sd_deg": deg(nan if self.rest_prior_sd is None else self.rest_prior_sd),
+                "slot_depth_mm": [float(v) / MM for v in self.slot_depths],
+                "slot_depth_offset_um": um(self.depth_offsets), "slot_depth_offset_se_um": um(self.depth_se),
+                "slot_depth_prior_sd_um": float(self.depth_prior_sd) * 1e6}
 
 
 @dataclass(frozen=True)
@@ -110,6 +126,14 @@ class Identification:
     fixed : dict
         Parameters the data did not determine, fixed at their start values (the base model's) and
         fitted no further: name -> value (SI). They are not among :attr:`free`.
+    lack_of_fit : dict
+        Tube -> :class:`notchfit.analysis.lack_of_fit.LackOfFit` of the fit on every experiment: the
+        trials' scatter (pure error) and the error beyond it, per notch and per force range, with
+        its F test (in :attr:`unit`).
+    new_tube : NewTubePrior or None
+        What the model knows of a tube it has never seen (the shared parameters' covariance, the
+        tube-to-tube scatter of rest angles and cut depths): the prediction bands of ``simulate
+        --model`` and :class:`notchfit.analysis.estimation.bands.BandPredictor`.
     """
 
     metric: str
@@ -128,6 +152,8 @@ class Identification:
     solution: Solution | None = field(default=None, repr=False)
     identifiability: Identifiability | None = field(default=None, repr=False)
     fixed: dict = field(default_factory=dict)
+    lack_of_fit: dict = field(default_factory=dict, repr=False)
+    new_tube: NewTubePrior | None = field(default=None, repr=False)
 
     @property
     def unit(self) -> str:
@@ -145,6 +171,9 @@ class Identification:
         for tube, fit in self.tubes.items():
             if REST in self.tube_free:
                 lines.append(f"  {tube}: rest angles [deg] " + ", ".join(f"{v / DEG:.2f}" for v in fit.rest_angles))
+                if fit.rest_prior is not None and np.isfinite(fit.rest_prior).any():
+                    lines.append(f"  {tube}: their prior (zero-force trials, else geometry) [deg] " + ", ".join(
+                        f"{m / DEG:.2f} ± {sd / DEG:.2f}" for m, sd in zip(fit.rest_prior, fit.rest_prior_sd)))
             if DEPTH in self.tube_free:
                 lines.append(f"  {tube}: cut depths [mm] " + ", ".join(f"{v / MM:.4f}" for v in fit.slot_depths))
         held = "" if math.isnan(self.heldout_rms) else (f"; held-out rms {self.heldout_rms:.3f} {unit} "
@@ -153,6 +182,8 @@ class Identification:
         lines += [f"  {name:12s} held out {v:.3f} {unit}" for name, v in self.heldout.items()]
         lines += [f"  tube {tube}: predicted from the other tubes' fit {v:.3f} {unit}"
                   for tube, v in self.heldout_by_tube.items()]
+        if self.lack_of_fit:
+            lines.append(lack_of_fit_summary(self.lack_of_fit))
         return "\n".join(lines)
 
     def as_dict(self) -> dict:
@@ -174,6 +205,8 @@ class Identification:
             # parameters the data do not determine: fixed at their start value, never printed as a number
             # plus or minus many times itself; the verdicts of the first fit, per free parameter
             "fixed_at_prior": {key[f]: v for f, v in self.fixed.items()},
+            "lack_of_fit": {t: lof.as_dict() for t, lof in self.lack_of_fit.items()},
+            "prediction": None if self.new_tube is None else self.new_tube.as_metadata(),
             "identifiability": None if self.identifiability is None else {
                 key.get(p.name, p.name): {"verdict": p.verdict, "relative_se": p.relative_se,
                                           "null_weight": p.null_weight}
@@ -201,6 +234,12 @@ class _Task:
     start: FrictionParams | None
     excess: float
     options: dict
+    warm: tuple | None = None
+
+
+#: The options of :func:`_Task.options` that build the problem (the others solve it).
+_PROBLEM_OPTIONS = ("sim_kw", "rest_range", "depth_range", "depth_sigma", "depth_common", "rest_prior",
+                    "rest_sigma_geometry", "rest_sigma_min")
 
 
 def _fit(task: _Task):
@@ -210,10 +249,18 @@ def _fit(task: _Task):
         models = [task.base[o.tube] for o in train]
         specs = specs_for(task.free, models, start=task.start)
         opt = dict(task.options)
-        prob_kw = {k: opt.pop(k) for k in ("sim_kw", "rest_range", "depth_range", "depth_sigma", "depth_common")
-                   if k in opt}
+        prob_kw = {k: opt.pop(k) for k in _PROBLEM_OPTIONS if k in opt}
         pb = make_problem(train, task.base, specs, rest=REST in task.free, depth=DEPTH in task.free,
                           excess=task.excess, **prob_kw)
+        if task.kind != "all":
+            opt["errors"] = False            # a held-out fit predicts; its standard errors are not read
+        if task.warm is not None:
+            x_warm = _warm_x(pb, *task.warm)
+            if task.kind == "tube":          # the headline figure: the grid's best and the warm start compete
+                opt.update(starts=(x_warm,), n_starts=1)
+            else:                            # one experiment less: one run from the fit on every experiment
+                pb = replace(pb, x0=x_warm)
+                opt.update(grid=False, n_starts=1)
         sol = solve(pb, **opt)
         fitted = pb.params(sol.x)
         vals = pb.values(sol.x)
@@ -223,6 +270,22 @@ def _fit(task: _Task):
             params = fitted.get(o.tube, with_values(task.base[o.tube], vals, task.excess))
             preds[o.name] = errors(o, predict(o, params))
         return pb, sol, fitted, preds
+
+
+def _warm_x(pb, params: FrictionParams, blocks: dict) -> np.ndarray:
+    """``pb``'s unknowns at the shared values of ``params`` and the per-tube values ``blocks`` (tube ->
+    {block name: values}) where it has them, clipped inside the bounds."""
+    x0 = pb.x0.copy()
+    for i, s in enumerate(pb.specs):
+        x0[i] = s.to_x(float(getattr(params, s.name)), pb.scales[i])
+    i = pb.k
+    for b in pb.blocks:
+        v = blocks.get(b.owner, {}).get(b.name)
+        if v is not None:
+            x0[i:i + b.size] = v
+        i += b.size
+    margin = 1e-9 * (pb.hi - pb.lo)
+    return np.clip(x0, pb.lo + margin, pb.hi - margin)
 
 
 def _rms(values) -> float:
@@ -244,15 +307,18 @@ def _base_models(obs, model: FrictionParams | None) -> dict:
     return out
 
 
-def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool) -> tuple[list, list]:
-    """The full fit, one fit per left-out experiment, one per left-out tube (keys and tasks)."""
+def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool,
+           warm: tuple | None = None) -> tuple[list, list]:
+    """The full fit, one fit per left-out experiment, one per left-out tube (keys and tasks). ``warm``
+    (:func:`_warm_start`): the held-out fits start from the fit on every experiment, one run without the
+    probe grid."""
     idx = tuple(range(len(obs)))
-    rest = (base, free, start, excess, options)
-    keys, tasks = ["all"], [_Task("all", obs, idx, (), *rest)]
+    keys, tasks = ["all"], [_Task("all", obs, idx, (), base, free, start, excess, options)]
+    held = (base, free, start, excess, options, warm)
 
     def held_out(kind, test):
         test = tuple(int(i) for i in test)
-        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, *rest)
+        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, *held)
 
     if heldout and len(obs) > 1:
         for f in folds(len(obs)):
@@ -268,9 +334,10 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
              by_tube: bool = True, jobs: int = 1, scheduler=None, n_starts: int = 2, loss: str = "linear",
              f_scale: float = 3.0, max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6,
              diff_rel: float = 2e-3, rest_step: float = 2e-4, rest_range: float = REST_RANGE,
-             depth_range: float = DEPTH_RANGE, depth_sigma: float = DEPTH_TOLERANCE,
-             depth_common: float | None = DEPTH_COMMON, sim_kw: dict | None = None,
-             fix_undetermined: bool = True) -> Identification:
+             depth_range: float = DEPTH_RANGE, depth_sigma: float | None = None,
+             depth_common: float | None = DEPTH_COMMON, rest_prior: bool = True,
+             rest_sigma_geometry: float = REST_SIGMA_GEOMETRY, rest_sigma_min: float = REST_SIGMA_MIN,
+             sim_kw: dict | None = None, fix_undetermined: bool = True, warm_start: bool = True) -> Identification:
     """Identify the model's parameters on a study; held-out errors by leaving experiments (and tubes) out.
 
     Parameters
@@ -295,8 +362,14 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     rest_range : float
         How far the rest angles may move from the geometry's [rad].
     depth_range, depth_sigma, depth_common : float
-        Cut-depth offsets: bound, Gaussian prior per notch (the cutting tolerance) and
-        of a tube's mean (None: free) [m] (:func:`notchfit.analysis.identify.problem.make_problem`).
+        Cut-depth offsets: bound, Gaussian prior per notch (the cutting tolerance; None: each
+        geometry's ``slot_depth_tolerance_mm``, else 15 µm) and of a tube's mean (None: free) [m]
+        (:func:`notchfit.analysis.identify.problem.make_problem`).
+    rest_prior, rest_sigma_geometry, rest_sigma_min :
+        Tie each tube's rest angles to the angles its trials measured at zero force, with their
+        standard error (else to the geometry's, σ ``rest_sigma_geometry`` [rad]; at least
+        ``rest_sigma_min`` [rad]); False: rest angles free within ``rest_range`` (the behaviour
+        before the prior).
     sim_kw : dict, optional
         Options of :func:`notchfit.physics.friction.simulate` during the fits (default
         :data:`FIT_SOLVER`); the reported errors always use its defaults.
@@ -305,6 +378,10 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
         (:func:`notchfit.analysis.estimation.identifiability.assess` on its Jacobian), fix it at its
         start value and make every fit without it (:attr:`Identification.fixed`). The fit on every
         experiment therefore runs before the held-out fits.
+    warm_start : bool
+        The held-out fits start from the fit on every experiment (one least-squares run, no probe
+        grid: the data of all but one experiment or tube put the optimum near it); False: each
+        runs the full procedure from the probe grid.
 
     Returns
     -------
@@ -317,7 +394,8 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     excess = max(first.mu_s - first.mu_d, 0.0)
     options = dict(n_starts=n_starts, loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol, xtol=xtol,
                    diff_rel=diff_rel, rest_step=rest_step, rest_range=rest_range, depth_range=depth_range,
-                   depth_sigma=depth_sigma, depth_common=depth_common,
+                   depth_sigma=depth_sigma, depth_common=depth_common, rest_prior=rest_prior,
+                   rest_sigma_geometry=rest_sigma_geometry, rest_sigma_min=rest_sigma_min,
                    sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
     run = dict(jobs=jobs, scheduler=scheduler, heldout=heldout, by_tube=by_tube)
     first_fit = _run(obs, base, free, model, excess, options, dict(run, heldout=False, by_tube=False))[0]
@@ -326,19 +404,28 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     if drop:
         # a parameter the data do not determine stays at its start value; every fit is made without it
         free = tuple(f for f in free if f not in drop)
-        outs = _run(obs, base, free, model, excess, options, run)
-    else:
-        outs = [first_fit] + _run(obs, base, free, model, excess, options, run, skip_all=True)
-    tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube)[1]
+        first_fit = _run(obs, base, free, model, excess, options, dict(run, heldout=False, by_tube=False))[0]
+    warm = _warm_start(first_fit, base, excess, model) if warm_start else None
+    outs = [first_fit] + _run(obs, base, free, model, excess, options, run, skip_all=True, warm=warm)
+    tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube, warm)[1]
     result = _result(obs, base, free, excess, tasks, outs)
     start = next(iter(base.values()))
     return replace(result, identifiability=verdicts, fixed={f: float(getattr(start, f)) for f in drop})
 
 
-def _run(obs, base, free, model, excess, options, run: dict, skip_all: bool = False) -> list:
+def _warm_start(fit, base: dict, excess: float, model: FrictionParams | None) -> tuple:
+    """Where the held-out fits start: the base model with the shared values of ``fit``, and each tube's
+    unknowns as ``fit`` found them (tube -> {block name: values})."""
+    pb, sol = fit[0], fit[1]
+    start = model if model is not None else next(iter(base.values()))
+    return with_values(start, pb.values(sol.x), excess), pb.tube_values(sol.x)
+
+
+def _run(obs, base, free, model, excess, options, run: dict, skip_all: bool = False,
+         warm: tuple | None = None) -> list:
     """The fits of :func:`_tasks` on :func:`notchfit.batch.run_batch` (without the fit on every
     experiment when ``skip_all``); their outputs in task order."""
-    keys, tasks = _tasks(obs, base, free, model, excess, options, run["heldout"], run["by_tube"])
+    keys, tasks = _tasks(obs, base, free, model, excess, options, run["heldout"], run["by_tube"], warm)
     if skip_all:
         keys, tasks = keys[1:], tasks[1:]
     if not tasks:
@@ -352,20 +439,42 @@ def _run(obs, base, free, model, excess, options, run: dict, skip_all: bool = Fa
     return res.values()
 
 
+def _block_priors(pb) -> dict:
+    """Tube -> {block name: (mean, sd) (n,), (n,)} of the per-unknown prior rows of its blocks."""
+    single = (pb.prior != 0).sum(axis=1) == 1
+    mean_sd = {}
+    offset = np.zeros(pb.prior.shape[0]) if pb.prior_offset is None else pb.prior_offset
+    for r in np.flatnonzero(single):
+        i = int(np.flatnonzero(pb.prior[r])[0])
+        w = float(pb.prior[r, i])
+        mean_sd[i] = (float(offset[r]) / w, 1.0 / abs(w))
+    out, i = {}, pb.k
+    for b in pb.blocks:
+        rows = [mean_sd.get(k, (math.nan, math.nan)) for k in range(i, i + b.size)]
+        out.setdefault(b.owner, {})[b.name] = (np.array([m for m, _ in rows]), np.array([s for _, s in rows]))
+        i += b.size
+    return out
+
+
 def _tube_fits(obs, pb, sol, fitted) -> dict:
     """Tube -> :class:`TubeFit` of the full fit."""
     se_of = pb.tube_values(sol.se)
+    priors = _block_priors(pb)
     out = {}
     for t in dict.fromkeys(o.tube for o in obs):
         geom = next(o.geom for o in obs if o.tube == t)
         p, n = fitted[t], geom.n_joints
         nan = np.full(n, math.nan)
+        rest_prior = priors.get(t, {}).get("rest_angle", (None, None))
+        depth_sd = priors.get(t, {}).get("slot_depth_offset", (None, nan))[1]
         out[t] = TubeFit(name=t, experiments=tuple(o.name for o in obs if o.tube == t),
                          rest_angles=p.rest_angles(geom), rest_se=se_of.get(t, {}).get("rest_angle", nan),
                          slot_depths=p.depth_geometry(geom).slot_depths,
                          depth_offsets=np.zeros(n) if p.slot_depth_offset is None
                          else np.broadcast_to(np.asarray(p.slot_depth_offset, float), (n,)).copy(),
-                         depth_se=se_of.get(t, {}).get("slot_depth_offset", nan), model=p)
+                         depth_se=se_of.get(t, {}).get("slot_depth_offset", nan), model=p,
+                         rest_prior=rest_prior[0], rest_prior_sd=rest_prior[1],
+                         depth_prior_sd=float(depth_sd[0]) if np.size(depth_sd) else math.nan)
     return out
 
 
@@ -388,7 +497,8 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
     vals = pb.values(sol.x)
     se = se_values(pb, sol.x, sol.se)
     tubes = _tube_fits(obs, pb, sol, fitted)
-    train_err = {o.name: errors(o, predict(o, fitted[o.tube])) for o in obs}
+    theta = {o.name: predict(o, fitted[o.tube]) for o in obs}
+    train_err = {o.name: errors(o, theta[o.name]) for o in obs}
     held, by_tube = {}, {}
     for task, (_, _, _, preds) in zip(tasks[1:], outs[1:]):
         if task.kind == "experiment":
@@ -403,4 +513,55 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
         experiment_tubes={o.name: o.tube for o in obs}, train_rms=_rms([e / unit for e in train_err.values()]),
         train={k: _rms([e / unit]) for k, e in train_err.items()},
         heldout_rms=_rms([e / unit for e in held.values()]), heldout={k: _rms([e / unit]) for k, e in held.items()},
-        heldout_by_tube=by_tube, solution=sol)
+        heldout_by_tube=by_tube, solution=sol, lack_of_fit=_lack_of_fit(obs, pb, theta),
+        new_tube=_new_tube_prior(pb, sol, tubes, base, free))
+
+
+def _new_tube_prior(pb, sol, tubes: dict, base: dict, free, *, min_rest_sd: float = REST_SIGMA_MIN) -> NewTubePrior:
+    """:class:`NewTubePrior` of the fit on every experiment: the shared parameters' covariance in the
+    fit's coordinates (the Gauss–Newton correlations scaled to the reported standard errors, marginal
+    over the per-tube unknowns); the rest angles' tube-to-tube scatter about the geometry files'
+    (their mean square less their squared standard errors, at least ``min_rest_sd``; 0 when they were
+    not fitted); the cut depths with each drawing's tolerance (0: as drawn, when not fitted)."""
+    k = pb.k
+    se = np.asarray(sol.se[:k], float)
+    if sol.jacobian is not None and k:
+        C = np.linalg.pinv(sol.jacobian.T @ sol.jacobian)[:k, :k]
+        d = np.sqrt(np.clip(np.diag(C), 1e-300, None))
+        cov = C / np.outer(d, d) * np.outer(se, se)
+    else:
+        cov = np.diag(se ** 2)
+    rest_sd = 0.0
+    if REST in free:
+        d2, s2 = [], []
+        for t, fit in tubes.items():
+            geom_rest = base[t].rest_angles(next(o.geom for o in pb.obs if o.tube == t))
+            d2.append((fit.rest_angles - geom_rest) ** 2)
+            s2.append(np.nan_to_num(fit.rest_se) ** 2)
+        rest_sd = math.sqrt(max(float(np.mean(np.concatenate(d2)) - np.mean(np.concatenate(s2))), min_rest_sd ** 2))
+    return NewTubePrior(tuple(s.name for s in pb.specs), tuple(bool(s.log) for s in pb.specs),
+                        np.asarray(sol.x[:k], float), 0.5 * (cov + cov.T), rest_sd,
+                        None if DEPTH in free else 0.0, DEPTH_TOLERANCE)
+
+
+def _lack_of_fit(obs, pb, theta: dict, *, tol: float = 0.15) -> dict:
+    """Tube -> LackOfFit of the fit on every experiment (predicted ``theta`` by experiment), per notch
+    (angles) or point coordinate (points); the parameters counted: the shared ones and the tube's."""
+    _, unit = metric_unit(obs[0].metric)
+    per_tube = {b.owner: 0 for b in pb.blocks}
+    for b in pb.blocks:
+        per_tube[b.owner] += b.size
+    trials, labels = [], None
+    for o in obs:
+        pred = measure_registered(o, theta[o.name])
+        S = o.time.size
+        if o.metric == "points":
+            labels = [f"point {i + 1}" for i in range(o.measured.shape[1]) for _ in "xy"]
+        trials.append(Trial(o.name, o.tube, o.measured.reshape(S, -1), np.asarray(pred, float).reshape(S, -1),
+                            o.pulled_tension))
+    out = {}
+    for t in dict.fromkeys(o.tube for o in obs):
+        out.update(study_lack_of_fit([tr for tr in trials if tr.tube == t], n_params=pb.k + per_tube.get(t, 0),
+                                     unit=METRICS[obs[0].metric], scale=1.0 / unit, tol=tol,
+                                     response_labels=labels))
+    return out
