@@ -38,7 +38,9 @@ def _no_dask_thread_left_behind():
     yield
     if "distributed" not in sys.modules or not any(t.name.startswith("Dask-Offload") for t in threading.enumerate()):
         return
-    utils = sys.modules["distributed.utils"]
-    old = utils._offload_executor
+    utils = sys.modules.get("distributed.utils")
+    old = getattr(utils, "_offload_executor", None)
+    if old is None:                 # another Dask version: nothing known to replace
+        return
     utils._offload_executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="Dask-Offload")
     old.shutdown(wait=True)
