@@ -1,5 +1,6 @@
 """notchfit.batch: parallel items with failure isolation, progress and a summary."""
 import os
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -132,14 +133,30 @@ def test_progress_starts_no_thread():
 
 
 def test_dead_scheduler_is_reported_within_the_connect_timeout():
-    """A scheduler address where nothing answers fails in seconds (Dask's own default waits 30 s)."""
-    import time
+    """A scheduler address where nothing answers fails in seconds (Dask's own default waits 30 s).
+
+    Run in a subprocess: the Dask client that never connected leaves its event-loop thread running,
+    and a thread in this process would make every later ``jobs=2`` test spawn its workers instead of
+    forking them (notchfit.batch._mp_context)."""
+    import subprocess
+    import sys
 
     pytest.importorskip("distributed")
-    t0 = time.perf_counter()
-    with pytest.raises(ValueError, match=r"tcp://127\.0\.0\.1:9 \(no answer within 2 s\)"):
-        run_batch(abs, [-1, -2], scheduler="tcp://127.0.0.1:9", connect_timeout=2.0)
-    assert time.perf_counter() - t0 < 25.0          # the bound is the timeout, not a speed claim
+    code = ("import re, time\n"
+            "from notchfit.batch import run_batch\n"
+            "t0 = time.perf_counter()\n"
+            "try:\n"
+            "    run_batch(abs, [-1, -2], scheduler='tcp://127.0.0.1:9', connect_timeout=2.0)\n"
+            "except ValueError as exc:\n"
+            "    assert re.search(r'tcp://127\\.0\\.0\\.1:9 \\(no answer within 2 s\\)', str(exc)), exc\n"
+            "else:\n"
+            "    raise AssertionError('no error')\n"
+            "print(time.perf_counter() - t0)\n")
+    root = Path(__file__).resolve().parent.parent
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=root,
+                         env=dict(os.environ, PYTHONPATH=str(root)))
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert float(res.stdout.split()[-1]) < 25.0          # the bound is the timeout, not a speed claim
 
 
 @pytest.mark.parametrize("jobs", [1, 2])

@@ -69,7 +69,8 @@ def test_fit_study_writes_data_format_outputs(study, tmp_path, capsys):
     # nothing is overwritten without --force (exit 2, a message), and --force replaces
     assert main(["fit", str(study), "--out", str(out)]) == 2
     assert "--force" in capsys.readouterr().err
-    assert main(["fit", str(study), "--out", str(out), "--force"]) == 0
+    assert main(["fit", str(study), "--out", str(out), "--force", "--models", "cc", "--no-figures"]) == 0
+    assert set(io.read_fits(out / "L045" / "fits.csv")["model"]) == {"cc"}
 
 
 def test_fit_usage_errors_exit_2(study, tmp_path, capsys):

@@ -22,11 +22,15 @@ def test_parallel_and_seed_options():
 
 
 # ----------------------------------------------------------------------------- options through the CLI
+#: what these option tests need (no verdict is checked): three experiments with short ramps
+TINY = dict(n_experiments=3, n_up=4, n_down=5)
+
+
 def _small_study(tmp_path, recipe="null", seed=1):
     from notchfit.studies.synth import generate_study, load_recipe
 
     study = tmp_path / "study"
-    generate_study(load_recipe(recipe).scaled(n_experiments=4, n_up=8, n_down=10), study, seed=seed)
+    generate_study(load_recipe(recipe).scaled(**TINY), study, seed=seed)
     return study
 
 

@@ -170,11 +170,13 @@ def test_two_hidden_causes_are_both_named_with_their_figures(tmp_path):
         assert f'alt="figure of the cause {c}"' in page
 
 
-def test_angle_data_of_a_one_tendon_wrist(tmp_path):
+@pytest.mark.parametrize("small", [True, pytest.param(False, marks=pytest.mark.slow, id="full")])
+def test_angle_data_of_a_one_tendon_wrist(tmp_path, small):
     """A one-sided 5-notch wrist with a lumen tendon, measured as joint angles only, hiding the
     superelastic flag: named joint_hysteresis from degrees; what needs notch points or both pull
-    directions is skipped with its reason."""
-    d = _diagnose(tmp_path, "wrist_hysteresis", seed=1, small=False,
+    directions is skipped with its reason. The default job runs the reduced study, the slow job the
+    recipe's full one."""
+    d = _diagnose(tmp_path, "wrist_hysteresis", seed=1, small=small,
                   causes=("joint_hysteresis", "proximal_friction", "calibration_error", "external_load"))
     assert d["metric"] == "angles" and d["gain"]["metric"] == "heldout_rms_deg"
     assert d["causes"] == ["joint_hysteresis"], d["explanation"]

@@ -9,7 +9,10 @@ function at the small size, with images) and the shipped `calibration/`
 (globs included), `notchfit` being this checkout's command line. The long
 ones (diagnose and what needs its result, synth, demo, drawing figures) are
 marked slow; a test runs the earlier fast commands first when they have not
-run yet, so that each can be run alone.
+run yet, so that each can be run alone. The fast examples of the default job run on
+a reduced study of the demo (2 experiments of 4 + 4 samples, with images): what they check,
+that each example runs as written, needs no more; the slow ones, and the fast ones
+they run first, use the demo's small study itself.
 """
 from __future__ import annotations
 
@@ -70,12 +73,14 @@ def test_quick_start_has_two_set_up_and_run_commands():
     assert lines == ['pip install -e . && notchfit demo', 'pip install -e ".[test]" && python -m pytest']
 
 
-@pytest.fixture(scope="module")
-def workspace(tmp_path_factory):
-    """The repository's folder as the README's examples see it, after `notchfit demo` wrote its study."""
+#: (experiments, samples loading, samples unloading) of the default job's reduced demo study
+REDUCED = (2, 4, 4)
+
+
+def make_workspace(ws: Path) -> dict:
+    """The repository's folder ``ws`` as the README's examples see it, after `notchfit demo` wrote its study."""
     from notchfit.commands.demo import demo_study
 
-    ws = tmp_path_factory.mktemp("readme")
     demo_study(ws / "notchfit-demo" / "study", small=True, images=True, jobs=2)
     (ws / "calibration").symlink_to(ROOT / "calibration", target_is_directory=True)
     bin_dir = ws / ".bin"
@@ -88,6 +93,22 @@ def workspace(tmp_path_factory):
     return {"dir": ws, "env": env, "done": set()}
 
 
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory):
+    """The README's folder with the demo's small study (the slow examples need its size)."""
+    return make_workspace(tmp_path_factory.mktemp("readme"))
+
+
+@pytest.fixture(scope="module")
+def reduced_workspace(tmp_path_factory):
+    """The README's folder with the demo's study reduced to ``REDUCED`` (the fast examples)."""
+    from notchfit.commands import demo
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setitem(demo.SIZES, "small", REDUCED)
+        return make_workspace(tmp_path_factory.mktemp("readme_reduced"))
+
+
 def _run(ws: dict, cmd: str) -> subprocess.CompletedProcess:
     res = subprocess.run(cmd, shell=True, cwd=ws["dir"], env=ws["env"], capture_output=True, text=True,
                          timeout=1800)
@@ -98,7 +119,8 @@ def _run(ws: dict, cmd: str) -> subprocess.CompletedProcess:
 @pytest.mark.parametrize("index", [pytest.param(i, marks=[pytest.mark.slow] if is_slow(c) else [],
                                                 id=" ".join(shlex.split(c)[1:3]))
                                    for i, c in enumerate(COMMANDS)])
-def test_readme_command_runs_as_written(workspace, index):
+def test_readme_command_runs_as_written(request, index):
+    workspace = request.getfixturevalue("workspace" if is_slow(COMMANDS[index]) else "reduced_workspace")
     for earlier in COMMANDS[:index]:
         if earlier not in workspace["done"] and not is_slow(earlier):
             res = _run(workspace, earlier)

@@ -42,11 +42,16 @@ def test_serial_and_parallel_runs_are_byte_identical(command, extra, study, tmp_
     assert runs["serial"] == runs["again"] == runs["jobs2"]
 
 
-def test_diagnose_is_byte_identical_serial_and_parallel(study, tmp_path, capsys):
+@pytest.mark.parametrize("narrow", [
+    pytest.param(["--causes", "joint_hysteresis,calibration_error", "--max-folds", "2"], id="two-candidates"),
+    pytest.param([], id="every-candidate", marks=pytest.mark.slow)])
+def test_diagnose_is_byte_identical_serial_and_parallel(study, tmp_path, capsys, narrow):
+    """The default job tries two candidates on two folds (six calibrations to share between two workers);
+    the slow job every candidate on every fold."""
     runs = {}
     for label, jobs in (("serial", "1"), ("jobs2", "2")):
         out = tmp_path / label
-        assert run_main(["diagnose", study, "--out", out, "--no-figures", "--jobs", jobs, "--seed", "3"],
+        assert run_main(["diagnose", study, "--out", out, "--no-figures", "--jobs", jobs, "--seed", "3", *narrow],
                         capsys)[0] == 0
         runs[label] = _outputs(out)
     assert set(runs["serial"]) == {"diagnosis.json", "extended_model.toml"}

@@ -108,8 +108,7 @@ def test_empty_folder_every_section_says_why(tmp_path):
         report.build_report(tmp_path)
 
 
-@pytest.fixture
-def full_run(tmp_path, geom):
+def write_full_run(tmp_path):
     """A study of one left-pulled experiment with images, and every output file, written by hand."""
     study = tmp_path / "study"
     exp = study / "L045"
@@ -183,9 +182,21 @@ def full_run(tmp_path, geom):
     return out, study
 
 
-def test_full_report_reads_at_a_glance(full_run):
-    out, study = full_run
-    html = report.build_report(out).read_text()
+@pytest.fixture
+def full_run(tmp_path):
+    """:func:`write_full_run` for a test that changes the outputs."""
+    return write_full_run(tmp_path)
+
+
+@pytest.fixture(scope="module")
+def full_page(tmp_path_factory):
+    """:func:`write_full_run` and its report, built once for the tests that only read them."""
+    out, study = write_full_run(tmp_path_factory.mktemp("full_page"))
+    return out, study, report.build_report(out).read_text()
+
+
+def test_full_report_reads_at_a_glance(full_page):
+    out, study, html = full_page
     secs = sections(html)
     assert list(secs) == SECTION_IDS
     for k in SECTION_IDS:
@@ -212,11 +223,11 @@ def test_full_report_reads_at_a_glance(full_run):
     assert lines[1].startswith("cause: proximal_friction") and "80.6 % lower" in lines[2]
 
 
-def test_every_simulation_states_its_parameters(full_run):
+def test_every_simulation_states_its_parameters(full_page, full_run):
     """The simulation section names the paper's defaults (or the model file) with their values; the
     diagnosis names the calibrated baseline and the extended model with theirs (issue 17)."""
     out, _ = full_run
-    secs = sections(report.build_report(out).read_text())
+    secs = sections(full_page[2])
     sim = re.search(r'<p class="params">(.*?)</p>', secs["simulation"], re.S).group(1)
     assert "paper's default values" in sim and "k_lin = 0.4829 N m/rad" in sim and "μ_d = 0.29" in sim
     diag = re.search(r'<p class="params">(.*?)</p>', secs["diagnosis"], re.S).group(1)
@@ -248,12 +259,11 @@ def b_signs(html) -> dict:
     return found
 
 
-def test_one_sign_convention_for_b(full_run):
+def test_one_sign_convention_for_b(full_page):
     """The same experiment's measured b has the same sign in every section, the manipulator frame's: a
     left pull bends toward −x (a < 0) with b > 0 here, also from a diagnosis CSV of the older layout
     that was signed toward the pulled cable."""
-    out, _ = full_run
-    found = b_signs(report.build_report(out).read_text())
+    found = b_signs(full_page[2])
     measured = {k: v for k, v in found.items() if "measured" in k[1] or k[0] == "fit"}
     assert {k[0] for k in measured} == {"fit", "simulation", "diagnosis"}, found
     assert all(v == {"L045": 1.0} for v in measured.values()), measured
@@ -301,11 +311,10 @@ def test_numbers_with_sensible_digits():
     assert pct(81.6071) == "82 %" and pct(5.31) == "5.3 %" and pct(float("nan")) == "–"
 
 
-def test_first_section_numbers_have_units_and_one_noise_floor(full_run):
+def test_first_section_numbers_have_units_and_one_noise_floor(full_page):
     """The first line says what the model misses before the cause; every number of the first section
     carries its unit; the noise floor is one number on the whole page (issue 29)."""
-    out, _ = full_run
-    html = report.build_report(out).read_text()
+    html = full_page[2]
     text = glance_text(html)
     assert text.index("Model misses") < text.index("Cause")
     assert "misses the held-out notch points by 0.310 mm rms, 6.2× the noise floor" in text

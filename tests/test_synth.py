@@ -89,6 +89,6 @@ def test_static_friction_effect_is_mu_s_excess_and_the_old_name_still_reads():
 
 def test_synth_command_refuses_to_overwrite(tmp_path):
     out = tmp_path / "s"
-    assert main(["synth", "null", "--out", str(out), "--seed", "1"]) == 0
+    assert main(["synth", "null", "--out", str(out), "--seed", "1", "--experiments", "1", "--samples", "3", "3"]) == 0
     assert (out / "truth.json").is_file()
     assert main(["synth", "null", "--out", str(out), "--seed", "1"]) == 2
