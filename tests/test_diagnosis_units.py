@@ -217,3 +217,30 @@ def test_angle_metric_in_the_file():
     assert choose_metric([E("a", None, 1), E("b", 1, 1)]) == "angles"
     with pytest.raises(ValueError, match="one kind of measurement"):
         choose_metric([E("a", None, 1), E("b", 1, None)])
+
+
+def test_heldout_lack_of_fit_against_repeated_trials():
+    """Three trials repeat one bend/unbend (same tube, pull, counter-tension): held-out predictions of the
+    true curve are within the trials' scatter; a curve off by five times the noise has a significant lack
+    of fit (Draper & Smith 1998, Sec. 2.1). A trial against another counter-tension repeats none of them."""
+    import dataclasses
+
+    from notchfit.analysis.diagnosis.replicates import heldout_lack_of_fit
+
+    rng = np.random.default_rng(3)
+    t = np.array([0.0, 1.0, 2.0, 3.0, 2.0, 1.0, 0.0])
+    trials = []
+    for k, counter in enumerate((0.0, 0.0, 0.0, 1.5)):
+        p = _prep(f"T{k}", "angles", S=t.size, tension=t)
+        noisy = 0.1 * t[:, None] + rng.normal(0.0, 0.01, (t.size, p.geom.n_joints))      # (S, n) [rad]
+        trials.append(dataclasses.replace(p, measured=noisy, counter_tension=counter, tension_sigma=0.01))
+    exact = {i: np.repeat(0.1 * t[:, None], p.geom.n_joints, 1) for i, p in enumerate(trials)}
+    lof = heldout_lack_of_fit(trials, exact, alpha=0.01)
+    assert lof.has_replicates and not lof.overall.significant(0.01)
+    # loading and unloading are apart; the fourth trial joins no group: 7 groups of the first three
+    # (four loading values, three unloading ones) per joint
+    assert lof.overall.n_groups == 7 * trials[0].geom.n_joints
+    assert lof.overall.n_obs == 3 * t.size * trials[0].geom.n_joints
+    off = {i: v + 0.05 for i, v in exact.items()}
+    bad = heldout_lack_of_fit(trials, off, alpha=0.01)
+    assert bad.overall.significant(0.01) and bad.overall.lack_of_fit_rms == pytest.approx(np.degrees(0.05), rel=0.2)

@@ -12,8 +12,9 @@ noise floor (the load-cell noise pushed through the model) is smaller than that
 scatter.
 
 Replicates are samples of different trials of one tube, pulled by the same
-tendon in the same direction of loading, whose pulled tensions agree within
-``tol_sigma`` times the load cells' σ (within the load-cell noise the inputs cannot be told apart).
+tendon against the same counter-tension in the same direction of loading, whose
+pulled tensions agree within ``tol_sigma`` times the load cells' σ (within the
+load-cell noise the inputs cannot be told apart).
 Their tensions still differ a little, and on a steep part of the curve so do their
 true shapes; the decomposition is therefore made on the residuals (measured minus
 predicted): the pure error is the scatter of a group's residuals, which the
@@ -45,7 +46,20 @@ def _responses(p, values) -> np.ndarray:
     return v.reshape(S, -1)
 
 
-def _stack(preps, predicted: dict):
+def _counter_classes(preps, tol: float) -> list:
+    """A label per experiment: experiments whose counter-tensions [N] agree within ``tol`` (chained in
+    sorted order) share it."""
+    c = np.array([float(p.counter_tension) for p in preps])
+    order = np.argsort(c, kind="stable")
+    labels, k = np.empty(c.size, int), 0
+    for j, i in enumerate(order):
+        if j and c[i] - c[order[j - 1]] > tol:
+            k += 1
+        labels[i] = k
+    return labels.tolist()
+
+
+def _stack(preps, predicted: dict, tol: float):
     """Measured and predicted responses (N, k) of every sample (NaN where not measured or where a tube has
     fewer notches), the trial, condition and pulled tension of each."""
     ys = [_responses(p, p.measured) for p in preps]
@@ -53,10 +67,10 @@ def _stack(preps, predicted: dict):
     k = max(y.shape[1] for y in ys)
     pad = lambda a: np.pad(a, ((0, 0), (0, k - a.shape[1])), constant_values=np.nan)  # noqa: E731
     trial, cond, force = [], [], []
-    for p in preps:
+    for p, counter in zip(preps, _counter_classes(preps, tol)):
         t = np.asarray(p.pulled_tension, dtype=float)
         trial += [p.name] * t.size
-        cond += [f"{p.tube}/{p.pulled}/{d}" for d in loading_direction(t, tol=p.tension_sigma)]
+        cond += [f"{p.tube}/{p.pulled}/{counter}/{d}" for d in loading_direction(t, tol=p.tension_sigma)]
         force.append(t)
     return (np.vstack([pad(y) for y in ys]), np.vstack([pad(y) for y in yh]), np.array(trial), np.array(cond),
             np.concatenate(force))
@@ -84,9 +98,9 @@ def heldout_lack_of_fit(preps, predicted: dict, *, tol_sigma: float = 3.0, alpha
         Per response: a joint angle (joint ``j`` of every tube), or a notch point's coordinate in the
         manipulator frame.
     """
-    y, yhat, trial, cond, force = _stack(preps, predicted)
-    resid = y - yhat
     sigma = max(float(np.max([p.tension_sigma for p in preps])), 1e-9)
+    y, yhat, trial, cond, force = _stack(preps, predicted, tol_sigma * sigma)
+    resid = y - yhat
     groups = replicate_groups(trial, cond, force, tol=tol_sigma * sigma)
     angles = preps[0].metric == "angles"
     return lack_of_fit_table(resid, np.where(np.isfinite(resid), 0.0, np.nan), groups, force, n_params=0, unit="deg" if angles else "mm",
