@@ -27,6 +27,15 @@ def _tubes_dict(tubes: dict) -> dict:
             for t, blocks in tubes.items()}
 
 
+def _lof_dict(lof: LackOfFit | None) -> dict | None:
+    """A lack-of-fit table for diagnosis.json; without repeated trials only its unit and verdict."""
+    if lof is None:
+        return None
+    if not lof.has_replicates:
+        return {"unit": lof.unit, "alpha": lof.alpha, "verdict": lof.verdict()}
+    return lof.as_dict()
+
+
 @dataclass(frozen=True)
 class Signature:
     """One discrepancy signature of the held-out baseline, with its number and words.
@@ -305,9 +314,7 @@ class Diagnosis:
             "candidates": [c.to_dict(self.metric) for c in self.candidates],
             "pair_candidates": [c.to_dict(self.metric) for c in self.pair_candidates],
             "skipped": {k: dict(v) for k, v in self.skipped.items()},
-            "lack_of_fit": {"baseline": None if self.lack_of_fit is None else self.lack_of_fit.as_dict(),
-                            "extended": (None if self.extended_lack_of_fit is None
-                                         else self.extended_lack_of_fit.as_dict())},
+            "lack_of_fit": {"baseline": _lof_dict(self.lack_of_fit), "extended": _lof_dict(self.extended_lack_of_fit)},
             "cause": self.cause,
             "causes": list(self.causes),
             "contributions": [c.to_dict(self.metric) for c in self.contributions],
