@@ -210,23 +210,18 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
         Estimate ``ramp_time`` where experiment.toml gives no ``[protocol]``
         (:func:`notchfit.analysis.diagnosis.scope.resolve_protocol`); else a step is assumed.
     lof_alpha, replicate_tol_sigma : float
-        Lack of fit first (:mod:`notchfit.analysis.diagnosis.replicates`): where trials repeat,
-        ``unexplained`` needs the held-out baseline's lack of fit beyond the trials' scatter to be
-        significant at ``lof_alpha`` (else the verdict is ``none``: the model is within the scatter);
-        replicate tensions agree within ``replicate_tol_sigma`` load-cell σ.
+        Where trials repeat, ``unexplained`` needs a held-out lack of fit significant at ``lof_alpha``
+        (replicate tensions within ``replicate_tol_sigma`` load-cell σ; :func:`_lack_of_fit_first`).
 
     Returns
     -------
     Diagnosis
     """
-    say = progress or (lambda msg: None)
-    kw = dict(calibrate_kw or {})
-    unknown = set(causes) - set(CAUSES)
+    say, kw, unknown = progress or (lambda msg: None), dict(calibrate_kw or {}), set(causes) - set(CAUSES)
     if unknown:
         raise ValueError(f"unknown cause(s) {sorted(unknown)}; known: {', '.join(CAUSES)}")
     st = _setup(experiments, tuple(causes), metric, estimate_protocol, kw, jobs, say, none_tol=none_tol, seed=seed)
-    preps = st.preps
-    folds = folds_by_experiment(len(preps), max_folds)
+    preps, folds = st.preps, folds_by_experiment(len(st.preps), max_folds)
     run = partial(run_folds, preps, folds, calibrate_kw=kw, seed=seed, jobs=jobs, scheduler=scheduler,
                   scales=st.scales, base=st.base)
 
@@ -247,21 +242,27 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     full_base = st.protocol_fit or calibrate(preps, None, base_start[0], scales=st.scales, base=st.base, **kw)
     cands = [score_candidate(c, held[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
                              min_excess_removed=min_excess_removed) for c in order]
-    cause = decide(base_ms <= noise * (1.0 + none_tol), cands)
-    lof = heldout_lack_of_fit(preps, base.predicted, tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
-    if cause == "unexplained" and lof.has_replicates and not lof.overall.significant(lof_alpha):
-        cause = "none"          # above the noise floor, but within the trials' own scatter
+    lof_kw = dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
+    cause, lof = _lack_of_fit_first(decide(base_ms <= noise * (1.0 + none_tol), cands), preps, base, lof_kw)
     named, pair_res, within, first, screened = _second(
         st, cause, held, cands, run, noise, base_mse, second_cause=second_cause, max_second=max_second,
         z_crit=z_crit, min_excess_removed=min_excess_removed, none_tol=none_tol, say=say, kw=kw, jobs=jobs)
     say(f"fitting the extended model ({model_key(named)}) on all experiments")
     extended = _extended(st, named, held, screened, kw)
     ext_mse = held[model_key(named)].sample_mse(preps) if named else base_mse
-    ext_lof = (heldout_lack_of_fit(preps, held[model_key(named)].predicted, tol_sigma=replicate_tol_sigma,
-                                   alpha=lof_alpha) if named else None)
+    ext_lof = heldout_lack_of_fit(preps, held[model_key(named)].predicted, **lof_kw) if named else None
     return _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
                    ext_mse, noise, seed, screened, (lof, ext_lof), none_tol=none_tol, z_crit=z_crit,
                    min_removed=min_excess_removed)
+
+
+def _lack_of_fit_first(cause: str, preps, base, lof_kw: dict):
+    """The held-out baseline's lack of fit against the trials' scatter; ``unexplained`` becomes ``none`` where
+    trials repeat and the lack of fit is not significant (above the noise floor, within the scatter)."""
+    lof = heldout_lack_of_fit(preps, base.predicted, **lof_kw)
+    if cause == "unexplained" and lof.has_replicates and not lof.overall.significant(lof_kw["alpha"]):
+        cause = "none"
+    return cause, lof
 
 
 def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
