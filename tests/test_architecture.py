@@ -163,9 +163,14 @@ def _bad(deps, forbidden) -> list[str]:
     return sorted(d for d in deps if any(d == a or d.startswith(a + ".") for a in forbidden))
 
 
+#: the one engine edge allowed: the diagnosis's baseline of a real tube is identify's calibrated model,
+#: whose per-tube unknowns it takes from ``analysis.identify`` (identify imports no diagnosis).
+ENGINE_EDGES = {"analysis.diagnosis": ("analysis.identify",)}
+
+
 def test_estimation_sits_below_both_engines():
-    """The estimation core imports neither engine nor anything above the analysis; both engines build on it
-    and neither imports the other."""
+    """The estimation core imports neither engine nor anything above the analysis; both engines build on it;
+    identify imports no diagnosis, and the diagnosis only identify's problem and specs."""
     engines = tuple(f"notchfit.{e}" for e in ENGINES)
     for m, deps in _layer_members(ESTIMATION).items():
         bad = _bad(deps, engines + ABOVE_ANALYSIS + ("notchfit.analysis.causes", "notchfit.analysis.comparison"))
@@ -174,9 +179,14 @@ def test_estimation_sits_below_both_engines():
         members = _layer_members((engine,))
         uses = {d for deps in members.values() for d in deps if d.startswith("notchfit.analysis.estimation")}
         assert uses, f"notchfit.{engine} does not build on notchfit.analysis.estimation"
-        other = tuple(f"notchfit.{e}" for e in ENGINES if e != engine)
+        other = tuple(f"notchfit.{e}" for e in ENGINES if e != engine and e not in ENGINE_EDGES.get(engine, ()))
         for m, deps in members.items():
             assert not _bad(deps, other), f"{m} imports the other engine: {_bad(deps, other)}"
+        allowed = tuple(f"notchfit.{e}.{sub}" for e in ENGINE_EDGES.get(engine, ()) for sub in ("problem", "specs"))
+        for m, deps in members.items():
+            up = [d for d in _bad(deps, tuple(f"notchfit.{e}" for e in ENGINE_EDGES.get(engine, ())))
+                  if d not in allowed and d not in tuple(f"notchfit.{e}" for e in ENGINE_EDGES.get(engine, ()))]
+            assert not up, f"{m} imports more of identify than its problem and specs: {up}"
 
 
 def test_vision_sits_below_file_io():

@@ -101,14 +101,15 @@ def test_ranking_points_to_static_friction_on_stalls():
 
 
 # ----------------------------------------------------------------------------- issue 19: two causes, angles, scope
-def _prep(name="E1", metric="points", pulled=1, geom=None, S=4):
+def _prep(name="E1", metric="points", pulled=1, geom=None, S=4, tension=None):
     from notchfit.analysis.diagnosis import Prepared
     from notchfit.physics.geometry import default_geometry
 
     g = geom or default_geometry()
     shape = (S, g.n_points, 2) if metric == "points" else (S, g.n_joints)
-    return Prepared(name=name, geom=g, time=np.arange(1.0, S + 1), tension_left=np.ones(S),
-                    tension_right=np.ones(S), measured=np.zeros(shape), valid=np.ones(shape[:2], bool),
+    t = np.ones(S) if tension is None else np.asarray(tension, float)
+    return Prepared(name=name, geom=g, time=np.arange(1.0, S + 1), tension_left=t,
+                    tension_right=t, measured=np.zeros(shape), valid=np.ones(shape[:2], bool),
                     transform=None, sigma=1e-3, theta_free=np.zeros((S, g.n_joints)), free_residuals=None,
                     a=np.zeros(S), b=np.zeros(S), pulled=pulled, regime=np.array(["I"] * S), counter_tension=0.0,
                     metric=metric)
@@ -159,13 +160,33 @@ def test_scope_skips_what_angle_data_and_a_section_backbone_cannot_show():
     from notchfit.studies.synth import _geometry_source
 
     wrist = load_geometry(_geometry_source("wrist_asymmetric"))
-    preps = (_prep("R1", "angles", geom=wrist), _prep("R2", "angles", geom=wrist))
-    usable, skipped = applicable_causes(preps, CAUSES)
+    bend_unbend = [0.0, 2.0, 4.0, 1.0]
+    preps = (_prep("R1", "angles", geom=wrist, tension=bend_unbend), _prep("R2", "angles", geom=wrist))
+    usable, skipped, reveal = applicable_causes(preps, CAUSES)
     assert set(skipped) == {"calibration_error", "external_load"}
     assert usable == ("proximal_friction", "static_friction", "joint_hysteresis", "stiffness_gradient")
     assert set(skipped_signatures(preps)) == {"spatial_pattern", "direction_asymmetry"}
-    seed = (_prep("L", pulled=-1), _prep("R", pulled=1))
-    assert applicable_causes(seed, CAUSES) == (CAUSES, {}) and skipped_signatures(seed) == {}
+    # angle data could be measured as points; the tip load needs a chain the tube does not have
+    assert set(reveal) == {"calibration_error"} and "notch points" in reveal["calibration_error"]
+    seed = (_prep("L", pulled=-1, tension=bend_unbend), _prep("R", pulled=1))
+    assert applicable_causes(seed, CAUSES) == (CAUSES, {}, {}) and skipped_signatures(seed) == {}
+
+
+def test_scope_skips_what_a_loading_only_one_direction_protocol_cannot_reveal():
+    """No trial unloads: a loop (joint hysteresis) or a proximal capstan band cannot show, and with one
+    pull direction neither can a steady tip load; each is skipped with its reason and the experiment that
+    would reveal it. A fall within the load-cell noise is no unloading."""
+    from notchfit.analysis.diagnosis.scope import applicable_causes, unloads
+
+    loading = [0.0, 1.0, 2.0, 3.0]
+    preps = (_prep("A", tension=loading), _prep("B", tension=[0.0, 1.0, 2.0, 1.99]))
+    assert not unloads(preps[1]) and unloads(_prep("C", tension=[0.0, 2.0, 3.0, 0.5]))
+    usable, skipped, reveal = applicable_causes(preps, CAUSES)
+    assert set(skipped) == {"proximal_friction", "joint_hysteresis", "external_load"}
+    assert usable == ("static_friction", "stiffness_gradient", "calibration_error")
+    assert "unloads" in skipped["joint_hysteresis"]
+    assert reveal["joint_hysteresis"].startswith("unload one trial") and "joint hysteresis" in reveal["joint_hysteresis"]
+    assert "pull the other tendon" in reveal["external_load"]
 
 
 def test_recorded_protocol_is_used_and_missing_one_is_said():
@@ -196,3 +217,30 @@ def test_angle_metric_in_the_file():
     assert choose_metric([E("a", None, 1), E("b", 1, 1)]) == "angles"
     with pytest.raises(ValueError, match="one kind of measurement"):
         choose_metric([E("a", None, 1), E("b", 1, None)])
+
+
+def test_heldout_lack_of_fit_against_repeated_trials():
+    """Three trials repeat one bend/unbend (same tube, pull, counter-tension): held-out predictions of the
+    true curve are within the trials' scatter; a curve off by five times the noise has a significant lack
+    of fit (Draper & Smith 1998, Sec. 2.1). A trial against another counter-tension repeats none of them."""
+    import dataclasses
+
+    from notchfit.analysis.diagnosis.replicates import heldout_lack_of_fit
+
+    rng = np.random.default_rng(3)
+    t = np.array([0.0, 1.0, 2.0, 3.0, 2.0, 1.0, 0.0])
+    trials = []
+    for k, counter in enumerate((0.0, 0.0, 0.0, 1.5)):
+        p = _prep(f"T{k}", "angles", S=t.size, tension=t)
+        noisy = 0.1 * t[:, None] + rng.normal(0.0, 0.01, (t.size, p.geom.n_joints))      # (S, n) [rad]
+        trials.append(dataclasses.replace(p, measured=noisy, counter_tension=counter, tension_sigma=0.01))
+    exact = {i: np.repeat(0.1 * t[:, None], p.geom.n_joints, 1) for i, p in enumerate(trials)}
+    lof = heldout_lack_of_fit(trials, exact, alpha=0.01)
+    assert lof.has_replicates and not lof.overall.significant(0.01)
+    # loading and unloading are apart; the fourth trial joins no group: 7 groups of the first three
+    # (four loading values, three unloading ones) per joint
+    assert lof.overall.n_groups == 7 * trials[0].geom.n_joints
+    assert lof.overall.n_obs == 3 * t.size * trials[0].geom.n_joints
+    off = {i: v + 0.05 for i, v in exact.items()}
+    bad = heldout_lack_of_fit(trials, off, alpha=0.01)
+    assert bad.overall.significant(0.01) and bad.overall.lack_of_fit_rms == pytest.approx(np.degrees(0.05), rel=0.2)

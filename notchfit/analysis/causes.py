@@ -16,8 +16,10 @@ Its :class:`Cause` record holds, in one place:
 * ``signature`` — the heuristic score from the held-out baseline's signatures
   that orders the search (:func:`notchfit.analysis.diagnosis.decision.rank_candidates`),
   with the reason in words;
-* ``requires`` — what a study must have for the cause to act on it, with the
-  reason given when it does not (:mod:`notchfit.analysis.diagnosis.scope`).
+* ``requires`` — what a study must have for the cause to act on it or for its
+  protocol to reveal it, with the reason given when it does not
+  (:mod:`notchfit.analysis.diagnosis.scope`); :data:`REVEAL` says which experiment
+  would supply what is missing.
 
 Every other module reads :data:`CAUSES` / :data:`REGISTRY`; ``tests/test_causes.py``
 fails when a record is incomplete or a module keeps a table of its own.
@@ -29,14 +31,25 @@ from dataclasses import dataclass
 
 from .estimation.specs import ParamSpec
 
-__all__ = ["CAUSES", "FIGURE_KINDS", "REGISTRY", "REQUIREMENTS", "Cause", "ScoreTerm", "cause"]
+__all__ = ["CAUSES", "FIGURE_KINDS", "REGISTRY", "REQUIREMENTS", "REVEAL", "Cause", "ScoreTerm", "cause",
+           "suggested_experiment"]
 
 #: The views a cause's figure can take (:mod:`notchfit.figures.diagnosis`).
 FIGURE_KINDS = ("loop", "asymmetry", "backbone", "plane")
 #: What a cause may require of a study (:func:`notchfit.analysis.diagnosis.scope.applicable_causes`):
 #: ``points`` measured notch points (an image-to-plane mapping); ``axis_chain`` joints on the
-#: tube's axis, equally spaced (the simulator's tip-load torques, Eqs. 18-20).
-REQUIREMENTS = ("points", "axis_chain")
+#: tube's axis, equally spaced (the simulator's tip-load torques, Eqs. 18-20); ``unloading`` a
+#: trial whose tension falls again (a loop opens only between loading and unloading); ``both_directions``
+#: trials pulling each way (an effect common to both directions shows only as a broken mirror symmetry).
+REQUIREMENTS = ("points", "axis_chain", "unloading", "both_directions")
+#: The experiment that would supply a missing requirement (``{cause}``: the cause in words); None where no
+#: experiment can (the tube's own geometry).
+REVEAL = {
+    "points": "measure notch points from calibrated images (not only joint angles) to test {cause}",
+    "axis_chain": None,
+    "unloading": "unload one trial (the tension back to zero after its peak) to test {cause}",
+    "both_directions": "pull the other tendon in one trial (both pull directions) to test {cause}",
+}
 
 
 @dataclass(frozen=True)
@@ -140,7 +153,9 @@ REGISTRY: dict[str, Cause] = {c.id: c for c in (
           figure="loop",
           targets=(("unloading_hold", 0.0, "the extra tension the shape holds while unloading [N]"), _LOOP),
           signature=(ScoreTerm("unloading_hold", 0.5), ScoreTerm("loop_area_ratio", 0.5, 1.0)),
-          reason="the shape holds longer while unloading and the loop is wider", rank_tie=3, requires={},
+          reason="the shape holds longer while unloading and the loop is wider", rank_tie=3,
+          requires={"unloading": "no trial unloads: the tension lag of a capstan band shows only when the tension "
+                                 "falls (while loading alone it is a smaller tension, which the stiffness absorbs)"},
           identifiable=True),
     Cause("static_friction",
           params=(ParamSpec("mu_s_excess", 0.0, 0.8, 0.05, probes=tuple(round(0.05 * i, 2) for i in range(17))),),
@@ -168,7 +183,10 @@ REGISTRY: dict[str, Cause] = {c.id: c for c in (
                       "until the torque on it changes by the loop's width.",
           figure="loop", targets=(_BEND, _LOOP),
           signature=(ScoreTerm("residual_bend", 50.0), ScoreTerm("unloading_hold", 0.2)),
-          reason="a bend remains after unloading", rank_tie=2, requires={}, paper_start=True,
+          reason="a bend remains after unloading", rank_tie=2,
+          requires={"unloading": "no trial unloads: a hysteresis loop opens only between loading and unloading "
+                                 "(on loading alone it cannot be told from the rest angles and the stiffness)"},
+          paper_start=True,
           identifiable=True),
     Cause("external_load",
           params=(ParamSpec("tip_force_x", -3.0, 3.0, 0.0, probes=(-0.3, 0.0, 0.3)),
@@ -182,7 +200,9 @@ REGISTRY: dict[str, Cause] = {c.id: c for c in (
           signature=(ScoreTerm("direction_asymmetry", 400.0, kind="abs"),),
           reason="the error does not mirror between pull directions", rank_tie=1,
           requires={"axis_chain": "the tube's joints are off its axis or unequally spaced: the simulator's "
-                                  "tip-load torques (Eqs. 18-20) hold for the seed tube's chain only"},
+                                  "tip-load torques (Eqs. 18-20) hold for the seed tube's chain only",
+                    "both_directions": "every trial pulls the same way: a steady load shows as an error common to "
+                                       "both pull directions (a broken mirror symmetry)"},
           paper_start=True),
     Cause("stiffness_gradient",
           params=(ParamSpec("stiffness_gradient", -0.9, 0.9, 0.0, probes=(-0.5, -0.25, 0.0, 0.25, 0.5)),),
@@ -216,6 +236,13 @@ REGISTRY: dict[str, Cause] = {c.id: c for c in (
 )}
 #: The cause ids, in the order of docs/diagnosis.md.
 CAUSES = tuple(REGISTRY)
+
+
+def suggested_experiment(cid: str, requirement: str) -> str | None:
+    """The experiment that would let a study reveal cause ``cid`` where it lacks ``requirement``
+    (:data:`REVEAL`; None where no experiment can)."""
+    text = REVEAL.get(requirement)
+    return text.format(cause=cid.replace("_", " ")) if text else None
 
 
 def cause(cid: str) -> Cause:

@@ -19,14 +19,18 @@ ORDER = 60
 HELP = "name the physical cause of the friction model's discrepancies and measure the gain"
 DESCRIPTION = """Diagnose a study against the friction model (Sec. IV-B).
 
-Calibrates the baseline (k_lin, k_mid, mu_d; E_lin, E_se, mu_d for a tube
-with material springs) on training experiments, compares it with held-out
-experiments (cross-validation by experiment), reports discrepancy
-signatures, fits every candidate extension (proximal_friction,
-static_friction, joint_hysteresis, external_load, stiffness_gradient,
-calibration_error), names the cause (or "none" / "unexplained"), then tries
-a second cause with it (named when it removes a further significant part of
-the held-out discrepancy), saves the extended model and the held-out gain.
+Calibrates the baseline (k_lin, k_mid, mu_d; for a real tube the model
+`notchfit identify` calibrates: E_lin, E_se, strain_lower, mu_d and each
+tube's rest angles and cut depths) on training experiments, compares it with
+held-out experiments (cross-validation by experiment), reports discrepancy
+signatures, fits every candidate extension the study can reveal
+(proximal_friction, static_friction, joint_hysteresis, external_load,
+stiffness_gradient, calibration_error; the others are skipped with the
+reason and the experiment that would reveal them), names the cause (or
+"none" / "unexplained": where trials repeat, only with a significant lack of
+fit beyond the trials' scatter), then tries a second cause with it (named
+when it removes a further significant part of the held-out discrepancy),
+saves the extended model and the held-out gain.
 
 Writes into --out: diagnosis.json (docs/data-formats.md), extended_model.toml
 (read by `notchfit simulate --model`), diagnosis_*.png and their data

@@ -4,7 +4,8 @@ Given measured experiments (tensions, and notch points or joint angles),
 :func:`diagnose` answers four questions about the friction model (Sec. IV-B):
 
 1. **What does the simulation get wrong?** The baseline (the friction
-   simulator with ``k_lin``, ``k_mid`` and ``μ_d`` calibrated, docs/models.md)
+   simulator with ``k_lin``, ``k_mid`` and ``μ_d`` calibrated, docs/models.md;
+   for a real tube identify's calibrated model, :mod:`~notchfit.analysis.diagnosis.tubes`)
    is fitted on training experiments and compared with held-out ones
    (cross-validation by experiment). Discrepancy *signatures* are measured
    (:mod:`~notchfit.analysis.diagnosis.signatures`).
@@ -30,11 +31,13 @@ each candidate cause is one record of :mod:`notchfit.analysis.causes`. Modules:
 
 =================  ==========================================================
 ``specs``          the models (baseline plus causes) and their fitted parameters
-``scope``          the study's base model, applicable candidates, protocol
+``tubes``          a real tube's baseline: identify's per-tube unknowns
+``scope``          the study's base model, what the study can reveal, protocol
 ``calibration``    predicted measurements, model calibration
 ``noise``          paired significance, pooled rms
 ``crossval``       folds and the (model × fold) fan-out (processes or Dask)
 ``signatures``     what the held-out baseline gets wrong
+``replicates``     lack of fit against the trials' scatter (held-out)
 ``decision``       ranking, decision rule, explanation
 ``pairs``          the second cause and each cause's contribution
 ``results``        typed results; ``Diagnosis.to_dict()`` is diagnosis.json

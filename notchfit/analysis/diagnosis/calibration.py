@@ -14,7 +14,7 @@ estimation core (:mod:`notchfit.analysis.estimation.solve`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
@@ -22,12 +22,13 @@ import numpy as np
 from ..causes import REGISTRY
 from ..estimation.observations import Observations as Prepared
 from ..estimation.problem import Block, Problem, Simulations, measure_registered
-from ..estimation.solve import best_probe_starts, se_values, solve
+from ..estimation.solve import best_probe_starts, grid_starts, se_values, solve
 from ..fitting import fit_experiment
 from ...physics.friction import FrictionParams
 from ...vision.warp import apply_point_warp, unwarp_points
-from .specs import (REGISTRATION_BOUNDS, WARP_CENTER_RANGE, WARP_PARAMS, WARP_RADIUS, StudyScales, as_model,
-                    baseline_specs, model_params, specs_for)
+from .specs import (BASELINE_MU_EXCESS, REGISTRATION_BOUNDS, WARP_CENTER_RANGE, WARP_PARAMS, WARP_RADIUS,
+                    StudyScales, as_model, baseline_specs, model_params, specs_for)
+from .tubes import TUBES, has_tube_unknowns, mean_tubes, tube_blocks, tube_params
 
 __all__ = ["Calibration", "SimulationCache", "calibrate", "predict_points", "reregister"]
 
@@ -51,8 +52,9 @@ def _observed(prep: Prepared, theta, values: dict, registration=None, transform=
 
 
 def _model(base, o, values: dict, tube: dict) -> FrictionParams:
-    """The simulator's model of ``values`` (:func:`~notchfit.analysis.diagnosis.specs.model_params`)."""
-    return model_params(values, base)[0]
+    """The simulator's model of ``values`` (:func:`~notchfit.analysis.diagnosis.specs.model_params`) with the
+    tube's rest angles and cut depths (real tubes)."""
+    return tube_params(model_params(values, base)[0], tube)
 
 
 def _measure(o, theta, values: dict, blocks: dict) -> np.ndarray:
@@ -61,7 +63,7 @@ def _measure(o, theta, values: dict, blocks: dict) -> np.ndarray:
 
 
 def predict_points(prep: Prepared, values: dict, *, transform=None, registration=None,
-                   cache: Simulations | None = None, base: FrictionParams | None = None):
+                   cache: Simulations | None = None, base: FrictionParams | None = None, tubes: dict | None = None):
     """Predicted measurements for parameter ``values``: notch points in the plane frame, or joint
     angles for angle data.
 
@@ -77,13 +79,16 @@ def predict_points(prep: Prepared, values: dict, *, transform=None, registration
     cache : Simulations, optional
     base : FrictionParams, optional
         The model the values change (default: the paper's, Sec. IV-B).
+    tubes : dict, optional
+        A calibration's per-tube values (:attr:`Calibration.tubes`); a tube not among them keeps its
+        geometry's rest angles and depths (a tube never seen by the fit).
 
     Returns
     -------
     predicted : ndarray, shape (S, m, 2) [m] or (S, n) [rad]
     theta : ndarray, shape (S, n) [rad]
     """
-    params, _ = model_params(values, base)
+    params = tube_params(model_params(values, base)[0], (tubes or {}).get(prep.tube))
     theta = (cache or Simulations()).theta(prep, params)
     return _observed(prep, theta, values, registration, transform), theta
 
@@ -137,6 +142,9 @@ class Calibration:
     registration : tuple
         Per training experiment, the fitted registration correction
         (dtx [m], dty [m], dphi [rad]) (calibration_error only; else empty).
+    tubes : dict
+        Real tubes: ``{tube: {"rest_angle": (n,) [rad], "slot_depth_offset": (n,) [m]}}`` of the tubes
+        fitted (identify's per-tube unknowns, :mod:`notchfit.analysis.diagnosis.tubes`); else empty.
     """
 
     cause: tuple
@@ -149,17 +157,43 @@ class Calibration:
     message: str
     nfev: int
     registration: tuple = ()
+    tubes: dict = field(default_factory=dict, repr=False)
+
+    def start(self) -> dict:
+        """The fitted values as a start of another fit: ``values`` and, under ``"tubes"``, :attr:`tubes`."""
+        return {**self.values, TUBES: self.tubes} if self.tubes else dict(self.values)
+
+    def params(self, base: FrictionParams | None, tube: str | None = None) -> FrictionParams:
+        """The simulator's model of one tube (its rest angles and depths; the geometry's when not fitted)."""
+        return tube_params(model_params(self.values, base)[0], self.tubes.get(tube))
+
+
+def mean_start(cals) -> dict:
+    """The mean of several calibrations' optima by parameter name [SI], with their mean per-tube values
+    (a start for a fit on every experiment)."""
+    out = {k: float(np.mean([c.values[k] for c in cals])) for k in cals[0].values}
+    tubes = mean_tubes([c.tubes for c in cals])
+    return {**out, TUBES: tubes} if tubes else out
 
 
 def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base) -> Problem:
-    """Start vector and bounds; for a point correction the warp centre on the data and registrations."""
+    """Start vector and bounds; a real tube's per-tube unknowns and prior (identify's); for a point
+    correction the warp centre on the data and registrations."""
     specs = specs_for(model, base)
     sc = tuple(scales.factor(s.scale) for s in specs)
     x0 = np.array([s.x_of_spec_value(s.start) if s.name not in start
                    else s.to_x(float(start[s.name]), c) for s, c in zip(specs, sc)])
     lo = np.array([s.x_bounds[0] for s in specs])
     hi = np.array([s.x_bounds[1] for s in specs])
-    blocks = ()
+    blocks, prior = (), np.zeros((0, len(specs)))
+    if has_tube_unknowns(preps):
+        k = len(baseline_specs(base))
+        excess = float(start.get("mu_s_excess", BASELINE_MU_EXCESS))
+        tb, t0, tlo, thi, tprior = tube_blocks(preps, base, specs[:k], excess, start=start.get(TUBES),
+                                               sim_kw=cache.sim_kw)
+        blocks = tuple(tb)
+        x0, lo, hi = np.r_[x0, t0], np.r_[lo, tlo], np.r_[hi, thi]
+        prior = np.hstack([tprior[:, :k], np.zeros((tprior.shape[0], len(specs) - k)), tprior[:, k:]])
     if any(REGISTRY[c].corrects_points for c in model):
         # centre the warp on the data: where a camera would be aimed
         allp = np.concatenate([p.measured[p.valid] for p in preps])
@@ -168,11 +202,12 @@ def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base)
         if "warp_center_x" not in start:
             x0[idx] = c
         lo[idx], hi[idx] = c - WARP_CENTER_RANGE, c + WARP_CENTER_RANGE
-        blocks = tuple(Block("registration", p.name, 3, kind="experiment", step=REGISTRATION_STEP) for p in preps)
+        blocks += tuple(Block("registration", p.name, 3, kind="experiment", step=REGISTRATION_STEP) for p in preps)
         b = np.tile(REGISTRATION_BOUNDS, len(preps))
         x0, lo, hi = np.r_[x0, np.zeros(b.size)], np.r_[lo, -b], np.r_[hi, b]
+        prior = np.hstack([prior, np.zeros((prior.shape[0], b.size))])
     x0 = np.clip(x0, lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo))
-    return Problem(tuple(preps), specs, sc, blocks, x0, lo, hi, np.zeros((0, x0.size)),
+    return Problem(tuple(preps), specs, sc, blocks, x0, lo, hi, prior,
                    model=partial(_model, base), measure=_measure,
                    sims=cache)
 
@@ -181,7 +216,8 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
               diff_step: float = 2e-3, max_nfev: int = 60, ftol: float = 1e-3,
               xtol: float = 1e-3, cache: Simulations | None = None,
               scales: StudyScales | None = None, base: FrictionParams | None = None,
-              paper_start: bool = True, keep_start: float = math.inf, errors: bool = True) -> Calibration:
+              paper_start: bool = True, keep_start: float = math.inf, errors: bool = True,
+              tube_starts: int = 2, tube_tol: float = 1e-6) -> Calibration:
     """Fit the baseline (``cause=None``), a candidate or a pair of candidates on experiments ``preps``.
 
     Bounded least squares (:func:`notchfit.analysis.estimation.solve.solve`) on the
@@ -227,6 +263,12 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
     errors : bool
         Compute the standard errors (False for the cross-validation's fold fits, whose errors are not
         reported: NaN).
+    tube_starts, tube_tol :
+        Real tubes (per-tube unknowns, :mod:`notchfit.analysis.diagnosis.tubes`): the baseline without a
+        start runs from the best ``tube_starts`` of the material's probe grid, as identify does; every fit
+        uses forward differences with the unknowns' own steps, and ``ftol``, ``xtol`` at most ``tube_tol``
+        (identify's; the per-tube unknowns move the cost little each, and a fit stopped early would leave
+        the baseline an error a candidate then removes).
 
     Returns
     -------
@@ -239,16 +281,30 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
     paper = pb.x0.copy()
     for i, s in enumerate(baseline_specs(base)):
         paper[i] = s.x_of_spec_value(s.start)
-    starts = best_probe_starts(pb, (pb.x0, paper) if paper_start else (pb.x0,), skip=start, keep=keep_start)
-    sol = solve(pb, starts, jac="2-point", diff_rel=diff_step, max_nfev=max_nfev, ftol=ftol, xtol=xtol,
-                errors=errors)
+    tubes = any(b.kind == "tube" for b in pb.blocks)
+    nprobe = 0
+    if tubes and not model and TUBES not in start:
+        # identify's calibration: the best starts of the material's probe grid
+        starts, nprobe = grid_starts(pb, tube_starts)
+    else:
+        starts = best_probe_starts(pb, _bases(pb.x0, paper, paper_start), skip=start, keep=keep_start)
+    # per-tube unknowns need their own finite-difference steps (Problem.steps): a relative step of a
+    # cut-depth offset of a few micrometres would be no step at all
+    sol = solve(pb, starts, jac="forward" if tubes else "2-point", diff_rel=diff_step, max_nfev=max_nfev,
+                ftol=min(ftol, tube_tol) if tubes else ftol, xtol=min(xtol, tube_tol) if tubes else xtol,
+                errors=errors, nfev=nprobe)
     vals = pb.values(sol.x)
     regs = pb.block_values(sol.x, "experiment")
     reg = tuple(tuple(regs[p.name]["registration"]) for p in preps) if regs else ()
     sigma = np.concatenate([np.full(p.valid.size * p.values_per_item, p.sigma) for p in preps])
-    r = pb.residuals(sol.x) * sigma
+    r = pb.residuals(sol.x)[:sigma.size] * sigma               # the prior's rows left out
     n_val = sum(p.valid.sum() for p in preps)
     train_rms = math.sqrt(float(np.sum(r**2)) / max(n_val, 1))
     return Calibration(cause=model, values=vals, se=se_values(pb, sol.x, sol.se), train_rms=train_rms,
                        cost=sol.cost, n_residuals=sol.n_residuals, success=sol.success, message=sol.message,
-                       nfev=sol.nfev, registration=reg)
+                       nfev=sol.nfev, registration=reg, tubes=pb.tube_values(sol.x))
+
+
+def _bases(x0, paper, paper_start: bool) -> tuple:
+    """The starts probed around: ``x0`` and, when asked and different, the base model's values."""
+    return (x0, paper) if paper_start and not np.array_equal(x0, paper) else (x0,)

@@ -18,9 +18,9 @@ from ...batch import run_batch
 from ..causes import REGISTRY
 from ..estimation.noise import noise_floor
 from ..estimation.solve import folds
-from .calibration import Calibration, SimulationCache, calibrate, predict_points, reregister
+from .calibration import Calibration, SimulationCache, calibrate, mean_start, predict_points, reregister
 from ..estimation.observations import sample_mse
-from .specs import PAPER_START, StudyScales, as_model, model_key, model_params
+from .specs import PAPER_START, StudyScales, as_model, model_key
 
 __all__ = ["FoldTask", "HeldOut", "folds_by_experiment", "run_fold", "run_folds"]
 
@@ -91,8 +91,8 @@ def run_fold(task: FoldTask) -> FoldResult:
         for i in task.test:
             prep = task.preps[i]
             T = reregister(prep, cal.values) if any(REGISTRY[c].corrects_points for c in task.cause) else None
-            P, theta = predict_points(prep, cal.values, transform=T, cache=cache, base=task.base)
-            floor = noise_floor(prep, model_params(cal.values, task.base)[0], cache, seed=task.seed)
+            P, theta = predict_points(prep, cal.values, transform=T, cache=cache, base=task.base, tubes=cal.tubes)
+            floor = noise_floor(prep, cal.params(task.base, prep.tube), cache, seed=task.seed)
             preds[int(i)] = (P, theta, floor)
     return FoldResult(task.cause, tuple(task.test), cal, preds)
 
@@ -136,9 +136,9 @@ class HeldOut:
         return float(np.nanmean(np.concatenate([self.floor[i] for i in sorted(self.floor)])))
 
     def mean_values(self) -> dict:
-        """The mean of the fold optima by parameter name [SI] (a start for a fit on every experiment)."""
-        cals = self.calibrations
-        return {k: float(np.mean([c.values[k] for c in cals])) for k in cals[0].values}
+        """The mean of the fold optima by parameter name [SI] (a start for a fit on every experiment; a real
+        tube's per-tube values under ``"tubes"``, :func:`~notchfit.analysis.diagnosis.calibration.mean_start`)."""
+        return mean_start(self.calibrations)
 
     def sample_mse(self, preps) -> list[np.ndarray]:
         """Per experiment, the mean squared error of each sample [m² or rad²] (S,)

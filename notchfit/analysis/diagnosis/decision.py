@@ -8,7 +8,9 @@ Decision rule (the thresholds are keyword arguments of
 * otherwise the best candidate by held-out error if it improves on the
   baseline with ``z >= z_crit`` and removes at least ``min_excess_removed``
   of the baseline's excess over the noise floor;
-* otherwise ``unexplained``.
+* otherwise ``unexplained`` — where trials repeat, only when the held-out
+  baseline's lack of fit beyond the trials' scatter is significant
+  (:mod:`notchfit.analysis.diagnosis.replicates`); else ``none``.
 """
 
 from __future__ import annotations
@@ -163,7 +165,7 @@ def _stall_hint(sigs, stall_hint: float) -> str:
 
 def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_tol: float,
             z_crit: float, min_removed: float, stall_hint: float = 0.05, metric: str = "points",
-            baseline: str = "the paper's friction model with k_lin, k_mid and μ_d fitted") -> str:
+            baseline: str = "the paper's friction model with k_lin, k_mid and μ_d fitted", lack_of_fit=None) -> str:
     """The diagnosis in words: the baseline against the noise, the signatures, the verdict and its physics.
 
     Parameters
@@ -182,6 +184,9 @@ def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_
     metric : {"points", "angles"}
     baseline : str
         What the baseline is, in words.
+    lack_of_fit : LackOfFit, optional
+        The held-out baseline's pure error and lack of fit (:mod:`notchfit.analysis.diagnosis.replicates`):
+        its verdict follows the lead when trials repeat.
     """
     what = "notch points" if metric == "points" else "joint angles"
     lead = (f"The calibrated baseline ({baseline}) predicts held-out {what} with {fmt_err(base_rms, metric)} "
@@ -190,6 +195,12 @@ def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_
     hint = (" The discrepancy signatures point first to " + "; then ".join(top) + ".") if top else ""
     ranked = sorted(cands, key=lambda c: c.heldout_rms)
     table = "; ".join(f"{c.cause} {fmt_err(c.heldout_rms, metric)} (z = {c.z:.1f})" for c in ranked[:4])
+    lof = lack_of_fit if lack_of_fit is not None and lack_of_fit.has_replicates else None
+    if lof is not None:
+        lead += f" Against the repeated trials: {lof.verdict()}."
+    if cause == "none" and lof is not None and base_rms > noise_rms * math.sqrt(1 + none_tol):
+        return (lead + " The error exceeds the noise floor but not the trials' own scatter: no extension is "
+                "justified." + hint + (f" Held-out rms of the candidates: {table}." if table else ""))
     if cause == "none":
         return (lead + f" That is within {math.sqrt(1 + none_tol):.2f}× the noise: the baseline explains "
                 "the data within the measurement uncertainty, so no extension is justified." + hint

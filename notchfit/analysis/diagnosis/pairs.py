@@ -58,7 +58,8 @@ def _fit_all(args):
         cal = calibrate(preps, model, start, cache=cache, scales=scales, base=base,
                         paper_start=model[-1] in PAPER_START, **kw)
         reg = cal.registration or (None,) * len(preps)
-        pred = [predict_points(p, cal.values, registration=r, cache=cache, base=base)[0] for p, r in zip(preps, reg)]
+        pred = [predict_points(p, cal.values, registration=r, cache=cache, base=base, tubes=cal.tubes)[0]
+                for p, r in zip(preps, reg)]
         ms = pooled_mse([sample_mse(p, q) for p, q in zip(preps, pred)])
     return model_key(model), cal, ms, variant
 

@@ -11,12 +11,29 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ...physics.friction import FrictionParams
-from ...units import MM
+from ...units import DEG, MM
+from ..lack_of_fit import LackOfFit
 from .calibration import Calibration
 from ..estimation.observations import metric_unit
 from .specs import BASELINE_MU_EXCESS, WARP_RADIUS, model_key, model_params
 
 __all__ = ["CandidateResult", "Contribution", "Diagnosis", "Gain", "Signature", "metric_unit"]
+
+
+def _tubes_dict(tubes: dict) -> dict:
+    """Per-tube values of a real tube's baseline in file units: rest angles [deg], depth offsets [µm]."""
+    names = {"rest_angle": ("rest_angle_deg", 1.0 / DEG), "slot_depth_offset": ("slot_depth_offset_um", 1e6)}
+    return {t: {names[k][0]: [float(x) * names[k][1] for x in v] for k, v in blocks.items() if k in names}
+            for t, blocks in tubes.items()}
+
+
+def _lof_dict(lof: LackOfFit | None) -> dict | None:
+    """A lack-of-fit table for diagnosis.json; without repeated trials only its unit and verdict."""
+    if lof is None:
+        return None
+    if not lof.has_replicates:
+        return {"unit": lof.unit, "alpha": lof.alpha, "verdict": lof.verdict()}
+    return lof.as_dict()
 
 
 @dataclass(frozen=True)
@@ -205,9 +222,15 @@ class Diagnosis:
         ``{"ramp_time_s": {experiment: s}, "source": {experiment: "experiment.toml" |
         "estimated" | "assumed"}, "text": str}``.
     skipped : dict
-        ``{"signatures": {name: reason}, "candidates": {cause: reason}}``.
+        ``{"signatures": {name: reason}, "candidates": {cause: reason}, "experiments": {cause: the
+        experiment that would reveal it}}`` (:func:`notchfit.analysis.diagnosis.scope.applicable_causes`).
     base : FrictionParams or None
         The model the fitted values change (None: the paper's).
+    lack_of_fit : LackOfFit or None
+        The held-out baseline's error against the trials' scatter (pure error and lack of fit,
+        :mod:`notchfit.analysis.diagnosis.replicates`).
+    extended_lack_of_fit : LackOfFit or None
+        The same for the extended model (None without a named cause).
     """
 
     experiments: tuple
@@ -231,6 +254,8 @@ class Diagnosis:
     protocol: dict = field(default_factory=dict)
     skipped: dict = field(default_factory=dict)
     base: FrictionParams | None = None
+    lack_of_fit: LackOfFit | None = field(default=None, repr=False)
+    extended_lack_of_fit: LackOfFit | None = field(default=None, repr=False)
 
     @property
     def extended_key(self) -> str:
@@ -243,9 +268,17 @@ class Diagnosis:
         u, f = metric_unit(self.metric)
         g = self.gain
         causes = f" (causes: {', '.join(self.causes)})" if len(self.causes) > 1 else ""
-        return (f"cause: {self.cause}{causes}\n"
-                f"held-out rms: baseline {g.baseline / f:.3f} {u}, extended {g.extended / f:.3f} {u} "
-                f"({g.reduction_pct:.1f}% lower)")
+        lines = [f"cause: {self.cause}{causes}",
+                 f"held-out rms: baseline {g.baseline / f:.3f} {u}, extended {g.extended / f:.3f} {u} "
+                 f"({g.reduction_pct:.1f}% lower); noise floor {self.noise_rms / f:.3f} {u}"]
+        if self.lack_of_fit is not None:
+            lines.append(f"lack of fit (held-out baseline): {self.lack_of_fit.verdict()}")
+        if self.extended_lack_of_fit is not None and self.extended_lack_of_fit.has_replicates:
+            lines.append(f"lack of fit (held-out extended model): {self.extended_lack_of_fit.verdict()}")
+        reveal = self.skipped.get("experiments", {})
+        for c, why in self.skipped.get("candidates", {}).items():
+            lines.append(f"not tried: {c} ({why})" + (f"; {reveal[c]}" if c in reveal else ""))
+        return "\n".join(lines)
 
     def to_dict(self, *, extended_model_file: str | None = None, figures=None) -> dict:
         """The content of ``diagnosis.json`` (docs/data-formats.md).
@@ -273,13 +306,15 @@ class Diagnosis:
                          "fixed": {"mu_s_minus_mu_d": BASELINE_MU_EXCESS, "b": defaults.b,
                                    "v_thr": defaults.v_thr},
                          f"heldout_rms_{u}": self.baseline_heldout_rms / f,
-                         f"train_rms_{u}": self.baseline.train_rms / f},
+                         f"train_rms_{u}": self.baseline.train_rms / f,
+                         "tubes": _tubes_dict(self.baseline.tubes)},
             f"noise_rms_{u}": self.noise_rms / f,
             "protocol": dict(self.protocol),
             "discrepancies": [s.to_dict() for s in self.discrepancies],
             "candidates": [c.to_dict(self.metric) for c in self.candidates],
             "pair_candidates": [c.to_dict(self.metric) for c in self.pair_candidates],
             "skipped": {k: dict(v) for k, v in self.skipped.items()},
+            "lack_of_fit": {"baseline": _lof_dict(self.lack_of_fit), "extended": _lof_dict(self.extended_lack_of_fit)},
             "cause": self.cause,
             "causes": list(self.causes),
             "contributions": [c.to_dict(self.metric) for c in self.contributions],
@@ -307,6 +342,8 @@ class Diagnosis:
         """
         cal = self.extended or self.baseline
         params, warp = model_params(cal.values, self.base)
+        if len(cal.tubes) == 1:                 # one tube: its rest angles and cut depths belong to the model
+            params = cal.params(self.base, next(iter(cal.tubes)))
         meta = {"cause": self.cause, "causes": list(self.causes), "source": "notchfit diagnose",
                 "se": {k: float(v) for k, v in cal.se.items()}}
         if warp:

@@ -4,9 +4,13 @@
   (:func:`notchfit.physics.friction.default_params`: the paper's for the seed tube, the
   material and capstan laws for a one-sided lumen-tendon wrist); its laws are
   kept, its calibrated parameters fitted.
-* A candidate that cannot act on the study's measurements or geometry is
-  skipped with its reason (a calibration warp of the image-to-plane mapping on
-  joint-angle data; a tip load on a tube whose joints are off its axis).
+* A candidate that cannot act on the study's measurements or geometry, or that
+  its protocol cannot reveal, is skipped with its reason and the experiment
+  that would reveal it (a calibration warp of the image-to-plane mapping on
+  joint-angle data; a tip load on a tube whose joints are off its axis, or
+  when every trial pulls the same way; a hysteresis loop or a proximal
+  capstan band when no trial unloads: fitted on loading alone, their extra
+  freedom stands in for what the baseline lacks and would be named for it).
 * The protocol: ``[protocol] ramp_time_s`` of experiment.toml drives the
   simulations; where it is absent the diagnosis estimates it (data-format
   contract), conservatively, because rest shapes driven by noisy measured
@@ -36,15 +40,14 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ...batch import run_batch
-from ..causes import REGISTRY, REQUIREMENTS
+from ..causes import REGISTRY, REQUIREMENTS, suggested_experiment
 from ...physics.friction import default_params
 from .calibration import SimulationCache, calibrate, predict_points
 from ..estimation.noise import noise_floor
 from .noise import pooled_mse
-from .specs import model_params
 from ..estimation.observations import sample_mse
 
-__all__ = ["applicable_causes", "base_model", "resolve_protocol"]
+__all__ = ["applicable_causes", "base_model", "lacks", "resolve_protocol", "unloads"]
 
 
 def base_model(preps):
@@ -64,23 +67,52 @@ def base_model(preps):
     return models[0]
 
 
-def applicable_causes(preps, causes) -> tuple[tuple, dict]:
-    """The candidate causes that apply to the study, and ``{cause: reason}`` for those skipped.
+def unloads(prep, *, drop: float = 0.25, min_drop_sigma: float = 5.0) -> bool:
+    """Whether an experiment unloads: after its peak the pulled tension falls by at least ``drop`` of the
+    peak and by ``min_drop_sigma`` times the load cell's σ (a loading-only trial's noise is no unloading)."""
+    t = np.asarray(prep.pulled_tension, dtype=float)
+    if t.size < 2:
+        return False
+    k = int(np.nanargmax(t))
+    fall = float(t[k] - np.nanmin(t[k:]))
+    return fall >= drop * float(t[k]) and fall >= min_drop_sigma * float(np.max(prep.tension_sigma))
+
+
+def lacks(preps) -> set:
+    """The requirements (:data:`notchfit.analysis.causes.REQUIREMENTS`) the study does not meet."""
+    out = set()
+    if preps[0].metric == "angles":
+        out.add("points")
+    if any(p.geom.backbone != "axis" or not np.all(p.geom.pitches == p.geom.pitches[0]) for p in preps):
+        out.add("axis_chain")
+    if not any(unloads(p) for p in preps):
+        out.add("unloading")
+    if len({p.pulled for p in preps}) < 2:           # the rule of the direction_asymmetry signature
+        out.add("both_directions")
+    return out
+
+
+def applicable_causes(preps, causes) -> tuple[tuple, dict, dict]:
+    """The candidate causes that apply to the study, ``{cause: reason}`` for those skipped, and
+    ``{cause: the experiment that would reveal it}`` for those an experiment could reveal.
 
     A cause applies when the study has what its record requires
-    (:attr:`notchfit.analysis.causes.Cause.requires`: notch points, a chain of joints on the axis).
+    (:attr:`notchfit.analysis.causes.Cause.requires`: notch points, a chain of joints on the axis, a
+    trial that unloads, both pull directions); the first requirement missing gives the reason, and
+    every missing one an experiment can supply gives a suggestion
+    (:func:`notchfit.analysis.causes.suggested_experiment`) unless one that cannot be supplied is missing.
     """
-    lacks = set()
-    if preps[0].metric == "angles":
-        lacks.add("points")
-    if any(p.geom.backbone != "axis" or not np.all(p.geom.pitches == p.geom.pitches[0]) for p in preps):
-        lacks.add("axis_chain")
-    skipped = {}
-    for need in REQUIREMENTS:
-        for c in causes:
-            if need in lacks and need in REGISTRY[c].requires and c not in skipped:
-                skipped[c] = REGISTRY[c].requires[need]
-    return tuple(c for c in causes if c not in skipped), skipped
+    missing = lacks(preps)
+    skipped, reveal = {}, {}
+    for c in causes:
+        needs = [n for n in REQUIREMENTS if n in missing and n in REGISTRY[c].requires]
+        if not needs:
+            continue
+        skipped[c] = REGISTRY[c].requires[needs[0]]
+        tests = [suggested_experiment(c, n) for n in needs]
+        if all(tests):
+            reveal[c] = "; ".join(tests)
+    return tuple(c for c in causes if c not in skipped), skipped, reveal
 
 
 def _fit_ramp(args):
@@ -91,10 +123,9 @@ def _fit_ramp(args):
     with threadpool_limits(limits=1):
         cache = SimulationCache()
         cal = calibrate(preps, None, None, scales=scales, base=base, cache=cache, **kw)
-        pred = [predict_points(p, cal.values, cache=cache, base=base)[0] for p in preps]
+        pred = [predict_points(p, cal.values, cache=cache, base=base, tubes=cal.tubes)[0] for p in preps]
         ms = pooled_mse([sample_mse(p, q) for p, q in zip(preps, pred)])
-        params = model_params(cal.values, base)[0]
-        floor = pooled_mse([noise_floor(p, params, cache, seed=seed) for p in preps])
+        floor = pooled_mse([noise_floor(p, cal.params(base, p.tube), cache, seed=seed) for p in preps])
     return ramp, cal, ms, floor
 
 

@@ -1,21 +1,24 @@
 """The fitted parameters of the baseline and of each candidate cause.
 
-The baseline is the friction simulator (Sec. IV-B) with the linear-range
-stiffness, the mid-range (plateau) rate and the sliding friction coefficient
-fitted — ``k_lin``, ``k_mid`` for the paper's spring law, ``E_lin``, ``E_se``
-for the material law of a real tube (:mod:`notchfit.analysis.estimation.specs`); every
-candidate adds the parameters of one physical effect the model lacks (its
-record in :mod:`notchfit.analysis.causes`). A *model* is a tuple of causes: ``()`` the
+The baseline is the friction simulator (Sec. IV-B) calibrated: for the paper's
+spring law (the seed tube) the linear-range stiffness, the mid-range (plateau)
+rate and the sliding friction coefficient — ``k_lin``, ``k_mid``, ``μ_d``
+(:mod:`notchfit.analysis.estimation.specs`); for the material law of a real tube
+identify's calibrated model — ``E_lin``, ``E_se``, ``strain_lower``, ``μ_d``
+shared, plus each tube's rest angles and cut depths
+(:mod:`notchfit.analysis.diagnosis.tubes`). Every candidate adds the parameters of
+one physical effect the model lacks (its record in :mod:`notchfit.analysis.causes`). A *model* is a tuple of causes: ``()`` the
 baseline, ``("joint_hysteresis",)`` one cause, two causes for a pair.
 """
 
 from __future__ import annotations
 
 from ..causes import CAUSES, REGISTRY
-from ..estimation.specs import (BASELINE, BASELINE_MU_EXCESS, MATERIAL_BASELINE, ParamSpec, StudyScales,
-                                baseline_specs)
+from ..estimation.specs import BASELINE, BASELINE_MU_EXCESS, MATERIAL_BASELINE, ParamSpec, StudyScales
+from ..estimation.specs import baseline_specs as paper_baseline_specs
 from ..estimation.problem import with_values
 from ...physics.friction import FrictionParams
+from .tubes import material_baseline
 
 __all__ = [
     "BASELINE",
@@ -67,6 +70,13 @@ def model_key(model) -> str:
     """The name of a model: ``"baseline"``, a cause id, or ``"a+b"``."""
     m = as_model(model)
     return "+".join(m) if m else "baseline"
+
+
+def baseline_specs(base: FrictionParams | None = None) -> tuple[ParamSpec, ...]:
+    """The baseline's shared parameters: the paper's spring law's ``k_lin``, ``k_mid``, ``μ_d`` (started at
+    the base model's values), or for the material law identify's (:func:`notchfit.analysis.diagnosis.tubes.material_baseline`)."""
+    base = base or FrictionParams()
+    return material_baseline(base) if base.spring_law == "material" else paper_baseline_specs(base)
 
 
 def specs_for(cause, base: FrictionParams | None = None) -> tuple[ParamSpec, ...]:

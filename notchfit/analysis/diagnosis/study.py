@@ -14,11 +14,13 @@ from .crossval import folds_by_experiment, run_folds
 from .decision import decide, explain, hysteresis_shape, rank_candidates, score_candidate
 from .noise import pooled_mse, pooled_rms
 from .pairs import contributions, pair_sentence, screen_pairs, second_candidates, second_step
+from .replicates import heldout_lack_of_fit
 from ..estimation.observations import choose_metric, observe_study
 from .results import Diagnosis, Gain
 from .scope import applicable_causes, base_model, resolve_protocol
 from .signatures import signatures, skipped_signatures
 from .specs import CANDIDATES, CAUSES, StudyScales, model_key
+from .tubes import has_tube_unknowns
 
 __all__ = ["diagnose"]
 
@@ -47,11 +49,14 @@ def _per_regime(preps, base_mse, ext_mse) -> dict:
     return out
 
 
-def _baseline_words(base) -> str:
+def _baseline_words(base, preps) -> str:
     """What the calibrated baseline is, in words."""
     if base.spring_law == "material":
         law = "capstan friction of a tendon in the lumen" if base.friction_law == "capstan" else "channel friction"
-        return f"the friction model of the tube's material and section springs and {law}, with E_lin, E_se and μ_d fitted"
+        tube = (" and each tube's rest angles and cut depths (identify's calibrated model)"
+                if has_tube_unknowns(preps) else "")
+        return (f"the friction model of the tube's material and section springs and {law}, with E_lin, E_se, "
+                f"strain_lower and μ_d fitted{tube}")
     return "the paper's friction model with k_lin, k_mid and μ_d fitted"
 
 
@@ -80,9 +85,9 @@ def _setup(experiments, causes, metric, estimate_protocol, kw, jobs, say, *, non
         say("estimating the protocol of the experiments without [protocol]")
     preps, protocol, cal = resolve_protocol(preps, recorded, base, scales, kw, estimate=estimate_protocol,
                                             none_tol=none_tol, seed=seed, jobs=jobs)
-    usable, skipped = applicable_causes(preps, causes)
+    usable, skipped, reveal = applicable_causes(preps, causes)
     return _Study(preps, base, scales, protocol, cal,
-                  {"signatures": skipped_signatures(preps), "candidates": skipped}, usable)
+                  {"signatures": skipped_signatures(preps), "candidates": skipped, "experiments": reveal}, usable)
 
 
 def _masked_first(st: _Study, cands, held, kw, jobs, say):
@@ -153,7 +158,8 @@ def _extended(st: _Study, causes, held, screened, kw):
 def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_folds: int = 6,
              causes=CAUSES, none_tol: float = 0.5, z_crit: float = 3.0, min_excess_removed: float = 0.3,
              calibrate_kw: dict | None = None, progress=None, metric: str = "auto", second_cause: bool = True,
-             max_second: int = 4, estimate_protocol: bool = True) -> Diagnosis:
+             max_second: int = 4, estimate_protocol: bool = True, lof_alpha: float = 0.01,
+             replicate_tol_sigma: float = 3.0) -> Diagnosis:
     """Diagnose a study against the friction model (Sec. IV-B; docs/diagnosis.md).
 
     The baseline is calibrated on the training experiments of each fold and
@@ -203,26 +209,26 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     estimate_protocol : bool
         Estimate ``ramp_time`` where experiment.toml gives no ``[protocol]``
         (:func:`notchfit.analysis.diagnosis.scope.resolve_protocol`); else a step is assumed.
+    lof_alpha, replicate_tol_sigma : float
+        Where trials repeat, ``unexplained`` needs a held-out lack of fit significant at ``lof_alpha``
+        (replicate tensions within ``replicate_tol_sigma`` load-cell σ; :func:`_lack_of_fit_first`).
 
     Returns
     -------
     Diagnosis
     """
-    say = progress or (lambda msg: None)
-    kw = dict(calibrate_kw or {})
-    unknown = set(causes) - set(CAUSES)
+    say, kw, unknown = progress or (lambda msg: None), dict(calibrate_kw or {}), set(causes) - set(CAUSES)
     if unknown:
         raise ValueError(f"unknown cause(s) {sorted(unknown)}; known: {', '.join(CAUSES)}")
     st = _setup(experiments, tuple(causes), metric, estimate_protocol, kw, jobs, say, none_tol=none_tol, seed=seed)
-    preps = st.preps
-    folds = folds_by_experiment(len(preps), max_folds)
+    preps, folds = st.preps, folds_by_experiment(len(st.preps), max_folds)
     run = partial(run_folds, preps, folds, calibrate_kw=kw, seed=seed, jobs=jobs, scheduler=scheduler,
                   scales=st.scales, base=st.base)
 
     say(f"calibrating the baseline on {len(folds)} folds")
     held = run([None])
     base = held["baseline"]
-    base_start = [cal.values for cal in base.calibrations]
+    base_start = [cal.start() for cal in base.calibrations]
     sigs = signatures(preps, base, base.mean_floor())
     order = [c for c, _, _ in rank_candidates(sigs, math.sqrt(base.mean_floor())) if c in st.order]
     say(f"fitting {len(order)} candidate extensions")
@@ -236,19 +242,31 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     full_base = st.protocol_fit or calibrate(preps, None, base_start[0], scales=st.scales, base=st.base, **kw)
     cands = [score_candidate(c, held[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
                              min_excess_removed=min_excess_removed) for c in order]
-    cause = decide(base_ms <= noise * (1.0 + none_tol), cands)
+    lof_kw = dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
+    cause, lof = _lack_of_fit_first(decide(base_ms <= noise * (1.0 + none_tol), cands), preps, base, lof_kw)
     named, pair_res, within, first, screened = _second(
         st, cause, held, cands, run, noise, base_mse, second_cause=second_cause, max_second=max_second,
         z_crit=z_crit, min_excess_removed=min_excess_removed, none_tol=none_tol, say=say, kw=kw, jobs=jobs)
     say(f"fitting the extended model ({model_key(named)}) on all experiments")
     extended = _extended(st, named, held, screened, kw)
     ext_mse = held[model_key(named)].sample_mse(preps) if named else base_mse
+    ext_lof = heldout_lack_of_fit(preps, held[model_key(named)].predicted, **lof_kw) if named else None
     return _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
-                   ext_mse, noise, seed, screened, none_tol=none_tol, z_crit=z_crit, min_removed=min_excess_removed)
+                   ext_mse, noise, seed, screened, (lof, ext_lof), none_tol=none_tol, z_crit=z_crit,
+                   min_removed=min_excess_removed)
+
+
+def _lack_of_fit_first(cause: str, preps, base, lof_kw: dict):
+    """The held-out baseline's lack of fit against the trials' scatter; ``unexplained`` becomes ``none`` where
+    trials repeat and the lack of fit is not significant (above the noise floor, within the scatter)."""
+    lof = heldout_lack_of_fit(preps, base.predicted, **lof_kw)
+    if cause == "unexplained" and lof.has_replicates and not lof.overall.significant(lof_kw["alpha"]):
+        cause = "none"
+    return cause, lof
 
 
 def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
-            ext_mse, noise, seed, screened, *, none_tol, z_crit, min_removed) -> Diagnosis:
+            ext_mse, noise, seed, screened, lofs, *, none_tol, z_crit, min_removed) -> Diagnosis:
     """The :class:`Diagnosis`: contributions, explanation, gains."""
     preps = st.preps
     metric = preps[0].metric
@@ -256,7 +274,8 @@ def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_b
     contribs = contributions(named, held, preps, noise, extended.values, metric=metric) if named else ()
     causes = tuple(c.cause for c in contribs)
     text = explain(cause, sigs, cands, base_rms, noise_rms, none_tol=none_tol, z_crit=z_crit,
-                   min_removed=min_removed, metric=metric, baseline=_baseline_words(st.base))
+                   min_removed=min_removed, metric=metric, baseline=_baseline_words(st.base, preps),
+                   lack_of_fit=lofs[0])
     if named:
         text += pair_sentence(causes, contribs, pair_res, first, metric=metric, z_crit=z_crit,
                               min_removed=min_removed, within_noise=within, alone=cause == first,
@@ -265,6 +284,8 @@ def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_b
             text += hysteresis_shape(extended.values, st.scales.angle)
     if st.skipped["candidates"]:
         text += " Not tried: " + "; ".join(f"{c} ({why})" for c, why in st.skipped["candidates"].items()) + "."
+    if st.skipped["experiments"]:
+        text += " To reveal what this study cannot: " + "; ".join(st.skipped["experiments"].values()) + "."
     text += " " + st.protocol["text"]
     return Diagnosis(experiments=tuple(p.name for p in preps), baseline=full_base,
                      baseline_heldout_rms=base_rms, discrepancies=tuple(sigs), candidates=tuple(cands),
@@ -273,4 +294,4 @@ def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_b
                      per_regime=_per_regime(preps, base_mse, ext_mse), noise_rms=noise_rms, seed=seed,
                      heldout=held, prepared=preps, causes=causes, contributions=contribs,
                      pair_candidates=tuple(pair_res), metric=metric, protocol=st.protocol,
-                     skipped=st.skipped, base=st.base)
+                     skipped=st.skipped, base=st.base, lack_of_fit=lofs[0], extended_lack_of_fit=lofs[1])

@@ -16,9 +16,10 @@ Baselines (docs/models.md, "The baseline of the diagnosis"):
 
 * the paper's spring law (``spring_law = "rates"``): ``k_lin``, ``k_mid`` [N m/rad], ``μ_d``;
 * the material law of a real tube: the linear and plateau moduli ``E_lin``,
-  ``E_se`` [Pa] and ``μ_d`` (:data:`MATERIAL_BASELINE`, the diagnosis's), or with
-  the transformation strain ``strain_lower`` (:data:`MATERIAL`, identify's, with
-  bounds from the nitinol literature: docs/models.md, "Identification").
+  ``E_se`` [Pa] and ``μ_d`` (:data:`MATERIAL_BASELINE`, the diagnosis's before it
+  took identify's model), or with the transformation strain ``strain_lower``
+  (:data:`MATERIAL`, identify's and the diagnosis's, with bounds from the nitinol
+  literature: docs/models.md, "Identification").
 """
 
 from __future__ import annotations
