@@ -152,7 +152,9 @@ def test_contribution_shares_add_up_to_the_removed_discrepancy():
     assert out[1].params == {"stiffness_gradient": 0.2} and out[0].without_key == b
 
 
-def test_scope_skips_what_angle_data_and_a_section_backbone_cannot_show():
+def test_scope_skips_what_angle_data_cannot_show_and_keeps_a_tip_load_on_a_section_backbone():
+    """Angle data cannot show a calibration warp; a tip load acts on any pivot chain (Eqs. 18-20 on the
+    wrist's own chain), so it is tried on a wrist whose pivots are off its axis."""
     from notchfit.analysis.diagnosis.scope import applicable_causes
     from notchfit.analysis.diagnosis.signatures import skipped_signatures
     from notchfit.io import load_geometry
@@ -161,8 +163,9 @@ def test_scope_skips_what_angle_data_and_a_section_backbone_cannot_show():
     wrist = load_geometry(_geometry_source("wrist_asymmetric"))
     preps = (_prep("R1", "angles", geom=wrist), _prep("R2", "angles", geom=wrist))
     usable, skipped = applicable_causes(preps, CAUSES)
-    assert set(skipped) == {"calibration_error", "external_load"}
-    assert usable == ("proximal_friction", "static_friction", "joint_hysteresis", "stiffness_gradient")
+    assert set(skipped) == {"calibration_error"}
+    assert usable == ("proximal_friction", "static_friction", "joint_hysteresis", "external_load",
+                      "stiffness_gradient")
     assert set(skipped_signatures(preps)) == {"spatial_pattern", "direction_asymmetry"}
     seed = (_prep("L", pulled=-1), _prep("R", pulled=1))
     assert applicable_causes(seed, CAUSES) == (CAUSES, {}) and skipped_signatures(seed) == {}

@@ -34,9 +34,9 @@ __all__ = ["CAUSES", "FIGURE_KINDS", "REGISTRY", "REQUIREMENTS", "Cause", "Score
 #: The views a cause's figure can take (:mod:`notchfit.figures.diagnosis`).
 FIGURE_KINDS = ("loop", "asymmetry", "backbone", "plane")
 #: What a cause may require of a study (:func:`notchfit.analysis.diagnosis.scope.applicable_causes`):
-#: ``points`` measured notch points (an image-to-plane mapping); ``axis_chain`` joints on the
-#: tube's axis, equally spaced (the simulator's tip-load torques, Eqs. 18-20).
-REQUIREMENTS = ("points", "axis_chain")
+#: ``points`` measured notch points (an image-to-plane mapping). (A tip load needs nothing: the
+#: simulator's tip-load torques, Eqs. 18-20, hold on any pivot chain.)
+REQUIREMENTS = ("points",)
 
 
 @dataclass(frozen=True)
@@ -180,9 +180,7 @@ REGISTRY: dict[str, Cause] = {c.id: c for c in (
           figure="asymmetry",
           targets=(("direction_asymmetry", 0.0, "the tip-angle error common to both pull directions [rad]"), _BEND),
           signature=(ScoreTerm("direction_asymmetry", 400.0, kind="abs"),),
-          reason="the error does not mirror between pull directions", rank_tie=1,
-          requires={"axis_chain": "the tube's joints are off its axis or unequally spaced: the simulator's "
-                                  "tip-load torques (Eqs. 18-20) hold for the seed tube's chain only"},
+          reason="the error does not mirror between pull directions", rank_tie=1, requires={},
           paper_start=True),
     Cause("stiffness_gradient",
           params=(ParamSpec("stiffness_gradient", -0.9, 0.9, 0.0, probes=(-0.5, -0.25, 0.0, 0.25, 0.5)),),
@@ -197,14 +195,22 @@ REGISTRY: dict[str, Cause] = {c.id: c for c in (
           reason="the shape differs along the backbone while loading", rank_tie=5, requires={},
           paper_start=True, identifiable=True),
     Cause("calibration_error",
-          # scale_error, k_radial [-]; the warp centre [m] (centred on the data when fitted)
+          # scale_error, k_radial [-]; the warp centre [m] (centred on the data when fitted); the bending
+          # plane's tilt against the calibrated plane [rad], seen in perspective (vision.warp)
           params=(ParamSpec("scale_error", -0.2, 0.2, 0.0, probes=(-0.02, 0.0, 0.02)),
                   ParamSpec("k_radial", -0.02, 0.02, 0.0, probes=(-0.005, 0.0, 0.005)),
                   ParamSpec("warp_center_x", -0.2, 0.2, 0.0),
-                  ParamSpec("warp_center_y", -0.2, 0.2, 0.0)),
-          laws=(("scale_error", "k_radial"),),
-          label="the image-to-plane mapping is wrong (scale or lens distortion)",
-          explanation="Physically: the image-to-plane mapping is wrong (scale or lens distortion); a warp "
+                  ParamSpec("warp_center_y", -0.2, 0.2, 0.0),
+                  ParamSpec("plane_tilt_x", -0.35, 0.35, 0.0),
+                  ParamSpec("plane_tilt_y", -0.35, 0.35, 0.0)),
+          # a wrong scale and lens distortion; a tilted bending plane (with the camera's distance);
+          # both at once
+          laws=(("scale_error", "k_radial"), ("plane_tilt_x", "plane_tilt_y"),
+                ("scale_error", "k_radial", "plane_tilt_x", "plane_tilt_y")),
+          label="the image-to-plane mapping is wrong (scale, lens distortion, or a bending plane tilted "
+                "against the calibrated one)",
+          explanation="Physically: the image-to-plane mapping is wrong (scale, lens distortion, or the bending "
+                      "plane tilted against the calibrated one and seen in perspective); a camera-plane "
                       "correction fitted across all samples removes a residual pattern that no joint "
                       "configuration can.",
           figure="plane", targets=(),

@@ -6,7 +6,7 @@
   kept, its calibrated parameters fitted.
 * A candidate that cannot act on the study's measurements or geometry is
   skipped with its reason (a calibration warp of the image-to-plane mapping on
-  joint-angle data; a tip load on a tube whose joints are off its axis).
+  joint-angle data).
 * The protocol: ``[protocol] ramp_time_s`` of experiment.toml drives the
   simulations; where it is absent the diagnosis estimates it (data-format
   contract), conservatively, because rest shapes driven by noisy measured
@@ -68,13 +68,11 @@ def applicable_causes(preps, causes) -> tuple[tuple, dict]:
     """The candidate causes that apply to the study, and ``{cause: reason}`` for those skipped.
 
     A cause applies when the study has what its record requires
-    (:attr:`notchfit.analysis.causes.Cause.requires`: notch points, a chain of joints on the axis).
+    (:attr:`notchfit.analysis.causes.Cause.requires`: notch points).
     """
     lacks = set()
     if preps[0].metric == "angles":
         lacks.add("points")
-    if any(p.geom.backbone != "axis" or not np.all(p.geom.pitches == p.geom.pitches[0]) for p in preps):
-        lacks.add("axis_chain")
     skipped = {}
     for need in REQUIREMENTS:
         for c in causes:
