@@ -39,7 +39,8 @@ REGISTRATION_STEP = 1e-6
 
 def _observed(prep: Prepared, theta, values: dict, registration=None, transform=None) -> np.ndarray:
     """What ``prep`` would measure for ``theta``: its registration (with a correction) and the camera-plane
-    warp of ``values`` (a tilted bending plane in perspective, then scale and radial terms) (:data:`~notchfit.analysis.diagnosis.specs.WARP_PARAMS`), or the angles."""
+    warp of ``values`` (:data:`~notchfit.analysis.diagnosis.specs.WARP_PARAMS`: a tilted bending plane in
+    perspective, then scale and radial terms), or the angles."""
     if prep.metric == "angles":
         return theta
     P = measure_registered(prep, theta, registration, transform)
