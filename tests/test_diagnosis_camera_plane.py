@@ -13,6 +13,9 @@ import numpy as np
 import pytest
 
 from notchfit.analysis.diagnosis.calibration import calibrate, predict_points, reregister
+from notchfit.analysis.diagnosis.pairs import screen_pairs
+from notchfit.analysis.diagnosis.scope import base_model
+from notchfit.analysis.estimation.specs import StudyScales
 from notchfit.analysis.diagnosis.specs import WARP_DISTANCE, WARP_RADIUS, model_params
 from notchfit.analysis.estimation.observations import observe_study
 from notchfit.cli import main
@@ -79,6 +82,28 @@ def test_a_tilted_plane_is_fitted_by_the_camera_plane_correction(tmp_path):
     assert cal.train_rms < 0.5 * base.train_rms
 
 
+def _load_and_warp():
+    """A tip load twice the shipped recipe's with a small lens warp behind it."""
+    load = load_recipe("external_load").replace(effect={"tip_force_x": (0.4, 0.6), "tip_force_z": (0.2, 0.4)})
+    warp = load_recipe("calibration_error").replace(effect={"scale_error": (0.006, 0.01),
+                                                            "k_radial": (0.002, 0.004)})
+    return combine_recipes(load, warp)
+
+
+def test_a_warp_behind_a_dominant_tip_load_lowers_the_load_fit_in_the_screen(tmp_path):
+    """Reduced form of the slow test below: on a small study the second-cause screen (the load's optimum
+    and the warp fitted together on every experiment) removes most of what the load alone leaves."""
+    st = synthesize(_load_and_warp().scaled(n_experiments=2, n_up=4, n_down=3), seed=1, method="fast")
+    write_study(st, tmp_path / "study")
+    preps = observe_study(read_study(tmp_path / "study"), "points")
+    base = base_model(preps)
+    scales = StudyScales.of(preps, base)
+    load = calibrate(preps, "external_load", errors=False, base=base, scales=scales, paper_start=False)
+    out = screen_pairs("external_load", ["calibration_error"], preps, load.values, scales=scales, base=base)
+    alone, pair = out["external_load"][1], out["external_load+calibration_error"][1]
+    assert pair < 0.5 * alone
+
+
 def _diagnose(tmp_path, recipe, seed):
     study = tmp_path / "study"
     generate_study(recipe, study, seed=seed)
@@ -102,8 +127,5 @@ def test_a_tilted_bending_plane_is_named_with_a_gain_like_the_other_causes(tmp_p
 def test_a_warp_behind_a_dominant_tip_load_is_the_second_cause(tmp_path):
     """A tip load twice the shipped recipe's with a small lens warp: the load is named first and the warp
     second (the camera-plane correction is always tried as a second cause where points are measured)."""
-    load = load_recipe("external_load").replace(effect={"tip_force_x": (0.4, 0.6), "tip_force_z": (0.2, 0.4)})
-    warp = load_recipe("calibration_error").replace(effect={"scale_error": (0.006, 0.01),
-                                                            "k_radial": (0.002, 0.004)})
-    d = _diagnose(tmp_path, combine_recipes(load, warp), 1)
+    d = _diagnose(tmp_path, _load_and_warp(), 1)
     assert d["causes"] == ["external_load", "calibration_error"], d["explanation"]
