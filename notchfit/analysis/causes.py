@@ -92,9 +92,6 @@ class Cause:
         fits per candidate): the second start ended lower in 8 of 14 external_load fits (by
         up to 97 % of the cost), 4 of 14 joint_hysteresis (45 %), 2 of 14
         stiffness_gradient (4 %); for the others by at most 1-4 %, not worth a second fit.
-        As the single candidate only: a pair with it as the second cause starts from its first
-        cause's optimum and from the union of both single optima
-        (:func:`notchfit.analysis.diagnosis.specs.is_paper_start`).
     corrects_points : bool
         The cause corrects the measured points (a warp of the image-to-plane mapping),
         fitted with a registration correction per experiment, not a change of the model.

@@ -20,7 +20,7 @@ from ..estimation.noise import noise_floor
 from ..estimation.solve import folds
 from .calibration import Calibration, SimulationCache, calibrate, predict_points, reregister
 from ..estimation.observations import sample_mse
-from .specs import StudyScales, as_model, is_paper_start, model_key, model_params
+from .specs import PAPER_START, StudyScales, as_model, model_key, model_params
 
 __all__ = ["FoldTask", "HeldOut", "folds_by_experiment", "run_fold", "run_folds"]
 
@@ -82,10 +82,9 @@ def run_fold(task: FoldTask) -> FoldResult:
     with threadpool_limits(limits=1):
         cache = SimulationCache()
         train = [task.preps[i] for i in task.train]
-        # a single candidate whose fit may end in another basin from the baseline's optimum is also
-        # fitted from the paper's values (specs.PAPER_START); a pair starts from its first cause's
-        # optimum or from the union of both single optima (pairs.union_start), chosen by the screen
-        paper = is_paper_start(task.cause)
+        # the candidates whose fit may end in another basin from the baseline's (or, for a pair, the
+        # first cause's) optimum are also fitted from the paper's values (specs.PAPER_START)
+        paper = task.cause[-1] in PAPER_START if task.cause else False
         cal = calibrate(train, task.cause, task.start, cache=cache, scales=task.scales, base=task.base,
                         paper_start=paper, errors=False, **task.calibrate_kw)
         preds = {}

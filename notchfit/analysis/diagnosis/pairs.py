@@ -35,7 +35,7 @@ from .noise import paired_z, pooled_mse, pooled_rms
 from ..estimation.observations import sample_mse
 from .results import Contribution
 from .signatures import signatures
-from .specs import CANDIDATES, is_paper_start, model_key
+from .specs import CANDIDATES, PAPER_START, model_key
 
 __all__ = ["contributions", "pair_sentence", "screen_pairs", "second_candidates", "second_step"]
 
@@ -56,7 +56,7 @@ def _fit_all(args):
     with threadpool_limits(limits=1):
         cache = SimulationCache()
         cal = calibrate(preps, model, start, cache=cache, scales=scales, base=base,
-                        paper_start=is_paper_start(model), **kw)
+                        paper_start=model[-1] in PAPER_START, **kw)
         reg = cal.registration or (None,) * len(preps)
         pred = [predict_points(p, cal.values, registration=r, cache=cache, base=base)[0] for p, r in zip(preps, reg)]
         ms = pooled_mse([sample_mse(p, q) for p, q in zip(preps, pred)])

@@ -33,7 +33,6 @@ __all__ = [
     "StudyScales",
     "as_model",
     "baseline_specs",
-    "is_paper_start",
     "model_key",
     "model_params",
     "specs_for",
@@ -73,17 +72,6 @@ def model_key(model) -> str:
     """The name of a model: ``"baseline"``, a cause id, or ``"a+b"``."""
     m = as_model(model)
     return "+".join(m) if m else "baseline"
-
-
-def is_paper_start(model) -> bool:
-    """Fit ``model`` from the paper's values too: a single candidate of :data:`PAPER_START`.
-
-    A pair is not: it starts from its first cause's optimum, and the second-cause screen also fits it
-    from the union of both causes' single optima (:func:`notchfit.analysis.diagnosis.pairs.union_start`),
-    the start made for a first cause that bent the baseline to stand in for the second.
-    """
-    m = as_model(model)
-    return len(m) == 1 and m[0] in PAPER_START
 
 
 def specs_for(cause, base: FrictionParams | None = None) -> tuple[ParamSpec, ...]:
