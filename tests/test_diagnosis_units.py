@@ -153,7 +153,9 @@ def test_contribution_shares_add_up_to_the_removed_discrepancy():
     assert out[1].params == {"stiffness_gradient": 0.2} and out[0].without_key == b
 
 
-def test_scope_skips_what_angle_data_and_a_section_backbone_cannot_show():
+def test_scope_skips_what_angle_data_cannot_show_and_keeps_a_tip_load_on_a_section_backbone():
+    """Angle data cannot show a calibration warp; a tip load acts on any pivot chain (Eqs. 18-20 on the
+    wrist's own chain), so it is tried on a wrist whose pivots are off its axis."""
     from notchfit.analysis.diagnosis.scope import applicable_causes
     from notchfit.analysis.diagnosis.signatures import skipped_signatures
     from notchfit.io import load_geometry
@@ -163,30 +165,30 @@ def test_scope_skips_what_angle_data_and_a_section_backbone_cannot_show():
     bend_unbend = [0.0, 2.0, 4.0, 1.0]
     preps = (_prep("R1", "angles", geom=wrist, tension=bend_unbend), _prep("R2", "angles", geom=wrist))
     usable, skipped, reveal = applicable_causes(preps, CAUSES)
-    assert set(skipped) == {"calibration_error", "external_load"}
-    assert usable == ("proximal_friction", "static_friction", "joint_hysteresis", "stiffness_gradient")
+    assert set(skipped) == {"calibration_error"}
+    assert usable == ("proximal_friction", "static_friction", "joint_hysteresis", "external_load",
+                      "stiffness_gradient")
     assert set(skipped_signatures(preps)) == {"spatial_pattern", "direction_asymmetry"}
-    # angle data could be measured as points; the tip load needs a chain the tube does not have
+    # angle data could be measured as points (a tip load acts on any pivot chain, Eqs. 18-20)
     assert set(reveal) == {"calibration_error"} and "notch points" in reveal["calibration_error"]
     seed = (_prep("L", pulled=-1, tension=bend_unbend), _prep("R", pulled=1))
     assert applicable_causes(seed, CAUSES) == (CAUSES, {}, {}) and skipped_signatures(seed) == {}
 
 
 def test_scope_skips_what_a_loading_only_one_direction_protocol_cannot_reveal():
-    """No trial unloads: a loop (joint hysteresis) or a proximal capstan band cannot show, and with one
-    pull direction neither can a steady tip load; each is skipped with its reason and the experiment that
-    would reveal it. A fall within the load-cell noise is no unloading."""
+    """No trial unloads: a loop (joint hysteresis) or a proximal capstan band cannot show; each is skipped
+    with its reason and the experiment that would reveal it. A tip load is still tried with one pull
+    direction (its torques change with the bend). A fall within the load-cell noise is no unloading."""
     from notchfit.analysis.diagnosis.scope import applicable_causes, unloads
 
     loading = [0.0, 1.0, 2.0, 3.0]
     preps = (_prep("A", tension=loading), _prep("B", tension=[0.0, 1.0, 2.0, 1.99]))
     assert not unloads(preps[1]) and unloads(_prep("C", tension=[0.0, 2.0, 3.0, 0.5]))
     usable, skipped, reveal = applicable_causes(preps, CAUSES)
-    assert set(skipped) == {"proximal_friction", "joint_hysteresis", "external_load"}
-    assert usable == ("static_friction", "stiffness_gradient", "calibration_error")
+    assert set(skipped) == {"proximal_friction", "joint_hysteresis"}
+    assert usable == ("static_friction", "external_load", "stiffness_gradient", "calibration_error")
     assert "unloads" in skipped["joint_hysteresis"]
     assert reveal["joint_hysteresis"].startswith("unload one trial") and "joint hysteresis" in reveal["joint_hysteresis"]
-    assert "pull the other tendon" in reveal["external_load"]
 
 
 def test_recorded_protocol_is_used_and_missing_one_is_said():

@@ -37,18 +37,15 @@ __all__ = ["CAUSES", "FIGURE_KINDS", "REGISTRY", "REQUIREMENTS", "REVEAL", "Caus
 #: The views a cause's figure can take (:mod:`notchfit.figures.diagnosis`).
 FIGURE_KINDS = ("loop", "asymmetry", "backbone", "plane")
 #: What a cause may require of a study (:func:`notchfit.analysis.diagnosis.scope.applicable_causes`):
-#: ``points`` measured notch points (an image-to-plane mapping); ``axis_chain`` joints on the
-#: tube's axis, equally spaced (the simulator's tip-load torques, Eqs. 18-20); ``unloading`` a
-#: trial whose tension falls again (a loop opens only between loading and unloading); ``both_directions``
-#: trials pulling each way (an effect common to both directions shows only as a broken mirror symmetry).
-REQUIREMENTS = ("points", "axis_chain", "unloading", "both_directions")
-#: The experiment that would supply a missing requirement (``{cause}``: the cause in words); None where no
-#: experiment can (the tube's own geometry).
+#: ``points`` measured notch points (an image-to-plane mapping); ``unloading`` a trial whose tension
+#: falls again (a loop opens only between loading and unloading). A tip load needs neither: the
+#: simulator's tip-load torques (Eqs. 18-20) hold on any pivot chain, and they change with the bend
+#: while a rest angle does not, so one pull direction can show them.
+REQUIREMENTS = ("points", "unloading")
+#: The experiment that would supply a missing requirement (``{cause}``: the cause in words).
 REVEAL = {
     "points": "measure notch points from calibrated images (not only joint angles) to test {cause}",
-    "axis_chain": None,
     "unloading": "unload one trial (the tension back to zero after its peak) to test {cause}",
-    "both_directions": "pull the other tendon in one trial (both pull directions) to test {cause}",
 }
 
 
@@ -198,11 +195,7 @@ REGISTRY: dict[str, Cause] = {c.id: c for c in (
           figure="asymmetry",
           targets=(("direction_asymmetry", 0.0, "the tip-angle error common to both pull directions [rad]"), _BEND),
           signature=(ScoreTerm("direction_asymmetry", 400.0, kind="abs"),),
-          reason="the error does not mirror between pull directions", rank_tie=1,
-          requires={"axis_chain": "the tube's joints are off its axis or unequally spaced: the simulator's "
-                                  "tip-load torques (Eqs. 18-20) hold for the seed tube's chain only",
-                    "both_directions": "every trial pulls the same way: a steady load shows as an error common to "
-                                       "both pull directions (a broken mirror symmetry)"},
+          reason="the error does not mirror between pull directions", rank_tie=1, requires={},
           paper_start=True),
     Cause("stiffness_gradient",
           params=(ParamSpec("stiffness_gradient", -0.9, 0.9, 0.0, probes=(-0.5, -0.25, 0.0, 0.25, 0.5)),),
@@ -217,14 +210,22 @@ REGISTRY: dict[str, Cause] = {c.id: c for c in (
           reason="the shape differs along the backbone while loading", rank_tie=5, requires={},
           paper_start=True, identifiable=True),
     Cause("calibration_error",
-          # scale_error, k_radial [-]; the warp centre [m] (centred on the data when fitted)
+          # scale_error, k_radial [-]; the warp centre [m] (centred on the data when fitted); the bending
+          # plane's tilt against the calibrated plane [rad], seen in perspective (vision.warp)
           params=(ParamSpec("scale_error", -0.2, 0.2, 0.0, probes=(-0.02, 0.0, 0.02)),
                   ParamSpec("k_radial", -0.02, 0.02, 0.0, probes=(-0.005, 0.0, 0.005)),
                   ParamSpec("warp_center_x", -0.2, 0.2, 0.0),
-                  ParamSpec("warp_center_y", -0.2, 0.2, 0.0)),
-          laws=(("scale_error", "k_radial"),),
-          label="the image-to-plane mapping is wrong (scale or lens distortion)",
-          explanation="Physically: the image-to-plane mapping is wrong (scale or lens distortion); a warp "
+                  ParamSpec("warp_center_y", -0.2, 0.2, 0.0),
+                  ParamSpec("plane_tilt_x", -0.35, 0.35, 0.0),
+                  ParamSpec("plane_tilt_y", -0.35, 0.35, 0.0)),
+          # a wrong scale and lens distortion; a tilted bending plane (with the camera's distance);
+          # both at once
+          laws=(("scale_error", "k_radial"), ("plane_tilt_x", "plane_tilt_y"),
+                ("scale_error", "k_radial", "plane_tilt_x", "plane_tilt_y")),
+          label="the image-to-plane mapping is wrong (scale, lens distortion, or a bending plane tilted "
+                "against the calibrated one)",
+          explanation="Physically: the image-to-plane mapping is wrong (scale, lens distortion, or the bending "
+                      "plane tilted against the calibrated one and seen in perspective); a camera-plane "
                       "correction fitted across all samples removes a residual pattern that no joint "
                       "configuration can.",
           figure="plane", targets=(),

@@ -22,7 +22,9 @@ PARAM_TEXT = {"k_lin": ("k_lin", "N m/rad"), "k_mid": ("k_mid", "N m/rad"), "k_s
               "tip_force_x": ("F_x", "N"), "tip_force_z": ("F_z", "N"), "stiffness_gradient": ("gradient", ""),
               "mu_s_minus_mu_d": ("μ_s − μ_d", ""), "mu_s_excess": ("μ_s − μ_d", ""),
               "scale_error": ("scale error", ""), "k_radial": ("radial k", ""),
-              "warp_center_x": ("warp centre x", "mm", 1e3), "warp_center_y": ("warp centre y", "mm", 1e3)}
+              "warp_center_x": ("warp centre x", "mm", 1e3), "warp_center_y": ("warp centre y", "mm", 1e3),
+              "plane_tilt_x": ("plane tilt ω_x", "°", 1 / DEG),
+              "plane_tilt_y": ("plane tilt ω_y", "°", 1 / DEG)}
 
 
 def _shown(name: str, angles: bool) -> tuple[str, str, float]:

@@ -135,6 +135,7 @@ class Recipe:
     random_sign: tuple = ()
     warp_center_mm: tuple = ((-3.0, 3.0), (8.0, 20.0))
     warp_radius_mm: float = 10.0
+    warp_distance_mm: float = 250.0
     point_sigma_mm: float = 0.02
     tension_sigma_N: float = 0.11
     displacement_step_mm: float = 0.0079
@@ -197,6 +198,8 @@ class Recipe:
             object.__setattr__(self, f, _range(getattr(self, f), f))
         object.__setattr__(self, "warp_center_mm",
                            tuple(_range(r, "warp center") for r in self.warp_center_mm))
+        if not (math.isfinite(self.warp_distance_mm) and self.warp_distance_mm > 0):
+            raise ValueError(f"recipe {self.name!r}: the camera's distance_mm must be a number > 0")
         if not self.experiments:
             raise ValueError(f"recipe {self.name!r}: no experiments")
         names = [e.name for e in self.experiments]
@@ -251,7 +254,7 @@ def combine_recipes(*recipes: Recipe, name: str | None = None) -> Recipe:
 
     The first recipe gives the study (base ranges, noise, plane, experiments,
     protocol); the others add their causes, effect ranges, random signs and
-    (calibration_error) the warp's centre and radius.
+    (calibration_error) the warp's centre, radius and camera distance.
     """
     first = recipes[0]
     causes, effect, signs = [], {}, []
@@ -261,7 +264,8 @@ def combine_recipes(*recipes: Recipe, name: str | None = None) -> Recipe:
         effect.update(r.effect)
         signs += list(r.random_sign)
         if "calibration_error" in r.causes:
-            warp = {"warp_center_mm": r.warp_center_mm, "warp_radius_mm": r.warp_radius_mm}
+            warp = {"warp_center_mm": r.warp_center_mm, "warp_radius_mm": r.warp_radius_mm,
+                    "warp_distance_mm": r.warp_distance_mm}
     return first.replace(name=name or "+".join(r.name for r in recipes), cause=tuple(causes), effect=effect,
                          random_sign=tuple(signs), description="; ".join(r.description for r in recipes), **warp)
 
@@ -307,6 +311,9 @@ def recipe_from_dict(d: dict, origin: str = "<recipe>") -> Recipe:
     r = eff.pop("radius_mm", None)
     if r is not None:
         kw["warp_radius_mm"] = float(r)
+    dist = eff.pop("distance_mm", None)
+    if dist is not None:
+        kw["warp_distance_mm"] = float(dist)
     kw["effect"] = eff
     noise = dict(d.get("noise", {}))
     for src, dst in (("point_mm", "point_sigma_mm"), ("tension_N", "tension_sigma_N"),

@@ -31,7 +31,11 @@ pull directions), and it describes the "truth" that produced the data:
   ``stiffness_gradient``  ``stiffness_gradient`` g
   ``calibration_error``   ``scale_error``, ``k_radial`` (a plane-frame
                           point warp, :func:`notchfit.vision.warp.apply_point_warp`,
-                          one camera for the whole study)
+                          one camera for the whole study), and/or
+                          ``plane_tilt_x``, ``plane_tilt_y`` [rad] (the bending
+                          plane tilted against the calibrated one, seen in
+                          perspective from ``distance_mm``,
+                          :func:`notchfit.vision.warp.apply_camera_plane_warp`)
   ======================  =============================================
 
 * what is measured (``observe``): notch points, joint angles (``angles.csv``,
@@ -96,7 +100,7 @@ from .recipes import (_BASE_FIELDS, _MODEL_EFFECTS, _PAPER_MU_S_EXCESS, _REFEREN
                       ProtocolSpec, Recipe, _protocol, bend_unbend_protocol, list_recipes, load_recipe,
                       recipe_from_dict)
 from ..units import DEG, MM
-from ..vision.warp import apply_point_warp
+from ..vision.warp import apply_camera_plane_warp
 
 __all__ = [
     "CAUSES",
@@ -173,7 +177,8 @@ class SynthStudy:
     geometry: Geometry
     params: object                 # notchfit.physics.friction.FrictionParams of the truth
     effect: dict                   # the drawn effect fields (empty for "none")
-    warp: dict | None              # calibration_error: scale_error, k_radial, center [m], radius [m]
+    warp: dict | None              # calibration_error: scale_error, k_radial, center [m], radius [m],
+                                   # tilt (2,) [rad], distance [m]
     experiments: tuple
     truth_solver: str = "reference"  # "reference", "fast" or "statics" (frictionless truth)
 
@@ -190,6 +195,8 @@ class SynthStudy:
             warp = {"scale_error": self.warp["scale_error"], "k_radial": self.warp["k_radial"],
                     "center_mm": [c / MM for c in self.warp["center"]],
                     "radius_mm": self.warp["radius"] / MM}
+            if any(self.warp["tilt"]):
+                warp.update(tilt_rad=list(self.warp["tilt"]), distance_mm=self.warp["distance"] / MM)
         exps = {}
         for e in self.experiments:
             exps[e.name] = {
@@ -377,9 +384,11 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
     warp = None
     if "calibration_error" in recipe.causes:
         (cx0, cx1), (cy0, cy1) = recipe.warp_center_mm
-        warp = {"scale_error": effect["scale_error"], "k_radial": effect["k_radial"],
+        warp = {"scale_error": effect.get("scale_error", 0.0), "k_radial": effect.get("k_radial", 0.0),
                 "center": (float(rng_warp.uniform(cx0, cx1)) * MM, float(rng_warp.uniform(cy0, cy1)) * MM),
-                "radius": recipe.warp_radius_mm * MM}
+                "radius": recipe.warp_radius_mm * MM,
+                "tilt": (effect.get("plane_tilt_x", 0.0), effect.get("plane_tilt_y", 0.0)),
+                "distance": recipe.warp_distance_mm * MM}
 
     # draw each experiment's protocol, plane and noise streams, then simulate (maybe in parallel)
     plans = []
@@ -429,7 +438,8 @@ def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp, sour
     if recipe.observe != "angles":
         pts = true_pts
         if warp is not None:
-            pts = apply_point_warp(pts, warp["scale_error"], warp["k_radial"], warp["center"], warp["radius"])
+            pts = apply_camera_plane_warp(pts, warp["scale_error"], warp["k_radial"], warp["center"],
+                                          tilt=warp["tilt"], radius=warp["radius"], distance=warp["distance"])
         pts = pts + rng.normal(0.0, recipe.point_sigma_mm * MM, pts.shape)
         if recipe.missing_points > 0:
             gone = rng.random(pts.shape[:2]) < recipe.missing_points

@@ -25,9 +25,9 @@ from ..estimation.problem import Block, Problem, Simulations, measure_registered
 from ..estimation.solve import best_probe_starts, grid_starts, se_values, solve
 from ..fitting import fit_experiment
 from ...physics.friction import FrictionParams
-from ...vision.warp import apply_point_warp, unwarp_points
-from .specs import (BASELINE_MU_EXCESS, REGISTRATION_BOUNDS, WARP_CENTER_RANGE, WARP_PARAMS, WARP_RADIUS,
-                    StudyScales, as_model, baseline_specs, model_params, specs_for)
+from ...vision.warp import apply_camera_plane_warp, unwarp_camera_plane
+from .specs import (BASELINE_MU_EXCESS, REGISTRATION_BOUNDS, WARP_CENTER_RANGE, WARP_DISTANCE, WARP_PARAMS,
+                    WARP_RADIUS, StudyScales, as_model, baseline_specs, model_params, specs_for)
 from .tubes import TUBES, has_tube_unknowns, mean_tubes, tube_blocks, tube_params
 
 __all__ = ["Calibration", "SimulationCache", "calibrate", "predict_points", "reregister"]
@@ -39,16 +39,24 @@ REGISTRATION_STEP = 1e-6
 
 
 def _observed(prep: Prepared, theta, values: dict, registration=None, transform=None) -> np.ndarray:
-    """What ``prep`` would measure for ``theta``: its registration (with a correction) and the point warp
-    of ``values`` (:data:`~notchfit.analysis.diagnosis.specs.WARP_PARAMS`), or the angles."""
+    """What ``prep`` would measure for ``theta``: its registration (with a correction) and the camera-plane
+    warp of ``values`` (:data:`~notchfit.analysis.diagnosis.specs.WARP_PARAMS`: a tilted bending plane in
+    perspective, then scale and radial terms), or the angles."""
     if prep.metric == "angles":
         return theta
     P = measure_registered(prep, theta, registration, transform)
     warp = {k: values[k] for k in WARP_PARAMS if k in values}
     if warp:
-        P = apply_point_warp(P, warp["scale_error"], warp["k_radial"],
-                             (warp["warp_center_x"], warp["warp_center_y"]), WARP_RADIUS)
+        s, k, c, tilt = _warp_args(warp)
+        P = apply_camera_plane_warp(P, s, k, c, tilt=tilt, radius=WARP_RADIUS, distance=WARP_DISTANCE)
     return P
+
+
+def _warp_args(warp: dict) -> tuple:
+    """``(scale_error, k_radial, centre, tilt)`` of the camera-plane warp values ``warp``
+    (:func:`notchfit.vision.warp.apply_camera_plane_warp`; an absent tilt is none)."""
+    return (warp["scale_error"], warp["k_radial"], (warp["warp_center_x"], warp["warp_center_y"]),
+            (warp.get("plane_tilt_x", 0.0), warp.get("plane_tilt_y", 0.0)))
 
 
 def _model(base, o, values: dict, tube: dict) -> FrictionParams:
@@ -108,8 +116,8 @@ def reregister(prep: Prepared, values: dict):
     if not warp or prep.metric != "points":
         return prep.transform
     try:
-        Q = unwarp_points(prep.measured, warp["scale_error"], warp["k_radial"],
-                          (warp["warp_center_x"], warp["warp_center_y"]), WARP_RADIUS)
+        s, k, c, tilt = _warp_args(warp)
+        Q = unwarp_camera_plane(prep.measured, s, k, c, tilt=tilt, radius=WARP_RADIUS, distance=WARP_DISTANCE)
     except ValueError:
         # the fitted warp folds over within these points: it is no correction of
         # them; score it with the uncorrected registration

@@ -4,13 +4,12 @@
   (:func:`notchfit.physics.friction.default_params`: the paper's for the seed tube, the
   material and capstan laws for a one-sided lumen-tendon wrist); its laws are
   kept, its calibrated parameters fitted.
-* A candidate that cannot act on the study's measurements or geometry, or that
-  its protocol cannot reveal, is skipped with its reason and the experiment
-  that would reveal it (a calibration warp of the image-to-plane mapping on
-  joint-angle data; a tip load on a tube whose joints are off its axis, or
-  when every trial pulls the same way; a hysteresis loop or a proximal
-  capstan band when no trial unloads: fitted on loading alone, their extra
-  freedom stands in for what the baseline lacks and would be named for it).
+* A candidate that cannot act on the study's measurements, or that its
+  protocol cannot reveal, is skipped with its reason and the experiment that
+  would reveal it (a calibration warp of the image-to-plane mapping on
+  joint-angle data; a hysteresis loop or a proximal capstan band when no
+  trial unloads: fitted on loading alone, their extra freedom stands in for
+  what the baseline lacks and would be named for it).
 * The protocol: ``[protocol] ramp_time_s`` of experiment.toml drives the
   simulations; where it is absent the diagnosis estimates it (data-format
   contract), conservatively, because rest shapes driven by noisy measured
@@ -83,12 +82,8 @@ def lacks(preps) -> set:
     out = set()
     if preps[0].metric == "angles":
         out.add("points")
-    if any(p.geom.backbone != "axis" or not np.all(p.geom.pitches == p.geom.pitches[0]) for p in preps):
-        out.add("axis_chain")
     if not any(unloads(p) for p in preps):
         out.add("unloading")
-    if len({p.pulled for p in preps}) < 2:           # the rule of the direction_asymmetry signature
-        out.add("both_directions")
     return out
 
 
@@ -97,10 +92,10 @@ def applicable_causes(preps, causes) -> tuple[tuple, dict, dict]:
     ``{cause: the experiment that would reveal it}`` for those an experiment could reveal.
 
     A cause applies when the study has what its record requires
-    (:attr:`notchfit.analysis.causes.Cause.requires`: notch points, a chain of joints on the axis, a
-    trial that unloads, both pull directions); the first requirement missing gives the reason, and
-    every missing one an experiment can supply gives a suggestion
-    (:func:`notchfit.analysis.causes.suggested_experiment`) unless one that cannot be supplied is missing.
+    (:attr:`notchfit.analysis.causes.Cause.requires`: notch points, a trial that unloads); the first
+    requirement missing gives the reason, and every missing one an experiment can supply gives a
+    suggestion (:func:`notchfit.analysis.causes.suggested_experiment`) unless one that cannot be
+    supplied is missing.
     """
     missing = lacks(preps)
     skipped, reveal = {}, {}

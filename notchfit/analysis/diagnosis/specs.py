@@ -29,6 +29,7 @@ __all__ = [
     "PAPER_START",
     "REGISTRATION_BOUNDS",
     "WARP_CENTER_RANGE",
+    "WARP_DISTANCE",
     "WARP_PARAMS",
     "WARP_RADIUS",
     "ParamSpec",
@@ -52,6 +53,10 @@ REGISTRATION_BOUNDS = (0.005, 0.005, 0.1)
 WARP_PARAMS = tuple(s.name for c in REGISTRY.values() if c.corrects_points for s in c.params)
 #: Radius that normalises the radial warp coefficient [m] (:mod:`notchfit.vision.warp`).
 WARP_RADIUS = 0.01
+#: Distance from the camera to the bending plane [m] of the tilted-plane term
+#: (:func:`notchfit.vision.warp.apply_plane_tilt`): the tilt's perspective term scales with ``|ω| / D``,
+#: a wrong distance is absorbed by the tilt and the scale error.
+WARP_DISTANCE = 0.25
 #: The warp centre is fitted within this distance of the data centroid [m]; with
 #: |k_radial| <= 0.02 the warp stays one-to-one within about 70 mm of its centre.
 WARP_CENTER_RANGE = 0.03
