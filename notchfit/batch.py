@@ -62,7 +62,7 @@ __all__ = ["BatchResult", "DASK_CONFIG", "DASK_WORKER_ENVIRON", "ItemResult", "i
 #: a worker starts): glibc's malloc with one arena and large arrays (up to 32 MiB) kept in the
 #: heap instead of fresh ``mmap`` pages each time (Dask's own default sets
 #: ``MALLOC_TRIM_THRESHOLD_=65536``, which with the task running in a thread of its own arena
-#: returns every freed image to the system and faults it in again: a third more CPU per image,
+#: returns every freed image to the system and faults it in again, measured by
 #: ``benchmarks/bench_dask.py``), one thread per native library.
 DASK_WORKER_ENVIRON = {"MALLOC_ARENA_MAX": 1, "MALLOC_MMAP_THRESHOLD_": 32 * 2 ** 20,
                        "MALLOC_TRIM_THRESHOLD_": 256 * 2 ** 20, "OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1,
@@ -370,8 +370,8 @@ def items_per_task(n_items: int, n_threads: int, *, most: int = 8) -> int:
     """How many items one Dask task runs: ``n_items // (4 * n_threads)``, between 1 and ``most``.
 
     Each task costs the scheduler, the client and the worker's event loop
-    several ms of CPU besides the item itself (``benchmarks/bench_dask.py``
-    measures it), on the same cores as the items on a small machine; a few
+    CPU time besides the item itself (``benchmarks/bench_dask.py`` measures
+    it), on the same cores as the items on a small machine; a few
     items per task spread it, while every worker thread still gets at least
     four tasks (the load stays balanced) and an interrupted run loses at most
     two tasks per worker thread.
