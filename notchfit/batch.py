@@ -25,9 +25,9 @@ Streaming: with ``on_result`` the parent hands each item's result to that
 callback as soon as it arrives (in completion order) and keeps only its
 outcome, not its value, so memory stays flat in the number of items
 (``detect`` writes each image's detections to disk there, to resume an
-interrupted run). At most two items per worker are in flight at a time, in the
-pool and on a Dask cluster; Dask results are released as soon as they are
-read.
+interrupted run). At most two items per worker are in flight at a time in the
+pool; on a Dask cluster two tasks per worker thread, each of a few items
+(:func:`items_per_task`); Dask results are released as soon as they are read.
 
 Example (the image helper's ``detect`` calls it the same way)::
 
@@ -39,6 +39,7 @@ Example (the image helper's ``detect`` calls it the same way)::
 from __future__ import annotations
 
 import concurrent.futures as cf
+import ctypes
 import dataclasses
 import multiprocessing
 import os
@@ -54,7 +55,23 @@ from threadpoolctl import threadpool_limits
 
 from .progress import bar as progress_bar
 
-__all__ = ["BatchResult", "ItemResult", "run_batch", "single_threaded_worker", "worker_init"]
+__all__ = ["BatchResult", "DASK_CONFIG", "DASK_WORKER_ENVIRON", "ItemResult", "items_per_task", "run_batch", "single_threaded_worker", "worker_init"]
+
+
+#: Environment of the Dask worker processes that run notchfit's items (the nanny sets it before
+#: a worker starts): glibc's malloc with one arena and large arrays (up to 32 MiB) kept in the
+#: heap instead of fresh ``mmap`` pages each time (Dask's own default sets
+#: ``MALLOC_TRIM_THRESHOLD_=65536``, which with the task running in a thread of its own arena
+#: returns every freed image to the system and faults it in again, measured by
+#: ``benchmarks/bench_dask.py``), one thread per native library.
+DASK_WORKER_ENVIRON = {"MALLOC_ARENA_MAX": 1, "MALLOC_MMAP_THRESHOLD_": 32 * 2 ** 20,
+                       "MALLOC_TRIM_THRESHOLD_": 256 * 2 ** 20, "OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1,
+                       "OPENBLAS_NUM_THREADS": 1}
+#: The Dask configuration recommended for a cluster that runs notchfit (``dask.config.set(DASK_CONFIG)``
+#: before the cluster starts, or the same keys in a Dask YAML file: docs/reliability.md): the worker
+#: environment above, and no statistical profiler (it samples the task's thread every 10 ms).
+DASK_CONFIG = {"distributed.nanny.pre-spawn-environ": DASK_WORKER_ENVIRON,
+               "distributed.worker.profile.enabled": False}
 
 
 def single_threaded_worker(threads: int = 1) -> None:
@@ -71,12 +88,29 @@ def single_threaded_worker(threads: int = 1) -> None:
     threadpool_limits(limits=threads)
 
 
+def _die_with_parent() -> None:
+    """On Linux, this process gets SIGTERM when its parent ends, even by SIGKILL (``prctl``
+    ``PR_SET_PDEATHSIG``): a pool's workers otherwise wait for work forever, each holding the
+    pipes of the killed command open."""
+    if not sys.platform.startswith("linux"):
+        return
+    parent = multiprocessing.parent_process()
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)      # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if parent is not None and os.getppid() != parent.pid:              # the parent ended before prctl
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
 def worker_init() -> None:
     """Initializer of the pool's worker processes: Ctrl-C is the parent's to handle (ignored here),
-    SIGTERM ends the worker (the default action, not a handler inherited through fork), one
-    thread per native library (:func:`single_threaded_worker`)."""
+    SIGTERM ends the worker (the default action, not a handler inherited through fork) and comes
+    when the parent ends, however it ends (:func:`_die_with_parent`), one thread per native
+    library (:func:`single_threaded_worker`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _die_with_parent()
     single_threaded_worker()
 
 
@@ -327,8 +361,27 @@ def _run_isolated(func, item, ctx):
             raise
 
 
+def _call_many(func, items):
+    """Run several items in one task (each isolated as by :func:`_call`)."""
+    return [_call(func, it) for it in items]
+
+
+def items_per_task(n_items: int, n_threads: int, *, most: int = 8) -> int:
+    """How many items one Dask task runs: ``n_items // (4 * n_threads)``, between 1 and ``most``.
+
+    Each task costs the scheduler, the client and the worker's event loop
+    CPU time besides the item itself (``benchmarks/bench_dask.py`` measures
+    it), on the same cores as the items on a small machine; a few
+    items per task spread it, while every worker thread still gets at least
+    four tasks (the load stays balanced) and an interrupted run loses at most
+    two tasks per worker thread.
+    """
+    return max(1, min(most, n_items // max(1, 4 * n_threads)))
+
+
 def _run_dask(func, items, scheduler, sink, desc, progress, connect_timeout: float = 5.0, unit="items"):
-    """The items on a Dask cluster, two per worker thread in flight; each result released once read."""
+    """The items on a Dask cluster, a few per task (:func:`items_per_task`), two tasks per worker
+    thread in flight; each result released once read."""
     try:  # Dask is an optional extra, slow to import: only with a scheduler
         from distributed import Client, as_completed
     except ImportError:
@@ -339,30 +392,32 @@ def _run_dask(func, items, scheduler, sink, desc, progress, connect_timeout: flo
     except Exception as exc:  # noqa: BLE001 - OSError/TimeoutError, or garbage from a non-Dask server
         raise ValueError(f"cannot connect to the Dask scheduler at {scheduler} (no answer within "
                          f"{connect_timeout:g} s): {_describe(exc)}") from None
-    inflight: dict = {}            # future key -> (index, future)
+    inflight: dict = {}            # future key -> (indices, future)
     try:
-        window = max(2, 2 * sum(client.nthreads().values()))
-        todo = list(range(len(items)))[::-1]
+        threads = sum(client.nthreads().values())
+        per_task = items_per_task(len(items), threads)
+        todo = [list(range(i, min(i + per_task, len(items)))) for i in range(0, len(items), per_task)][::-1]
         running = as_completed()
 
         def submit():
-            i = todo.pop()
-            f = client.submit(_call, func, items[i], pure=False)
-            inflight[f.key] = (i, f)
+            idx = todo.pop()
+            f = client.submit(_call_many, func, [items[i] for i in idx], pure=False)
+            inflight[f.key] = (idx, f)
             running.add(f)
 
-        while todo and len(inflight) < window:
+        while todo and len(inflight) < max(2, 2 * threads):
             submit()
         with _progress(len(items), desc, progress, unit=unit) as bar:
             for f in running:
-                i, _ = inflight.pop(f.key)
+                idx, _ = inflight.pop(f.key)
                 try:
-                    outcome = f.result()
+                    outcomes = f.result()
                 except Exception as exc:  # a worker lost, a task that could not be deserialised
-                    outcome = (False, None, _describe(exc), 0.0)
+                    outcomes = [(False, None, _describe(exc), 0.0)] * len(idx)
                 f.release()
-                sink.put(i, outcome)
-                bar.update(1)
+                for i, outcome in zip(idx, outcomes):
+                    sink.put(i, outcome)
+                    bar.update(1)
                 if todo:
                     submit()
     except BaseException:

@@ -203,3 +203,14 @@ def test_piped_progress_gives_the_rate_and_the_time_left(capsys, monkeypatch):
         "detect: 4 images ...", "detect: 1 of 4 images, 0.1 images/s, about 30 s left ...",
         "detect: 2 of 4 images, 0.1 images/s, about 20 s left ..."]
     assert progress.duration(3725) == "1 h 02 min" and progress.duration(185) == "3 min 05 s"
+
+
+def test_items_per_task_spreads_the_cost_of_a_dask_task():
+    """A few items per Dask task, every worker thread still gets at least four tasks, never more than `most`."""
+    from notchfit.batch import items_per_task
+
+    assert items_per_task(5, 2) == 1 and items_per_task(15, 1) == 3
+    assert items_per_task(200, 2) == 8 and items_per_task(2000, 2, most=4) == 4
+    for n, t in [(1, 1), (7, 2), (33, 4), (100, 3)]:
+        k = items_per_task(n, t)
+        assert k >= 1 and (k == 1 or n // k >= 4 * t)

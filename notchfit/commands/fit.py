@@ -7,7 +7,6 @@ from pathlib import Path
 import pandas as pd
 
 from .. import io
-from ..batch import run_batch
 from ..figures.fitting import experiment_figures, fig12_sample_index
 from ..analysis.fitting import StudyFit, angle_fits_table, failed_fits, fit_angles, fit_experiment, fits_table, jointwise_table, pointwise_table
 from ..analysis.estimation.observations import tube_labels
@@ -15,9 +14,10 @@ from ..analysis.lack_of_fit import shape_fit_lack_of_fit
 from ..progress import bar as progress_bar
 from ..physics.shapes import get_model
 from ..units import MM
-from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_out_dir,
-                      check_points_dir, list_failures)
+from ._common import (EXIT_ITEMS_FAILED, InputError, add_batch_options, add_points_option, check_points_dir,
+                      list_failures)
 from ._points import MISSING_HINT, lookup_points, points_problem
+from ._resumable import add_resume_option, check_out, open_run, run_resumable
 
 NAME = "fit"
 ORDER = 40
@@ -37,6 +37,10 @@ jointwise.csv (sample,model,joint,err_deg). Experiments run in parallel
 (--jobs, or a Dask cluster with --scheduler); one that fails is listed and the others finish
 (exit code 1).
 
+Each finished experiment is kept in OUT/.notchfit-resume-fit/ as it completes, so an
+interrupted or killed run is continued with --resume: only the experiments not yet fitted,
+or whose data or options changed since, are fitted again.
+
 Models: cc (constant curvature), linear (a + b j), quadratic, pw<k> (piecewise constant on
 k segments), free (every joint), free_smooth[=lambda].
 
@@ -45,6 +49,7 @@ Examples:
   notchfit fit study/L045 --models cc,linear,quadratic --out out_L045/
   notchfit fit study/ --out out/ --jobs 2
   notchfit fit study/ --out out/ --scheduler tcp://10.0.0.5:8786
+  notchfit fit study/ --out out/ --resume     (after an interrupted run)
 """
 
 def add_arguments(parser) -> None:
@@ -58,7 +63,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--loss", default="linear", help="linear, soft_l1, huber, cauchy or arctan")
     parser.add_argument("--no-figures", action="store_true", help="skip the Figs. 12-15 PNGs")
     add_batch_options(parser)
-    parser.add_argument("--force", action="store_true", help="replace existing fits in --out")
+    parser.add_argument("--force", action="store_true", help="replace existing fits in --out "
+                        "(and start again over an interrupted run)")
+    add_resume_option(parser, "experiments")
 
 
 def fit_one(item: dict) -> dict:
@@ -141,16 +148,16 @@ def _fittable(args, models) -> tuple[list, dict, bool]:
 
 def run(args) -> int:
     models = _model_names(args.models)
-    check_out_dir(args.out, args.input, outputs=["fit_run.json"], force=args.force)
+    check_out(args, "fit_run.json")
     check_points_dir(args.points)
     exps, problems, study = _fittable(args, models)
     items = [_item(e, models, args) for e in exps]
     names = [e.name for e in exps]
     outputs = ["fit_run.json"] + [str(io.experiment_output_dir("", e.name, study) / f) for e in exps
                                   for f in _FILES[e.points is None]]
-    with io.OutputRun(args.out, outputs=outputs, force=args.force, name="fit") as run_:
-        res = run_batch(fit_one, items, keys=names, jobs=args.jobs, scheduler=args.scheduler,
-                        desc="fit", unit="experiments")
+    with open_run(args, outputs, "experiments") as run_:
+        res = run_resumable(run_, fit_one, items, names, option_keys=("models", "loss"), args=args, desc="fit",
+                            unit="experiments")
         failed = {r.key: r.error for r in res.failures}
         failed.update(problems)
         bad_samples = _write_outputs(exps, res, run_, study, failed, figures=not args.no_figures)

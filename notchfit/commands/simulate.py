@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 
 from .. import io
-from ..batch import run_batch
 from ..analysis.estimation.bands import NewTubePrior, band_table, tube_band
 from ..analysis.fitting.angles import DEFAULT_ANGLE_SIGMA
 from ..analysis.comparison import angle_comparison_table, compare_angles, compare_simulation, comparison_table
@@ -16,9 +15,9 @@ from ..figures.friction import plot_fig18, plot_fig19
 from ..physics.friction import FrictionParams, default_params, simulate, simulation_table
 from ..progress import bar as progress_bar
 from ..units import DEG
-from ._common import (EXIT_ITEMS_FAILED, add_batch_options, add_points_option, check_out_dir, check_points_dir,
-                      list_failures)
+from ._common import EXIT_ITEMS_FAILED, add_batch_options, add_points_option, check_points_dir, list_failures
 from ._points import MISSING_HINT, lookup_points
+from ._resumable import add_resume_option, check_out, open_run, run_resumable
 
 NAME = "simulate"
 ORDER = 50
@@ -46,10 +45,15 @@ every notch angle's 95 % prediction interval for a tube the model has never seen
 parameters' covariance plus the tube-to-tube scatter of rest angles and cut depths), and the
 share of the measured angles inside it.
 
+Each finished experiment is kept in OUT/.notchfit-resume-simulate/ as it completes, so an
+interrupted or killed run is continued with --resume: only the experiments not yet
+simulated, or whose data or options changed since, are simulated again.
+
 Examples:
   notchfit simulate study/ --out out/
   notchfit simulate study/L045 --out out/ --param mu_d=0.25 --param k_mid=0.3
   notchfit simulate study/ --out ext/ --model out/extended_model.toml --jobs 2
+  notchfit simulate study/ --out out/ --resume     (after an interrupted run)
 """
 
 def add_arguments(parser) -> None:
@@ -63,7 +67,9 @@ def add_arguments(parser) -> None:
                                    "(looked for after them, before --out)")
     parser.add_argument("--no-figures", action="store_true", help="skip Figs. 18-19")
     add_batch_options(parser)
-    parser.add_argument("--force", action="store_true", help="replace existing outputs in --out")
+    parser.add_argument("--force", action="store_true", help="replace existing outputs in --out "
+                        "(and start again over an interrupted run)")
+    add_resume_option(parser, "experiments")
 
 
 def parse_params(model_file, overrides, base: FrictionParams | None = None):
@@ -196,7 +202,7 @@ def _items(exps, params: dict, args) -> list[dict]:
 def run(args) -> int:
     if args.method not in ("fast", "reference"):
         raise ValueError(f"--method must be fast or reference, got {args.method!r}")
-    check_out_dir(args.out, args.input, outputs=["simulate_run.json"], force=args.force)
+    check_out(args, "simulate_run.json")
     check_points_dir(args.points)
     scan = io.scan_study(args.input)
     exps, study = scan.experiments, scan.study
@@ -213,9 +219,9 @@ def run(args) -> int:
     names = [e.name for e in exps]
     outputs = ["simulate_run.json"] + [str(io.experiment_output_dir("", n, study) / "simulation.csv")
                                        for n in names]
-    with io.OutputRun(args.out, outputs=outputs, force=args.force, name="simulate") as run_:
-        res = run_batch(simulate_one, items, keys=names, jobs=args.jobs, scheduler=args.scheduler,
-                        desc="simulate", unit="experiments")
+    with open_run(args, outputs, "experiments") as run_:
+        res = run_resumable(run_, simulate_one, items, names, option_keys=("params", "method"), args=args,
+                            desc="simulate", unit="experiments")
         failed = {**scan.problems, **{r.key: r.error for r in res.failures}}
         _write_outputs(exps, res, run_, study, failed, figures=not args.no_figures)
         io.write_json_atomic(io.provenance("simulate", args.input,

@@ -40,8 +40,8 @@ from .interrupts import deferred_interrupts
 from .outputs import (OutputRun, _json_default, _nan_to_none, atomic_write, prepare_output_dir,
                       write_json_atomic)
 
-__all__ = ["NothingToResumeError", "RESUME_PREFIX", "ResumableRun", "file_sha256", "options_sha256",
-           "write_bytes_synced"]
+__all__ = ["ContentHash", "NothingToResumeError", "RESUME_PREFIX", "ResumableRun", "check_resumable",
+           "file_sha256", "options_sha256", "write_bytes_synced"]
 
 RESUME_PREFIX = ".notchfit-resume-"
 _RECORD = ".json"
@@ -49,6 +49,18 @@ _RECORD = ".json"
 
 class NothingToResumeError(ValueError):
     """``--resume`` on a folder that holds no interrupted run of the command (exit code 2)."""
+
+
+class ContentHash(str):
+    """An item's content hash (hex) given as it is, for an item whose input is data rather than one
+    file (an experiment's points or tensions as read: :func:`options_sha256` of them)."""
+
+
+def check_resumable(out_dir, name: str, outputs=None) -> None:
+    """Raise :class:`NothingToResumeError` unless ``out_dir`` holds an interrupted ``name`` run
+    (a command checks it before it reads its input; :class:`ResumableRun` checks it again)."""
+    if not (Path(out_dir) / f"{RESUME_PREFIX}{name}").is_dir():
+        raise NothingToResumeError(_nothing_to_resume(Path(out_dir), name, outputs))
 
 
 def file_sha256(path) -> str:
@@ -110,8 +122,8 @@ class ResumableRun(OutputRun):
         self.resume, self.unit, self.total = resume, unit, None
         self.records: dict[str, dict] = {}
         self.folder = Path(out_dir) / f"{RESUME_PREFIX}{name}"
-        if resume and not self.folder.is_dir():
-            raise NothingToResumeError(_nothing_to_resume(Path(out_dir), name, outputs))
+        if resume:
+            check_resumable(out_dir, name, outputs)
         self._name = name
         super().__init__(out_dir, outputs=outputs, force=force, name=name)
 
@@ -171,7 +183,9 @@ class ResumableRun(OutputRun):
         Parameters
         ----------
         wanted : dict
-            ``{key: (input path, options hash)}`` of every item of this run.
+            ``{key: (input, options hash)}`` of every item of this run; ``input``
+            the path of the item's input file (its content hashed here), or the
+            item's content hash itself (:class:`ContentHash`).
 
         Returns
         -------
@@ -204,6 +218,8 @@ class ResumableRun(OutputRun):
                     return False
             except OSError:
                 return False
+        if isinstance(input_path, ContentHash):
+            return input_path == rec.get("input_sha256")
         try:
             return file_sha256(input_path) == rec.get("input_sha256")
         except OSError:
