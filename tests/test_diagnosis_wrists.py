@@ -108,3 +108,28 @@ def test_summary_says_what_was_skipped_and_the_lack_of_fit():
 def test_null_wrist_recipes_give_none(tmp_path, name, observe, changes, seed):
     """Every shipped wrist recipe without a hidden effect, full size, every candidate: ``none``."""
     _check_none(_diagnose(tmp_path, _null(name, observe, changes), seed))
+
+
+def test_the_baseline_rest_angles_keep_their_zero_force_prior(tmp_path):
+    """A pre-curved wrist (rest angles about 2° each): the baseline's rest angles are tied to the angles its
+    trials show at zero force (identify's prior, centred on that measurement), so the fitted rest angles stay
+    within a few tenths of a degree of the truth. A prior whose mean was dropped pulled them towards zero: the
+    held-out baseline of wrist_tip_first (seed 1) rose from 0.016 to 0.095 mm and a tip load was named."""
+    import numpy as np
+
+    from notchfit.analysis.diagnosis.calibration import calibrate
+    from notchfit.analysis.diagnosis.scope import base_model
+    from notchfit.analysis.estimation.observations import observe_study
+    from notchfit.io import read_study
+    from notchfit.studies.synth import synthesize, write_study
+    from notchfit.units import DEG
+
+    r = load_recipe("wrist_tip_first").scaled(n_experiments=2, n_up=5, n_down=4)
+    st = synthesize(r, seed=1, method="fast")
+    write_study(st, tmp_path / "study")
+    preps = observe_study(read_study(tmp_path / "study"), "points")
+    truth = np.asarray(preps[0].geom.rest_angles, float)
+    assert np.all(truth > 1.0 * DEG)
+    cal = calibrate(preps, None, {}, base=base_model(preps), errors=False)
+    (fitted,) = [t["rest_angle"] for t in cal.tubes.values()]
+    np.testing.assert_allclose(fitted, truth, atol=0.3 * DEG)

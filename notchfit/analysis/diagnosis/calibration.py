@@ -193,11 +193,11 @@ def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base)
                    else s.to_x(float(start[s.name]), c) for s, c in zip(specs, sc)])
     lo = np.array([s.x_bounds[0] for s in specs])
     hi = np.array([s.x_bounds[1] for s in specs])
-    blocks, prior = (), np.zeros((0, len(specs)))
+    blocks, prior, offset = (), np.zeros((0, len(specs))), np.zeros(0)
     if has_tube_unknowns(preps):
         k = len(baseline_specs(base))
         excess = float(start.get("mu_s_excess", BASELINE_MU_EXCESS))
-        tb, t0, tlo, thi, tprior = tube_blocks(preps, base, specs[:k], excess, start=start.get(TUBES),
+        tb, t0, tlo, thi, tprior, offset = tube_blocks(preps, base, specs[:k], excess, start=start.get(TUBES),
                                                sim_kw=cache.sim_kw)
         blocks = tuple(tb)
         x0, lo, hi = np.r_[x0, t0], np.r_[lo, tlo], np.r_[hi, thi]
@@ -217,7 +217,7 @@ def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base)
     x0 = np.clip(x0, lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo))
     return Problem(tuple(preps), specs, sc, blocks, x0, lo, hi, prior,
                    model=partial(_model, base), measure=_measure,
-                   sims=cache)
+                   sims=cache, prior_offset=offset)
 
 
 def calibrate(preps, cause=None, start: dict | None = None, *,

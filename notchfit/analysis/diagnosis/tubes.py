@@ -73,7 +73,9 @@ def tube_blocks(preps, base: FrictionParams, specs, excess: float, *, start: dic
     x0, lo, hi : ndarray
         Of the blocks' unknowns, in order.
     prior : ndarray (r, len(specs) + len(x0))
-        The depth prior's rows over the shared parameters and the blocks.
+        The priors' rows (rest angles, cut depths) over the shared parameters and the blocks.
+    prior_offset : ndarray (r,)
+        The priors' means, whitened (the rest angles measured at zero force; zeros for the depths).
     """
     real = any(p.geom.backbone == "section" for p in preps)
     depth = real and base.spring_law == "material"
@@ -90,7 +92,8 @@ def tube_blocks(preps, base: FrictionParams, specs, excess: float, *, start: dic
             span = hi[i:i + b.size] - lo[i:i + b.size]
             x0[i:i + b.size] = np.clip(given, lo[i:i + b.size] + 1e-9 * span, hi[i:i + b.size] - 1e-9 * span)
         i += b.size
-    return pb.blocks, x0, lo, hi, pb.prior
+    offset = np.zeros(pb.prior.shape[0]) if pb.prior_offset is None else np.asarray(pb.prior_offset, float)
+    return pb.blocks, x0, lo, hi, pb.prior, offset
 
 
 def tube_params(params: FrictionParams, tube: dict | None) -> FrictionParams:
