@@ -20,7 +20,7 @@ import pytest
 
 from notchfit import io
 from notchfit.batch import run_batch
-from notchfit.commands import _common, demo, fit, simulate
+from notchfit.commands import _common, _resumable, demo, fit, simulate
 from reliability_helpers import (ROOT, assert_one_line_error, cli_env, copy_study, make_study, run_main,
                                  snapshot)
 
@@ -218,7 +218,7 @@ def test_failed_command_leaves_no_empty_folder(study2, tmp_path, capsys, monkeyp
     def broken(*a, **k):
         raise ValueError("a worker could not start")
 
-    monkeypatch.setattr(fit, "run_batch", broken)
+    monkeypatch.setattr(_resumable, "run_batch", broken)    # fit's item loop (resumable)
     out = tmp_path / "new" / "out"
     rc, _, err = run_main(["fit", study2, "--out", out, "--models", "cc", "--no-figures"], capsys)
     assert_one_line_error(rc, err, "a worker could not start")

@@ -26,11 +26,12 @@ def test_diagnosis_summary_in_the_metric_unit():
                   causes=("proximal_friction", "joint_hysteresis"))
     assert d.summary().splitlines() == [
         "cause: proximal_friction (causes: proximal_friction, joint_hysteresis)",
-        "held-out rms: baseline 0.400 mm, extended 0.100 mm (75.0% lower)"]
+        "held-out rms: baseline 0.400 mm, extended 0.100 mm (75.0% lower); noise floor 0.100 mm"]
     angles = Diagnosis(experiments=("a",), baseline=_cal({}), baseline_heldout_rms=2 * DEG, discrepancies=(),
                        candidates=(), cause="none", explanation="", gain=Gain(2 * DEG, 2 * DEG), extended=None,
                        per_regime={}, noise_rms=DEG, metric="angles")
-    assert angles.summary().splitlines()[1] == "held-out rms: baseline 2.000 deg, extended 2.000 deg (0.0% lower)"
+    assert angles.summary().splitlines()[1] == ("held-out rms: baseline 2.000 deg, extended 2.000 deg (0.0% lower); "
+                                                "noise floor 1.000 deg")
 
 
 def test_identification_summary_lists_values_tubes_and_heldout_errors():
