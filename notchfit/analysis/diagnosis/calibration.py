@@ -187,7 +187,8 @@ def mean_start(cals) -> dict:
 def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base) -> Problem:
     """Start vector and bounds; a real tube's per-tube unknowns and prior (identify's); for a point
     correction the warp centre on the data and registrations."""
-    specs = specs_for(model, base)
+    geoms = [p.geom for p in preps]
+    specs = specs_for(model, base, geoms)
     sc = tuple(scales.factor(s.scale) for s in specs)
     x0 = np.array([s.x_of_spec_value(s.start) if s.name not in start
                    else s.to_x(float(start[s.name]), c) for s, c in zip(specs, sc)])
@@ -195,7 +196,7 @@ def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base)
     hi = np.array([s.x_bounds[1] for s in specs])
     blocks, prior, offset = (), np.zeros((0, len(specs))), np.zeros(0)
     if has_tube_unknowns(preps):
-        k = len(baseline_specs(base))
+        k = len(baseline_specs(base, geoms))
         excess = float(start.get("mu_s_excess", BASELINE_MU_EXCESS))
         tb, t0, tlo, thi, tprior, offset = tube_blocks(preps, base, specs[:k], excess, start=start.get(TUBES),
                                                sim_kw=cache.sim_kw)
@@ -287,7 +288,7 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
     base = base or FrictionParams()
     pb = _problem(preps, model, start, cache or Simulations(), scales or StudyScales.of(preps, base), base)
     paper = pb.x0.copy()
-    for i, s in enumerate(baseline_specs(base)):
+    for i, s in enumerate(baseline_specs(base, [p.geom for p in preps])):
         paper[i] = s.x_of_spec_value(s.start)
     tubes = any(b.kind == "tube" for b in pb.blocks)
     nprobe = 0

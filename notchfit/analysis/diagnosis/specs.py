@@ -77,16 +77,17 @@ def model_key(model) -> str:
     return "+".join(m) if m else "baseline"
 
 
-def baseline_specs(base: FrictionParams | None = None) -> tuple[ParamSpec, ...]:
+def baseline_specs(base: FrictionParams | None = None, geoms=()) -> tuple[ParamSpec, ...]:
     """The baseline's shared parameters: the paper's spring law's ``k_lin``, ``k_mid``, ``μ_d`` (started at
-    the base model's values), or for the material law identify's (:func:`notchfit.analysis.diagnosis.tubes.material_baseline`)."""
+    the base model's values), or for the material law identify's for the study's tubes ``geoms``
+    (:func:`notchfit.analysis.diagnosis.tubes.material_baseline`)."""
     base = base or FrictionParams()
-    return material_baseline(base) if base.spring_law == "material" else paper_baseline_specs(base)
+    return material_baseline(base, geoms) if base.spring_law == "material" else paper_baseline_specs(base)
 
 
-def specs_for(cause, base: FrictionParams | None = None) -> tuple[ParamSpec, ...]:
+def specs_for(cause, base: FrictionParams | None = None, geoms=()) -> tuple[ParamSpec, ...]:
     """The baseline's parameters followed by those of each cause of the model (None: the baseline)."""
-    out = baseline_specs(base)
+    out = baseline_specs(base, geoms)
     for c in as_model(cause):
         out += CANDIDATES[c]
     return out

@@ -35,10 +35,13 @@ __all__ = ["TUBES", "has_tube_unknowns", "material_baseline", "mean_tubes", "tub
 TUBES = "tubes"
 
 
-def material_baseline(base: FrictionParams) -> tuple:
-    """The shared parameters of identify's default model for a tube with the material law (E_lin, E_se,
-    strain_lower, μ_d; identify's bounds, probes and starts)."""
-    free = tuple(f for f in default_free([base], []) if f not in (REST, DEPTH))
+def material_baseline(base: FrictionParams, geoms=()) -> tuple:
+    """The shared parameters of identify's default model for tubes ``geoms`` with the material law (E_lin,
+    E_se, strain_lower, μ_d, and strain_ratio where a notch's cut face governs; identify's bounds, probes and
+    starts)."""
+    geoms = tuple(geoms)
+    free = tuple(f for f in default_free([base] * len(geoms), geoms) if f not in (REST, DEPTH)) if geoms \
+        else tuple(f for f in default_free([base], []) if f not in (REST, DEPTH))
     return identify_specs(free, [base])
 
 
