@@ -39,9 +39,8 @@ def material_baseline(base: FrictionParams, geoms=()) -> tuple:
     """The shared parameters of identify's default model for tubes ``geoms`` with the material law (E_lin,
     E_se, strain_lower, μ_d, and strain_ratio where a notch's cut face governs; identify's bounds, probes and
     starts)."""
-    geoms = tuple(geoms)
-    free = tuple(f for f in default_free([base] * len(geoms), geoms) if f not in (REST, DEPTH)) if geoms \
-        else tuple(f for f in default_free([base], []) if f not in (REST, DEPTH))
+    geoms = list(geoms)
+    free = tuple(f for f in default_free([base] * (len(geoms) or 1), geoms) if f not in (REST, DEPTH))
     return identify_specs(free, [base])
 
 
