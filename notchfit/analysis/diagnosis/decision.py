@@ -9,7 +9,8 @@ Decision rule (the thresholds are keyword arguments of
   baseline with ``z >= z_crit`` and removes at least ``min_excess_removed``
   of the baseline's excess over the noise floor;
 * otherwise ``unexplained`` — where trials repeat, only when the held-out
-  baseline's lack of fit beyond the trials' scatter is significant
+  baseline's lack of fit beyond the trials' scatter is significant and larger
+  than ``none_tol`` times the noise floor
   (:mod:`notchfit.analysis.diagnosis.replicates`); else ``none``.
 """
 
@@ -22,6 +23,7 @@ import numpy as np
 from ..causes import REGISTRY
 from .crossval import HeldOut
 from .noise import paired_z, pooled_mse
+from .replicates import lack_of_fit_mse
 from ..estimation.observations import metric_unit
 from .results import CandidateResult, Signature
 from .specs import CANDIDATES, as_model, model_key, specs_for
@@ -199,8 +201,16 @@ def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_
     if lof is not None:
         lead += f" Against the repeated trials: {lof.verdict()}."
     if cause == "none" and lof is not None and base_rms > noise_rms * math.sqrt(1 + none_tol):
-        return (lead + " The error exceeds the noise floor but not the trials' own scatter: no extension is "
-                "justified." + hint + (f" Held-out rms of the candidates: {table}." if table else ""))
+        if lof.overall.significant(lof.alpha):
+            why = (f" The lack of fit beyond the trials' scatter is significant but small: "
+                   f"{fmt_err(math.sqrt(lack_of_fit_mse(lof, 2.0 if metric == 'points' else 1.0)), metric)} "
+                   f"rms, within the {fmt_err(math.sqrt(none_tol) * noise_rms, metric)} over the noise that the "
+                   "noise rule tolerates; the rest of the excess is the trials' scatter or lies in samples no "
+                   "other trial repeats (on a steep part of the curve the load-cell noise and the parameters' "
+                   "error move the shape alike): no extension is justified.")
+        else:
+            why = " The error exceeds the noise floor but not the trials' own scatter: no extension is justified."
+        return lead + why + hint + (f" Held-out rms of the candidates: {table}." if table else "")
     if cause == "none":
         return (lead + f" That is within {math.sqrt(1 + none_tol):.2f}× the noise: the baseline explains "
                 "the data within the measurement uncertainty, so no extension is justified." + hint

@@ -14,7 +14,7 @@ from .crossval import folds_by_experiment, run_folds
 from .decision import decide, explain, hysteresis_shape, rank_candidates, score_candidate
 from .noise import pooled_mse, pooled_rms
 from .pairs import contributions, pair_sentence, screen_pairs, second_candidates, second_step
-from .replicates import heldout_lack_of_fit
+from .replicates import heldout_lack_of_fit, lack_of_fit_first
 from ..estimation.observations import choose_metric, observe_study
 from .results import Diagnosis, Gain
 from .scope import applicable_causes, base_model, resolve_protocol
@@ -210,7 +210,8 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
         Estimate ``ramp_time`` where experiment.toml gives no ``[protocol]``
         (:func:`notchfit.analysis.diagnosis.scope.resolve_protocol`); else a step is assumed.
     lof_alpha, replicate_tol_sigma : float
-        Where trials repeat, ``unexplained`` needs a held-out lack of fit significant at ``lof_alpha``
+        Where trials repeat, ``unexplained`` needs a held-out lack of fit significant at ``lof_alpha`` and
+        larger than ``none_tol`` times the noise floor
         (replicate tensions within ``replicate_tol_sigma`` load-cell σ; :func:`_lack_of_fit_first`).
 
     Returns
@@ -243,7 +244,8 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     cands = [score_candidate(c, held[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
                              min_excess_removed=min_excess_removed) for c in order]
     lof_kw = dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
-    cause, lof = _lack_of_fit_first(decide(base_ms <= noise * (1.0 + none_tol), cands), preps, base, lof_kw)
+    cause, lof = _lack_of_fit_first(decide(base_ms <= noise * (1.0 + none_tol), cands), preps, base, lof_kw,
+                                    noise, none_tol)
     named, pair_res, within, first, screened = _second(
         st, cause, held, cands, run, noise, base_mse, second_cause=second_cause, max_second=max_second,
         z_crit=z_crit, min_excess_removed=min_excess_removed, none_tol=none_tol, say=say, kw=kw, jobs=jobs)
@@ -256,13 +258,11 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
                    min_removed=min_excess_removed)
 
 
-def _lack_of_fit_first(cause: str, preps, base, lof_kw: dict):
+def _lack_of_fit_first(cause: str, preps, base, lof_kw: dict, noise: float, none_tol: float):
     """The held-out baseline's lack of fit against the trials' scatter; ``unexplained`` becomes ``none`` where
-    trials repeat and the lack of fit is not significant (above the noise floor, within the scatter)."""
+    trials repeat and the lack of fit is not material (:func:`~.replicates.lack_of_fit_first`)."""
     lof = heldout_lack_of_fit(preps, base.predicted, **lof_kw)
-    if cause == "unexplained" and lof.has_replicates and not lof.overall.significant(lof_kw["alpha"]):
-        cause = "none"
-    return cause, lof
+    return lack_of_fit_first(cause, lof, noise, preps[0].point_factor, none_tol=none_tol), lof
 
 
 def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
