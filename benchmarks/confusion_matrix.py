@@ -113,13 +113,15 @@ def singles(seeds, full, jobs, tmp, keep=None, rows=None) -> int:
 def wrists(seeds, jobs, tmp, keep=None, rows=None) -> int:
     """The wrist rows (:data:`WRISTS`), full size: per study the verdict, baseline vs floor and the gain."""
     print(f"\n| wrist recipe | measured | hidden | named (seeds {','.join(map(str, seeds))}) | "
-          "held-out baseline / noise floor | held-out gain | wall |")
-    print("|---|---|---|---|---|---|---|")
+          "held-out baseline / noise floor | baseline lack of fit beyond the scatter (p) | held-out gain | wall |")
+    print("|---|---|---|---|---|---|---|---|")
     n = 0
-    for name, observe, changes, hidden in WRISTS:
+    order = list(rows or ())
+    rank = lambda w: min((order.index(k) for k in (w[0], f"{w[0]}-{w[1]}") if k in order), default=len(order))  # noqa: E731
+    for name, observe, changes, hidden in sorted(WRISTS, key=rank):
         if rows is not None and name not in rows and f"{name}-{observe}" not in rows:
             continue
-        named, errs, gains, walls = [], [], [], []
+        named, errs, lofs, gains, walls = [], [], [], [], []
         for s in seeds:
             t0 = time.perf_counter()
             study = _study(lambda: load_recipe(name).replace(observe=observe, **changes), f"{name}-{observe}", s,
@@ -129,13 +131,16 @@ def wrists(seeds, jobs, tmp, keep=None, rows=None) -> int:
             f, u = (MM, "mm") if d.metric == "points" else (DEG, "°")
             named.append("+".join(short(c) for c in d.causes) or d.cause)
             errs.append(f"{d.baseline_heldout_rms / f:.3f} / {d.noise_rms / f:.3f} {u}")
+            lof = getattr(d, "lack_of_fit", None)          # code before the lack-of-fit rule has none
+            lofs.append(f"{lof.overall.lack_of_fit_rms:.3f} {u} ({lof.overall.p_value:.2g})"
+                        if lof is not None and lof.has_replicates else "–")
             gains.append(f"{d.gain.reduction_pct:.0f}%" if d.causes else "–")
             n += 1
             if keep is None:
                 shutil.rmtree(study, ignore_errors=True)
         want = "none" if hidden == "none" else short(hidden)
         cell = ", ".join(f"**{x}**" if x == want else x for x in named)
-        print(f"| {name} | {observe} | {hidden} | {cell} | {'; '.join(errs)} | {', '.join(gains)} | "
+        print(f"| {name} | {observe} | {hidden} | {cell} | {'; '.join(errs)} | {'; '.join(lofs)} | {', '.join(gains)} | "
               f"{', '.join(walls)} |", flush=True)
     return n
 
@@ -171,7 +176,7 @@ def main():
     ap.add_argument("--studies", type=Path, help="keep the generated studies here and reuse them")
     a = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="confusion-"))
-    rows = set(a.rows.split(",")) if a.rows else None
+    rows = a.rows.split(",") if a.rows else None
     t0, n = time.perf_counter(), 0
     try:
         if not a.no_singles:

@@ -210,8 +210,7 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
         Estimate ``ramp_time`` where experiment.toml gives no ``[protocol]``
         (:func:`notchfit.analysis.diagnosis.scope.resolve_protocol`); else a step is assumed.
     lof_alpha, replicate_tol_sigma : float
-        Where trials repeat, ``unexplained`` needs a held-out lack of fit significant at ``lof_alpha`` and
-        larger than ``none_tol`` times the noise floor
+        Where trials repeat, ``unexplained`` needs a material held-out lack of fit, significant at ``lof_alpha``
         (replicate tensions within ``replicate_tol_sigma`` load-cell σ; :func:`_lack_of_fit_first`).
 
     Returns
@@ -244,8 +243,7 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     cands = [score_candidate(c, held[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
                              min_excess_removed=min_excess_removed) for c in order]
     lof_kw = dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
-    cause, lof = _lack_of_fit_first(decide(base_ms <= noise * (1.0 + none_tol), cands), preps, base, lof_kw,
-                                    noise, none_tol)
+    cause, lof = _lack_of_fit_first(cands, base_ms, preps, base, lof_kw, noise, none_tol)
     named, pair_res, within, first, screened = _second(
         st, cause, held, cands, run, noise, base_mse, second_cause=second_cause, max_second=max_second,
         z_crit=z_crit, min_excess_removed=min_excess_removed, none_tol=none_tol, say=say, kw=kw, jobs=jobs)
@@ -258,9 +256,11 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
                    min_removed=min_excess_removed)
 
 
-def _lack_of_fit_first(cause: str, preps, base, lof_kw: dict, noise: float, none_tol: float):
-    """The held-out baseline's lack of fit against the trials' scatter; ``unexplained`` becomes ``none`` where
-    trials repeat and the lack of fit is not material (:func:`~.replicates.lack_of_fit_first`)."""
+def _lack_of_fit_first(cands, base_ms: float, preps, base, lof_kw: dict, noise: float, none_tol: float):
+    """The verdict (:func:`~.decision.decide`) and the held-out baseline's lack of fit against the trials' scatter;
+    ``unexplained`` becomes ``none`` where trials repeat and the lack of fit is not material
+    (:func:`~.replicates.lack_of_fit_first`)."""
+    cause = decide(base_ms <= noise * (1.0 + none_tol), cands)
     lof = heldout_lack_of_fit(preps, base.predicted, **lof_kw)
     return lack_of_fit_first(cause, lof, noise, preps[0].point_factor, none_tol=none_tol), lof
 
