@@ -20,7 +20,7 @@ from ..estimation.identifiability import Identifiability, assess
 from ..estimation.problem import measure_registered
 from ..estimation.solve import folds, se_values, tube_folds
 from ..lack_of_fit import Trial, lack_of_fit_summary, study_lack_of_fit
-from .problem import Solution, errors, make_problem, predict, solve, with_values
+from .problem import Solution, errors, make_problem, predict, solve, steps, with_values
 from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN,
                     base_model, default_free, parse_free, specs_for)
 
@@ -241,7 +241,8 @@ class _Task:
     options: dict
     key: str = "all"
     part: str = ""
-    warm: tuple | None = None
+    warm: _FitJacobian | None = None
+    seed_jacobian: bool = True
 
 
 #: The options of :func:`_Task.options` that build the problem (the others solve it).
@@ -272,8 +273,10 @@ def _fit(task: _Task) -> _FitOut:
                           excess=task.excess, **prob_kw)
         if task.kind != "all":
             opt["errors"] = False            # a held-out fit predicts; its standard errors are not read
-        if task.part == "warm":              # one run from the fit on every experiment
-            pb = replace(pb, x0=_warm_x(pb, *task.warm))
+        if task.part == "warm":              # one run from the fit on every experiment, with its Jacobian
+            pb = replace(pb, x0=_warm_x(pb, task.warm))
+            if task.seed_jacobian:
+                opt["jacobian0"] = task.warm.for_problem(pb, steps(pb, pb.x0, opt["diff_rel"], opt["rest_step"]))
             opt.update(grid=False, n_starts=1)
         elif task.part == "grid":            # one run from the grid's best (the warm part competes)
             opt.update(n_starts=1)
@@ -301,18 +304,77 @@ def _loss_cost(r, loss: str, f_scale: float) -> float:
     return 0.5 * f_scale ** 2 * float(np.sum(rho(z)))
 
 
-def _warm_x(pb, params: FrictionParams, blocks: dict) -> np.ndarray:
-    """``pb``'s unknowns at the shared values of ``params`` and the per-tube values ``blocks`` (tube ->
-    {block name: values}) where it has them, clipped inside the bounds."""
-    x0 = pb.x0.copy()
-    for i, s in enumerate(pb.specs):
-        x0[i] = s.to_x(float(getattr(params, s.name)), pb.scales[i])
-    i = pb.k
-    for b in pb.blocks:
-        v = blocks.get(b.owner, {}).get(b.name)
-        if v is not None:
-            x0[i:i + b.size] = v
-        i += b.size
+@dataclass(frozen=True)
+class _FitJacobian:
+    """A fit's optimum and its forward-difference Jacobian there (:attr:`Solution.jacobian`), with their
+    layout: experiment -> its rows, unknown (``("", spec name)`` or ``(owner, block name)``) -> its columns.
+    ``h``, ``lo``, ``hi``: the steps and bounds the Jacobian was computed with."""
+
+    x: np.ndarray
+    J: np.ndarray
+    h: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    rows: dict
+    cols: dict
+
+    @classmethod
+    def of(cls, pb, sol, h) -> "_FitJacobian":
+        rows, r = {}, 0
+        for o in pb.obs:
+            rows[o.name] = (r, r + o.valid.size * o.values_per_item)
+            r = rows[o.name][1]
+        cols = {("", s.name): (i, i + 1) for i, s in enumerate(pb.specs)}
+        c = pb.k
+        for b in pb.blocks:
+            cols[b.owner, b.name] = (c, c + b.size)
+            c += b.size
+        return cls(np.asarray(sol.x, float), sol.jacobian, np.asarray(h, float), pb.lo, pb.hi, rows, cols)
+
+    def index(self, pb) -> np.ndarray | None:
+        """The columns of ``pb``'s unknowns (None when it has one the fit had not)."""
+        keys = [k for k, _ in _unknowns(pb)]
+        if any(k not in self.cols for k in keys):
+            return None
+        return np.concatenate([np.arange(*self.cols[k]) for k in keys])
+
+    def for_problem(self, pb, h) -> np.ndarray | None:
+        """The forward-difference Jacobian of ``pb`` (a subset of the fit's experiments and unknowns, its
+        own priors) at its start ``pb.x0`` with steps ``h``, bit for bit as
+        :func:`notchfit.analysis.estimation.solve.forward_jacobian` would compute it, without a simulation:
+        the fit's rows and columns of its experiments and unknowns (whose residuals are the fit's), then
+        the differences of its linear prior rows. None unless its start, steps and bounds are the fit's."""
+        cols = self.index(pb)
+        if self.J is None or cols is None or any(o.name not in self.rows for o in pb.obs):
+            return None
+        same = [np.array_equal(a, b[cols]) for a, b in ((pb.x0, self.x), (h, self.h), (pb.lo, self.lo),
+                                                         (pb.hi, self.hi))]
+        if not all(same):
+            return None
+        rows = np.concatenate([np.arange(*self.rows[o.name]) for o in pb.obs])
+        x, p0 = pb.x0, pb.prior_residuals(pb.x0)
+        prior = np.empty((p0.size, x.size))
+        for i in range(x.size):
+            step = h[i] if x[i] + h[i] <= pb.hi[i] else -h[i]
+            xi = x.copy()
+            xi[i] += step
+            prior[:, i] = (pb.prior_residuals(xi) - p0) / step
+        return np.vstack([self.J[np.ix_(rows, cols)], prior])
+
+
+def _unknowns(pb) -> list:
+    """``pb``'s unknowns in the order of ``x``: (key, size), key ``("", spec name)`` or ``(owner, block name)``."""
+    return [(("", s.name), 1) for s in pb.specs] + [((b.owner, b.name), b.size) for b in pb.blocks]
+
+
+def _warm_x(pb, jac: _FitJacobian) -> np.ndarray:
+    """``pb``'s unknowns at the fit's optimum ``jac.x`` (where it has them; its own start elsewhere),
+    clipped inside the bounds."""
+    x0, i = pb.x0.copy(), 0
+    for k, size in _unknowns(pb):
+        if k in jac.cols:
+            x0[i:i + size] = jac.x[slice(*jac.cols[k])]
+        i += size
     margin = 1e-9 * (pb.hi - pb.lo)
     return np.clip(x0, pb.lo + margin, pb.hi - margin)
 
@@ -444,18 +506,17 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
         free = tuple(f for f in free if f not in drop)
         tasks, early = plan(free)
         outs = _run(early, run)
-    warm = _warm_start(outs["all", ""], base, excess, model) if warm_start else None
+    warm = _warm_start(outs["all", ""], options) if warm_start else None
     later = [replace(t, warm=warm if t.part == "warm" else None) for t in tasks if (t.key, t.part) not in outs]
     outs.update(_run(later, run))
     result = _result(obs, base, free, excess, tasks, outs)
     return replace(result, identifiability=verdicts, fixed={f: float(getattr(first, f)) for f in drop})
 
 
-def _warm_start(fit: _FitOut, base: dict, excess: float, model: FrictionParams | None) -> tuple:
-    """Where the held-out fits start: the base model with the shared values of ``fit``, and each tube's
-    unknowns as ``fit`` found them (tube -> {block name: values})."""
-    start = model if model is not None else next(iter(base.values()))
-    return with_values(start, fit.pb.values(fit.sol.x), excess), fit.pb.tube_values(fit.sol.x)
+def _warm_start(fit: _FitOut, options: dict) -> _FitJacobian:
+    """Where the held-out fits start: the optimum of ``fit`` (the fit on every experiment) with its
+    Jacobian there, which their first least-squares step uses."""
+    return _FitJacobian.of(fit.pb, fit.sol, steps(fit.pb, fit.sol.x, options["diff_rel"], options["rest_step"]))
 
 
 def _run(tasks: list, run: dict) -> dict:
