@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import multiprocessing
 from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 from typing import NamedTuple
 
 import numpy as np
@@ -18,7 +19,7 @@ from ..estimation.observations import METRICS, metric_unit, observe_study
 from ..estimation.bands import NewTubePrior
 from ..estimation.identifiability import Identifiability, assess
 from ..estimation.problem import measure_registered
-from ..estimation.solve import folds, se_values, tube_folds
+from ..estimation.solve import folds, forward_jacobian, se_values, tube_folds
 from ..lack_of_fit import Trial, lack_of_fit_summary, study_lack_of_fit
 from .problem import Solution, errors, make_problem, predict, solve, steps, with_values
 from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN,
@@ -352,13 +353,8 @@ class _FitJacobian:
         if not all(same):
             return None
         rows = np.concatenate([np.arange(*self.rows[o.name]) for o in pb.obs])
-        x, p0 = pb.x0, pb.prior_residuals(pb.x0)
-        prior = np.empty((p0.size, x.size))
-        for i in range(x.size):
-            step = h[i] if x[i] + h[i] <= pb.hi[i] else -h[i]
-            xi = x.copy()
-            xi[i] += step
-            prior[:, i] = (pb.prior_residuals(xi) - p0) / step
+        # the prior rows by the same differences: the problem's own, its residuals only the prior's
+        prior = forward_jacobian(SimpleNamespace(residuals=pb.prior_residuals, hi=pb.hi), pb.x0, h)
         return np.vstack([self.J[np.ix_(rows, cols)], prior])
 
 
