@@ -137,7 +137,8 @@ class _Jacobian:
     whatever the Jacobian, and the previous one is returned: the optimum, its cost and the counts of
     evaluations are those of the full run, bit for bit, one Jacobian (``p`` residual evaluations)
     cheaper. Only scipy's status word may differ (its gradient test, ``gtol``, reads this Jacobian:
-    "xtol" where "gtol" would have been said, both a success).
+    "xtol" where "gtol" would have been said, both a success). ``J0``: the Jacobian at ``x0`` when the
+    caller has it, returned for the first call there.
     """
 
     def __init__(self, jac, xtol: float, margin: float = 1e-9, x0=None, J0=None):

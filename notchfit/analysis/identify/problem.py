@@ -269,5 +269,5 @@ def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: floa
     first, nprobe = grid_starts(pb, n_starts) if grid else ([pb.x0], 0)
     starts = list(first) + [np.asarray(x, float) for x in starts]
     return solve_problem(pb, starts, jac="forward", loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol,
-                         xtol=xtol, diff_rel=diff_rel, block_steps={"rest_angle": rest_step}, nfev=nprobe, errors=errors,
-                         jacobian0=jacobian0)
+                         xtol=xtol, diff_rel=diff_rel, block_steps={"rest_angle": rest_step}, nfev=nprobe,
+                         errors=errors, jacobian0=jacobian0)
