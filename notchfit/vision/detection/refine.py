@@ -100,13 +100,31 @@ def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, ste
     s_val = s0 + (np.arange(Np) - np.repeat(np.cumsum(n_s) - n_s, n_s))
     base = E_C[e_idx] + s_val[:, None] * E_dir[e_idx] - off
     nrm = E_nrm[e_idx]
-    mapx = (base[:, 0, None] + t[None, :] * nrm[:, 0, None]).astype(np.float32)
-    mapy = (base[:, 1, None] + t[None, :] * nrm[:, 1, None]).astype(np.float32)
-    prof = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=float("nan")).astype(float)
+    maps = []
+    for a in (0, 1):
+        m_ = np.multiply.outer(nrm[:, a], t)
+        m_ += base[:, a, None]
+        maps.append(m_.astype(np.float32))
+    prof = cv2.remap(img, maps[0], maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=float("nan"))
     kp = kt[e_idx]
-    win = np.abs(np.arange(-n_t, n_t + 1))[None, :] <= kp[:, None]
-    return Profiles(np.where(win, prof, np.nan), base, nrm, e_idx, t, kp, n_t)
+    values = np.full(prof.shape, np.nan)
+    np.copyto(values, prof, where=np.abs(np.arange(-n_t, n_t + 1))[None, :] <= kp[:, None])
+    return Profiles(values, base, nrm, e_idx, t, kp, n_t)
+
+
+def _object_side_extremes(prof, kp, n_t: int, cs: float):
+    """Per profile: the largest and the smallest ``cs`` times the 3-sample mean (float32, NaN counted as 0, the
+    array's ends replicated) over its object side (its ``kp`` samples before the centre ``n_t``); -inf and
+    +inf for none. Only the object side's columns and their two neighbours are filtered."""
+    k_max = int(kp.max()) if len(kp) else 0
+    c0, c1 = max(n_t - k_max - 1, 0), min(n_t + 1, prof.shape[1])
+    part = prof[:, c0:c1]
+    smooth = cv2.blur(np.where(np.isnan(part), 0.0, part).astype(np.float32), (3, 1), borderType=cv2.BORDER_REPLICATE)
+    idx = np.arange(c0, c1)[None, :]
+    obj_side = (idx >= (n_t - kp)[:, None]) & (idx < n_t)
+    vals = cs * smooth
+    return np.max(np.where(obj_side, vals, -np.inf), axis=1), np.min(np.where(obj_side, vals, np.inf), axis=1)
 
 
 def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True, own_level=None,
@@ -133,11 +151,7 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     # object), at the far end of the object side: the object's level is the most object-like part of that
     # side (3-sample mean) there
     cs = 1.0 if contrast > 0 else -1.0
-    idx = np.arange(prof.shape[1])[None, :]
-    obj_side = (idx >= (n_t - kp)[:, None]) & (idx < n_t)
-    smooth = cv2.blur(np.nan_to_num(prof).astype(np.float32), (3, 1), borderType=cv2.BORDER_REPLICATE)
-    ext = np.max(np.where(obj_side, cs * smooth, -np.inf), axis=1)
-    least = np.min(np.where(obj_side, cs * smooth, np.inf), axis=1)
+    ext, least = _object_side_extremes(prof, kp, n_t, cs)
     banded = least < cs * hi_v - band_tol * abs(contrast)
     if holder_face is not None:
         banded &= ~holder_face[e_idx]                    # a holder's shading and highlights are its own
@@ -160,7 +174,9 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
         mad = 1.4826 * group_median(np.where(use, np.abs(slope - med[e_idx]), np.nan), e_idx, K2)
         n_use = np.bincount(e_idx, use.astype(float), K2)
         sig = np.abs(med) > 3 * 1.2533 * mad / np.sqrt(np.maximum(n_use, 1))
-        lo_edge = lo + np.where(sig, np.nan_to_num(med), 0.0) * group_median((kp * step).astype(float), e_idx, K2)
+        reach = np.full(K2, np.nan)
+        reach[e_idx] = kp * step                 # every profile of an edge has the edge's half length
+        lo_edge = lo + np.where(sig, np.nan_to_num(med), 0.0) * reach
     else:
         lo_edge = lo
     partner = np.concatenate([np.arange(K) + K, np.arange(K)])
@@ -184,16 +200,17 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     # a brighter band inside the object (a specular streak along the tube, near its edge) makes the far end
     # of the object side more background-like than its part next to the edge: that profile's level is not
     # the object's
-    win = np.abs(np.arange(-n_t, n_t + 1))[None, :] <= kp[:, None]
+    # (outside its window a profile is NaN: the largest of its background side ignores NaN; none: NaN)
+    q_peak = np.fmax.reduce(qa[:, t > 0], axis=1) if (t > 0).any() else np.full(len(qa), np.nan)
     with np.errstate(invalid="ignore"):
-        q_peak = np.max(np.where((t[None, :] > 0) & win, np.nan_to_num(qa, nan=-np.inf), -np.inf), axis=1)
-    valid &= np.where(fp, q_peak > 1 - 0.5 * lim, np.abs(q_hi - 1) < lim)
-    with np.errstate(invalid="ignore"):
+        valid &= np.where(fp, q_peak > 1 - 0.5 * lim, np.abs(q_hi - 1) < lim)
         cr = (qa[:, :-1] < 0.5) & (qa[:, 1:] >= 0.5)
-    tm = np.abs(0.5 * (t[:-1] + t[1:]))
-    dist = np.where(cr, tm[None, :], np.inf)
-    j = np.argmin(dist, axis=1)
-    valid &= np.isfinite(dist[rows, j])
+    # the crossing nearest the profile's centre (on a tie the first): the first crossing in that order
+    order = np.argsort(np.abs(0.5 * (t[:-1] + t[1:])), kind="stable")
+    first = np.argmax(cr[:, order], axis=1)
+    found = cr[rows, order[first]]
+    j = np.where(found, order[first], 0)
+    valid &= found
     q0, q1 = qa[rows, j], qa[rows, np.minimum(j + 1, len(t) - 1)]
     with np.errstate(invalid="ignore", divide="ignore"):
         tc = t[j] + (0.5 - q0) / (q1 - q0) * step
@@ -203,13 +220,13 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
 
 def _rise_widths(qa, t, step) -> np.ndarray:
     """The 25 % -> 75 % rise of every profile [px] (NaN where it does not rise)."""
-    qv = np.nan_to_num(qa, nan=-1.0)
-    rr = np.arange(len(qv))
+    rr = np.arange(len(qa))
     pos = []
     for lvl in (0.25, 0.75):
-        i1 = np.argmax(qv >= lvl, axis=1)
+        with np.errstate(invalid="ignore"):
+            i1 = np.argmax(qa >= lvl, axis=1)            # NaN (outside the window) is below every level
         i0 = np.maximum(i1 - 1, 0)
-        a0, a1 = qv[rr, i0], qv[rr, i1]
+        a0, a1 = np.nan_to_num(qa[rr, i0], nan=-1.0), np.nan_to_num(qa[rr, i1], nan=-1.0)
         with np.errstate(invalid="ignore", divide="ignore"):
             pos.append(t[i0] + np.where(a1 > a0, (lvl - a0) / (a1 - a0), 0.0) * step)
     wd = pos[1] - pos[0]
