@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ._profile_kernels import profile_crossings, profile_levels
 from .lines import group_median, robust_group_lines, unit
 
 __all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "face_view_cov",
@@ -113,20 +114,6 @@ def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, ste
     return Profiles(values, base, nrm, e_idx, t, kp, n_t)
 
 
-def _object_side_extremes(prof, kp, n_t: int, cs: float):
-    """Per profile: the largest and the smallest ``cs`` times the 3-sample mean (float32, NaN counted as 0, the
-    array's ends replicated) over its object side (its ``kp`` samples before the centre ``n_t``); -inf and
-    +inf for none. Only the object side's columns and their two neighbours are filtered."""
-    k_max = int(kp.max()) if len(kp) else 0
-    c0, c1 = max(n_t - k_max - 1, 0), min(n_t + 1, prof.shape[1])
-    part = prof[:, c0:c1]
-    smooth = cv2.blur(np.where(np.isnan(part), 0.0, part).astype(np.float32), (3, 1), borderType=cv2.BORDER_REPLICATE)
-    idx = np.arange(c0, c1)[None, :]
-    obj_side = (idx >= (n_t - kp)[:, None]) & (idx < n_t)
-    vals = cs * smooth
-    return np.max(np.where(obj_side, vals, -np.inf), axis=1), np.min(np.where(obj_side, vals, np.inf), axis=1)
-
-
 def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True, own_level=None,
                    band_tol: float = 0.15, holder_face=None):
     """50 % crossings of the profiles between per-edge object and background levels.
@@ -140,18 +127,19 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
         Normalised profiles (0 object, 1 background).
     q_lo : ndarray (Np,)
         Normalised object-side plateau (noise measure).
+    rise : ndarray (Np,)
+        The 25 % -> 75 % rise of every profile [px] (NaN where it does not rise; :func:`_rise_widths`).
     """
     K2 = len(face)
     K = K2 // 2
     prof, e_idx, kp, n_t, t = pr.values, pr.edge, pr.half, pr.n_t, pr.t
     rows = np.arange(len(e_idx))
-    lo_v = 0.5 * (prof[rows, n_t - kp] + prof[rows, n_t - kp + 1])
-    hi_v = 0.5 * (prof[rows, n_t + kp] + prof[rows, n_t + kp - 1])
+    rise_step = step
     # a specular streak along the tube near its edge, brighter than the background (darker for a light
     # object), at the far end of the object side: the object's level is the most object-like part of that
     # side (3-sample mean) there
     cs = 1.0 if contrast > 0 else -1.0
-    ext, least = _object_side_extremes(prof, kp, n_t, cs)
+    lo_v, hi_v, ext, least = profile_levels(prof, kp, n_t, cs)
     banded = least < cs * hi_v - band_tol * abs(contrast)
     if holder_face is not None:
         banded &= ~holder_face[e_idx]                    # a holder's shading and highlights are its own
@@ -190,32 +178,21 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     lo_c = np.where(fo, lo_v, np.where(face, lo_edge[partner], lo_edge)[e_idx])  # at the edge: crossing
     span = hi[e_idx] - lo_p
     with np.errstate(invalid="ignore", divide="ignore"):
-        qa = (prof - lo_c[:, None]) / (hi[e_idx] - lo_c)[:, None]
         q_lo = (lo_v - lo_p) / span
         q_hi = (hi_v - lo_p) / span
+    # the normalised profiles, their crossings nearest the centre (on a tie the first) and their rises
+    order = np.argsort(np.abs(0.5 * (t[:-1] + t[1:])), kind="stable")
+    qa, n_fin, q_peak, tc, found, rise = profile_crossings(prof, lo_c, hi[e_idx] - lo_c, t, order, step, rise_step)
     sel_ = span_ok & ~fp & np.isfinite(q_lo)
     sq = 1.4826 * float(np.median(np.abs(q_lo[sel_]))) if sel_.sum() >= 10 else 0.0
     lim = max(lim, 4.0 * sq)
-    valid = (np.isfinite(qa).sum(axis=1) == 2 * kp + 1) & (np.abs(span) > 1e-6) & (np.abs(q_lo) < lim)
+    valid = (n_fin == 2 * kp + 1) & (np.abs(span) > 1e-6) & (np.abs(q_lo) < lim) & found & np.isfinite(tc)
     # a brighter band inside the object (a specular streak along the tube, near its edge) makes the far end
     # of the object side more background-like than its part next to the edge: that profile's level is not
     # the object's
-    # (outside its window a profile is NaN: the largest of its background side ignores NaN; none: NaN)
-    q_peak = np.fmax.reduce(qa[:, t > 0], axis=1) if (t > 0).any() else np.full(len(qa), np.nan)
     with np.errstate(invalid="ignore"):
         valid &= np.where(fp, q_peak > 1 - 0.5 * lim, np.abs(q_hi - 1) < lim)
-        cr = (qa[:, :-1] < 0.5) & (qa[:, 1:] >= 0.5)
-    # the crossing nearest the profile's centre (on a tie the first): the first crossing in that order
-    order = np.argsort(np.abs(0.5 * (t[:-1] + t[1:])), kind="stable")
-    first = np.argmax(cr[:, order], axis=1)
-    found = cr[rows, order[first]]
-    j = np.where(found, order[first], 0)
-    valid &= found
-    q0, q1 = qa[rows, j], qa[rows, np.minimum(j + 1, len(t) - 1)]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tc = t[j] + (0.5 - q0) / (q1 - q0) * step
-    valid &= np.isfinite(tc)
-    return tc, valid, qa, q_lo
+    return tc, valid, qa, q_lo, rise
 
 
 def _rise_widths(qa, t, step) -> np.ndarray:
@@ -628,11 +605,11 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if pr is None:
         return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout, \
             np.zeros((K, 2, 2))
-    tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
-                                         holder_face=sp.holder_face,
-                                         extrapolate=bool(np.isfinite(blur_prior)))
+    tc, valid, qa, q_lo, rises = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
+                                                holder_face=sp.holder_face,
+                                                extrapolate=bool(np.isfinite(blur_prior)))
     fp = sp.face[pr.edge]
-    rises = _rise_widths(qa[valid], pr.t, step)
+    rises = rises[valid]
     blur = edge_blur(qa, valid & ~fp, pr.t, step, widths=rises[~fp[valid]])
     raw = pr.base[valid] + tc[valid, None] * pr.normal[valid] + off
     und = camera.undistort_pixels(raw)

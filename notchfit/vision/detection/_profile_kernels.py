@@ -1,0 +1,112 @@
+"""Compiled (numba) row loops of the edge-profile refinement (:mod:`.refine`).
+
+Each profile's levels, its normalised copy, its 50 % crossing nearest the
+centre and its 25 % -> 75 % rise in one pass over its samples, instead of a
+dozen full-array numpy passes. The arithmetic is the numpy formulation's,
+operation for operation (no fastmath, numpy's division semantics), so the
+results are the same to the last bit; ``tests/test_detection_stages.py``
+compares them with the plain numpy versions kept there as references.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["profile_crossings", "profile_levels"]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def profile_levels(prof, kp, n_t, cs):
+    """Per profile (rows of ``prof`` (Np, T), NaN outside the window ``n_t ± kp``): the mean of the two
+    outermost object-side and background-side samples (Np,) x 2, and the largest and the smallest ``cs`` times
+    the 3-sample mean (float32; NaN counted as 0; the array's ends replicated) over the object side
+    (``n_t - kp`` to ``n_t - 1``), -inf and +inf where it is empty (Np,) float32 x 2."""
+    n, T = prof.shape
+    lo_v = np.empty(n)
+    hi_v = np.empty(n)
+    ext = np.empty(n, np.float32)
+    least = np.empty(n, np.float32)
+    third = 1.0 / 3.0
+    for i in range(n):
+        k = kp[i]
+        lo_v[i] = 0.5 * (prof[i, n_t - k] + prof[i, n_t - k + 1])
+        hi_v[i] = 0.5 * (prof[i, n_t + k] + prof[i, n_t + k - 1])
+        big = np.float32(-np.inf)
+        small = np.float32(np.inf)
+        for c in range(n_t - k, n_t):
+            s = 0.0
+            for cc in (c - 1, c, c + 1):
+                cc = min(max(cc, 0), T - 1)
+                v = np.float32(prof[i, cc])
+                s += 0.0 if np.isnan(v) else np.float64(v)
+            m = np.float32(cs) * np.float32(s * third)
+            big = max(big, m)
+            small = min(small, m)
+        ext[i] = big
+        least[i] = small
+    return lo_v, hi_v, ext, least
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _to_num(v):
+    """``np.nan_to_num(v, nan=-1.0)`` for one value."""
+    if np.isnan(v):
+        return -1.0
+    if np.isinf(v):
+        return 1.7976931348623157e308 if v > 0 else -1.7976931348623157e308
+    return v
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def profile_crossings(prof, lo_c, den, t, order, step, rise_step):
+    """Per profile: the normalised profile ``(prof - lo_c) / den`` (Np, T), the count of its finite samples,
+    the largest of its samples at ``t > 0`` (NaN: none), the 50 % crossing nearest the centre (``order``: the
+    sample intervals by distance from the centre, on a tie the first; interval 0 where there is none) as an
+    offset [px] (interpolated over ``step``) and whether one was found, and the 25 % -> 75 % rise [px]
+    (interpolated over ``rise_step``; NaN where it does not rise)."""
+    n, T = prof.shape
+    qa = np.empty((n, T))
+    n_fin = np.empty(n, np.int64)
+    q_peak = np.empty(n)
+    tc = np.empty(n)
+    found = np.zeros(n, np.bool_)
+    rise = np.empty(n)
+    for i in range(n):
+        cnt = 0
+        peak = np.nan
+        for j in range(T):
+            q = (prof[i, j] - lo_c[i]) / den[i]
+            qa[i, j] = q
+            if np.isfinite(q):
+                cnt += 1
+            if t[j] > 0 and not np.isnan(q) and (np.isnan(peak) or q > peak):
+                peak = q
+        n_fin[i] = cnt
+        q_peak[i] = peak
+        j = 0
+        for jj in order:
+            if qa[i, jj] < 0.5 and qa[i, jj + 1] >= 0.5:
+                j = jj
+                found[i] = True
+                break
+        q0, q1 = qa[i, j], qa[i, j + 1]
+        tc[i] = t[j] + (0.5 - q0) / (q1 - q0) * step
+        pos0 = 0.0
+        wd = 0.0
+        for lvl in (0.25, 0.75):
+            i1 = 0
+            for jj in range(T):
+                if qa[i, jj] >= lvl:
+                    i1 = jj
+                    break
+            i0 = max(i1 - 1, 0)
+            a0, a1 = _to_num(qa[i, i0]), _to_num(qa[i, i1])
+            frac = (lvl - a0) / (a1 - a0) if a1 > a0 else 0.0
+            pos = t[i0] + frac * rise_step
+            if lvl == 0.25:
+                pos0 = pos
+            else:
+                wd = pos - pos0
+        rise[i] = wd if np.isfinite(wd) and wd > 0 else np.nan
+    return qa, n_fin, q_peak, tc, found, rise
