@@ -88,3 +88,16 @@ def test_profile_crossings_equal_the_numpy_formulation():
     for level in (0.9, 0.5, -1e300):
         with np.errstate(invalid="ignore"):
             np.testing.assert_array_equal(got[2] > level, want[2] > level)
+
+
+def test_profile_maps_and_windows_equal_the_numpy_formulation():
+    from notchfit.vision.detection._profile_kernels import profile_maps, windowed
+
+    rng = np.random.default_rng(3)
+    base, nrm = rng.uniform(0, 500, (300, 2)), rng.normal(size=(300, 2))
+    t = np.arange(-15, 16) * 0.37
+    for a, m in enumerate(profile_maps(base, nrm, t)):
+        np.testing.assert_array_equal(m, (base[:, a, None] + t[None, :] * nrm[:, a, None]).astype(np.float32))
+    prof, kp = rng.normal(size=(300, 31)).astype(np.float32), rng.integers(1, 16, 300)
+    want = np.where(np.abs(np.arange(-15, 16))[None, :] <= kp[:, None], prof.astype(float), np.nan)
+    np.testing.assert_array_equal(windowed(prof, kp, 15), want)

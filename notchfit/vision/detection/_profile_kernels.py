@@ -13,7 +13,32 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["profile_crossings", "profile_levels"]
+__all__ = ["profile_crossings", "profile_levels", "profile_maps", "windowed"]
+
+
+@njit(cache=True, nogil=True)
+def profile_maps(base, nrm, t):
+    """The sample positions ``base + t nrm`` of every profile (Np, T) x 2, computed in float64 and rounded to
+    float32 (``cv2.remap``'s maps)."""
+    n, T = len(base), len(t)
+    mx = np.empty((n, T), np.float32)
+    my = np.empty((n, T), np.float32)
+    for i in range(n):
+        for j in range(T):
+            mx[i, j] = np.float32(nrm[i, 0] * t[j] + base[i, 0])
+            my[i, j] = np.float32(nrm[i, 1] * t[j] + base[i, 1])
+    return mx, my
+
+
+@njit(cache=True, nogil=True)
+def windowed(prof, kp, n_t):
+    """The profiles (Np, T) as float64 with NaN outside each one's window ``n_t ± kp``."""
+    n, T = prof.shape
+    out = np.empty((n, T))
+    for i in range(n):
+        for j in range(T):
+            out[i, j] = prof[i, j] if abs(j - n_t) <= kp[i] else np.nan
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ._profile_kernels import profile_crossings, profile_levels
+from ._profile_kernels import profile_crossings, profile_levels, profile_maps, windowed
 from .lines import group_median, robust_group_lines, unit
 
 __all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "face_view_cov",
@@ -101,17 +101,10 @@ def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, ste
     s_val = s0 + (np.arange(Np) - np.repeat(np.cumsum(n_s) - n_s, n_s))
     base = E_C[e_idx] + s_val[:, None] * E_dir[e_idx] - off
     nrm = E_nrm[e_idx]
-    maps = []
-    for a in (0, 1):
-        m_ = np.multiply.outer(nrm[:, a], t)
-        m_ += base[:, a, None]
-        maps.append(m_.astype(np.float32))
-    prof = cv2.remap(img, maps[0], maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=float("nan"))
+    mapx, mapy = profile_maps(base, nrm, t)
+    prof = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
     kp = kt[e_idx]
-    values = np.full(prof.shape, np.nan)
-    np.copyto(values, prof, where=np.abs(np.arange(-n_t, n_t + 1))[None, :] <= kp[:, None])
-    return Profiles(values, base, nrm, e_idx, t, kp, n_t)
+    return Profiles(windowed(prof, kp, n_t), base, nrm, e_idx, t, kp, n_t)
 
 
 def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True, own_level=None,
