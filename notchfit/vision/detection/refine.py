@@ -402,13 +402,18 @@ def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_po
     us, vs, gs, far = [], [], [], []
     order = np.argsort(grp, kind="stable")
     first = np.searchsorted(grp[order], np.arange(2 * K + 1))
+    faces = []
     for g, (k, fe, le) in enumerate(cand):
         rel = pts[order[first[fe]:first[fe + 1]]] - c[le]
-        if len(rel) < min_points + 3:
-            continue
-        d = dd[le]
-        u, v = rel @ np.array([-d[1], d[0]]), rel @ d
-        u = u * (1.0 if np.median(u) >= 0 else -1.0)
+        if len(rel) >= min_points + 3:
+            d = dd[le]
+            faces.append((g, k, fe, rel @ np.array([-d[1], d[0]]), rel @ d))
+    # u measured from the limb into the tube: its median is positive (all faces' medians in one call)
+    med_u = group_median(np.concatenate([f[3] for f in faces]), np.repeat(np.arange(len(faces)),
+                                                                          [len(f[3]) for f in faces]),
+                         len(faces)) if faces else np.zeros(0)
+    for (g, k, fe, u, v), m_u in zip(faces, med_u):
+        u = u * (1.0 if m_u >= 0 else -1.0)
         near = u <= radius_px            # the half of a face next to this corner (the tip face is 2R long)
         if not near.any() or u[near].min() > max_u0:
             far.append(k)                # a face seen only far from the corner (a nearly closed mouth)
