@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.special import erf
 
-from notchfit.vision.detection._profile_kernels import profile_crossings, profile_levels
+from notchfit.vision.detection._kernels import profile_crossings, profile_levels
 
 
 def _profiles(rng, n=400, n_t=12, step=0.5):
@@ -91,7 +91,7 @@ def test_profile_crossings_equal_the_numpy_formulation():
 
 
 def test_profile_maps_and_windows_equal_the_numpy_formulation():
-    from notchfit.vision.detection._profile_kernels import profile_maps, windowed
+    from notchfit.vision.detection._kernels import profile_maps, windowed
 
     rng = np.random.default_rng(3)
     base, nrm = rng.uniform(0, 500, (300, 2)), rng.normal(size=(300, 2))
@@ -101,3 +101,15 @@ def test_profile_maps_and_windows_equal_the_numpy_formulation():
     prof, kp = rng.normal(size=(300, 31)).astype(np.float32), rng.integers(1, 16, 300)
     want = np.where(np.abs(np.arange(-15, 16))[None, :] <= kp[:, None], prof.astype(float), np.nan)
     np.testing.assert_array_equal(windowed(prof, kp, 15), want)
+
+
+@pytest.mark.parametrize("f", [2, 3, 5, 8, 16])
+def test_working_copy_of_an_8bit_image_equals_the_float_one(f):
+    """Block means read from the 8-bit pixels equal OpenCV's area resize of the float copy, bit for bit
+    (trailing rows and columns that fill no block dropped)."""
+    from notchfit.vision.detection.segment import downsample
+
+    img = np.random.default_rng(f).integers(0, 256, (203 + f, 317 + 2 * f), dtype=np.uint8)
+    got = downsample(img, f)
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, downsample(img.astype(np.float32), f))

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ._profile_kernels import profile_crossings, profile_levels, profile_maps, windowed
+from ._kernels import profile_crossings, profile_levels, profile_maps, windowed
 from .lines import group_median, robust_group_lines, unit
 
 __all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "face_view_cov",

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["profile_crossings", "profile_levels", "profile_maps", "windowed"]
+__all__ = ["block_mean_u8", "profile_crossings", "profile_levels", "profile_maps", "windowed"]
 
 
 @njit(cache=True, nogil=True)
@@ -135,3 +135,26 @@ def profile_crossings(prof, lo_c, den, t, order, step, rise_step):
                 wd = pos - pos0
         rise[i] = wd if np.isfinite(wd) and wd > 0 else np.nan
     return qa, n_fin, q_peak, tc, found, rise
+
+
+@njit(cache=True, nogil=True)
+def block_mean_u8(img, f):
+    """Means of the ``f`` x ``f`` blocks of an 8-bit image (h // f, w // f) float32: the exact integer sum
+    times ``float32(1 / f²)``, as ``cv2.resize(..., INTER_AREA)`` computes it for an integer factor."""
+    hs, ws = img.shape[0] // f, img.shape[1] // f
+    n = ws * f
+    out = np.empty((hs, ws), np.float32)
+    rows = np.empty(n, np.int32)
+    scale = np.float32(1.0 / (f * f))
+    for i in range(hs):
+        rows[:] = 0
+        for r in range(i * f, i * f + f):
+            line = img[r]
+            for c in range(n):
+                rows[c] += line[c]
+        for j in range(ws):
+            s = 0
+            for c in range(j * f, j * f + f):
+                s += rows[c]
+            out[i, j] = np.float32(s) * scale
+    return out
