@@ -113,3 +113,18 @@ def test_working_copy_of_an_8bit_image_equals_the_float_one(f):
     got = downsample(img, f)
     assert got.dtype == np.float32
     np.testing.assert_array_equal(got, downsample(img.astype(np.float32), f))
+
+
+def test_group_median_is_each_groups_median():
+    """Groups in any order, NaN and infinities ignored, an empty group NaN, even and odd counts."""
+    from notchfit.vision.detection.lines import group_median
+
+    rng = np.random.default_rng(4)
+    g = rng.integers(0, 40, 3000)
+    v = np.round(rng.normal(0, 5, 3000), 1)               # ties within groups
+    v[rng.random(3000) < 0.05] = np.nan
+    v[rng.random(3000) < 0.01] = np.inf
+    got = group_median(v, g, 41)
+    for k in range(41):
+        vals = v[(g == k) & np.isfinite(v)]
+        assert (np.isnan(got[k]) and not len(vals)) or got[k] == np.median(vals)
