@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["block_mean_u8", "group_median", "profile_crossings", "profile_levels", "profile_maps", "windowed"]
+__all__ = ["block_mean_u8", "profile_crossings", "profile_levels", "profile_maps", "windowed"]
 
 
 @njit(cache=True, nogil=True)
@@ -157,32 +157,4 @@ def block_mean_u8(img, f):
             for c in range(j * f, j * f + f):
                 s += rows[c]
             out[i, j] = np.float32(s) * scale
-    return out
-
-
-@njit(cache=True, nogil=True)
-def group_median(values, groups, n_groups):
-    """Median of ``values`` (n,) per group ``groups`` (n,) int in 0..n_groups-1, NaN and infinities ignored,
-    NaN for an empty group: the mean of the two middle values of the group's sorted values."""
-    cnt = np.zeros(n_groups, np.int64)
-    for i in range(len(values)):
-        if np.isfinite(values[i]):
-            cnt[groups[i]] += 1
-    start = np.empty(n_groups, np.int64)
-    total = 0
-    for g in range(n_groups):
-        start[g] = total
-        total += cnt[g]
-    buf = np.empty(total)
-    pos = start.copy()
-    for i in range(len(values)):
-        if np.isfinite(values[i]):
-            buf[pos[groups[i]]] = values[i]
-            pos[groups[i]] += 1
-    out = np.full(n_groups, np.nan)
-    for g in range(n_groups):
-        c = cnt[g]
-        if c > 0:
-            v = np.sort(buf[start[g]:start[g] + c])
-            out[g] = 0.5 * (v[(c - 1) // 2] + v[c // 2])
     return out

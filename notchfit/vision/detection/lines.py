@@ -6,8 +6,6 @@ import math
 
 import numpy as np
 
-from ._kernels import group_median as _group_median
-
 __all__ = ["group_lines", "group_median", "intersect", "otsu", "pca_line", "poly2", "robust_group_lines", "unit"]
 
 
@@ -60,9 +58,20 @@ def intersect(c1, d1, c2, d2):
 
 
 def group_median(values, groups, n_groups):
-    """Median of ``values`` per group (NaN ignored; NaN for empty groups): a compiled counting sort by group,
-    then each group's values sorted."""
-    return _group_median(np.asarray(values, float), np.asarray(groups, np.int64), int(n_groups))
+    """Median of ``values`` per group (NaN ignored; NaN for empty groups)."""
+    fin = np.isfinite(values)
+    v, g = values[fin], groups[fin]
+    out = np.full(n_groups, np.nan)
+    if not len(v):
+        return out
+    lo, hi = float(v.min()), float(v.max())
+    key = g + (v - lo) * (0.999 / (hi - lo) if hi > lo else 0.0)     # one sort orders groups, then values
+    vs = v[np.argsort(key, kind="stable")]
+    cnt = np.bincount(g, minlength=n_groups)
+    start = np.cumsum(cnt) - cnt
+    has = cnt > 0
+    out[has] = 0.5 * (vs[start[has] + (cnt[has] - 1) // 2] + vs[start[has] + cnt[has] // 2])
+    return out
 
 
 def group_lines(pts, groups, n_groups, keep):
