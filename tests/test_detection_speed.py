@@ -61,10 +61,18 @@ def _crossings_numpy(prof, lo_c, den, t, step, rise_step):
                                                                                        wd, np.nan)
 
 
+def _ragged(prof, kp, n_t):
+    """Each row's window, one after the other (float32, as sampled), and where each starts."""
+    n_w = 2 * kp + 1
+    values = np.concatenate([prof[i, n_t - k:n_t + k + 1] for i, k in enumerate(kp)]).astype(np.float32)
+    return values, np.cumsum(n_w) - n_w
+
+
 @pytest.mark.parametrize("cs", [1.0, -1.0])
 def test_profile_levels_equal_the_numpy_formulation(cs):
-    prof, kp, n_t, _ = _profiles(np.random.default_rng(1))
-    for got, want in zip(profile_levels(prof, kp, n_t, cs), _levels_numpy(prof, kp, n_t, cs)):
+    prof, kp, n_t, t = _profiles(np.random.default_rng(1))
+    values, start = _ragged(prof, kp, n_t)
+    for got, want in zip(profile_levels(values, start, kp, n_t, len(t), cs), _levels_numpy(prof, kp, n_t, cs)):
         assert got.dtype == want.dtype
         np.testing.assert_array_equal(got, want)
 
@@ -80,27 +88,32 @@ def test_profile_crossings_equal_the_numpy_formulation():
     den[::37], lo_c[::53] = 0.0, np.nan
     step = t[1] - t[0]
     order = np.argsort(np.abs(0.5 * (t[:-1] + t[1:])), kind="stable")
-    got = profile_crossings(prof, lo_c, den, t, order, step, 0.5)
-    want = _crossings_numpy(prof, lo_c, den, t, step, 0.5)
-    for k in (0, 1, 3, 4, 5):
+    values, start = _ragged(prof, kp, n_t)
+    got = profile_crossings(values, start, kp, n_t, lo_c, den, t, order, step, 0.5)
+    want = _crossings_numpy(prof, lo_c, den, t, step, 0.5)[1:]
+    for k in (0, 2, 3, 4):
         np.testing.assert_array_equal(got[k], want[k])
-    assert got[4].sum() > 0.8 * len(prof)
+    assert got[3].sum() > 0.8 * len(prof)
     for level in (0.9, 0.5, -1e300):
         with np.errstate(invalid="ignore"):
-            np.testing.assert_array_equal(got[2] > level, want[2] > level)
+            np.testing.assert_array_equal(got[1] > level, want[1] > level)
 
 
-def test_profile_maps_and_windows_equal_the_numpy_formulation():
-    from notchfit.vision.detection._kernels import profile_maps, windowed
+def test_profile_maps_hold_each_window_as_the_numpy_formulation():
+    """The maps hold every profile's window in turn (float64 positions rounded to float32), rows of the given
+    width, the rest outside the image."""
+    from notchfit.vision.detection._kernels import profile_maps
 
     rng = np.random.default_rng(3)
     base, nrm = rng.uniform(0, 500, (300, 2)), rng.normal(size=(300, 2))
+    kp = rng.integers(1, 16, 300)
     t = np.arange(-15, 16) * 0.37
-    for a, m in enumerate(profile_maps(base, nrm, t)):
-        np.testing.assert_array_equal(m, (base[:, a, None] + t[None, :] * nrm[:, a, None]).astype(np.float32))
-    prof, kp = rng.normal(size=(300, 31)).astype(np.float32), rng.integers(1, 16, 300)
-    want = np.where(np.abs(np.arange(-15, 16))[None, :] <= kp[:, None], prof.astype(float), np.nan)
-    np.testing.assert_array_equal(windowed(prof, kp, 15), want)
+    n = int(np.sum(2 * kp + 1))
+    for a, m in enumerate(profile_maps(base, nrm, t, kp, 15, 1000)):
+        assert m.shape == (-(-n // 1000), 1000) and m.dtype == np.float32
+        dense = (base[:, a, None] + t[None, :] * nrm[:, a, None]).astype(np.float32)
+        np.testing.assert_array_equal(m.ravel()[:n], _ragged(dense, kp, 15)[0])
+        assert (m.ravel()[n:] < -1).all()
 
 
 @pytest.mark.parametrize("f", [2, 3, 5, 8, 16])

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ._kernels import profile_crossings, profile_levels, profile_maps, windowed
+from ._kernels import profile_crossings, profile_levels, profile_maps
 from .lines import group_median, robust_group_lines, unit
 
 __all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "face_view_cov",
@@ -67,15 +67,23 @@ class CornerSpecs:
 
 @dataclass
 class Profiles:
-    """Profiles across the edges (Np profiles of T samples)."""
+    """Profiles across the edges (Np profiles on an axis of T samples, each sampled in its window only)."""
 
-    values: np.ndarray      # (Np, T) normalised later
+    values: np.ndarray      # (sum of 2 half + 1,) float32: each profile's window, one after the other
     base: np.ndarray        # (Np, 2) profile centre in ROI px
     normal: np.ndarray      # (Np, 2) unit, object -> background
     edge: np.ndarray        # (Np,) edge index 0..2K-1
     t: np.ndarray           # (T,) offsets along the normal [px]
-    half: np.ndarray        # (Np,) half window [samples]
+    half: np.ndarray        # (Np,) half window [samples]: profile i covers t[n_t - half_i .. n_t + half_i]
     n_t: int
+    start: np.ndarray       # (Np,) where each profile's window starts in ``values``
+
+    def at(self, rows, cols) -> np.ndarray:
+        """Samples (float64) of profiles ``rows`` at axis positions ``cols`` inside their windows."""
+        return self.values[self.start[rows] + cols - (self.n_t - self.half[rows])].astype(float)
+
+
+_MAP_WIDTH = 4096           # samples per row of the remap maps (OpenCV wants sides below 32767)
 
 
 def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, step, h_curved=0.0) -> Profiles | None:
@@ -101,10 +109,11 @@ def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, ste
     s_val = s0 + (np.arange(Np) - np.repeat(np.cumsum(n_s) - n_s, n_s))
     base = E_C[e_idx] + s_val[:, None] * E_dir[e_idx] - off
     nrm = E_nrm[e_idx]
-    mapx, mapy = profile_maps(base, nrm, t)
-    prof = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
     kp = kt[e_idx]
-    return Profiles(windowed(prof, kp, n_t), base, nrm, e_idx, t, kp, n_t)
+    n_w = 2 * kp + 1
+    mapx, mapy = profile_maps(base, nrm, t, kp, n_t, _MAP_WIDTH)
+    prof = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
+    return Profiles(prof.ravel()[:int(n_w.sum())], base, nrm, e_idx, t, kp, n_t, np.cumsum(n_w) - n_w)
 
 
 def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True, own_level=None,
@@ -116,12 +125,11 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     tc : ndarray (Np,)
         Crossing offset along each profile's normal [px] (NaN where invalid).
     valid : ndarray (Np,) bool
-    qa : ndarray (Np, T)
-        Normalised profiles (0 object, 1 background).
     q_lo : ndarray (Np,)
         Normalised object-side plateau (noise measure).
     rise : ndarray (Np,)
-        The 25 % -> 75 % rise of every profile [px] (NaN where it does not rise; :func:`_rise_widths`).
+        The 25 % -> 75 % rise of every profile [px] (NaN where it does not rise; :func:`_rise_widths` of the
+        profiles normalised to 0 on the object, 1 on the background).
     """
     K2 = len(face)
     K = K2 // 2
@@ -132,7 +140,7 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     # object), at the far end of the object side: the object's level is the most object-like part of that
     # side (3-sample mean) there
     cs = 1.0 if contrast > 0 else -1.0
-    lo_v, hi_v, ext, least = profile_levels(prof, kp, n_t, cs)
+    lo_v, hi_v, ext, least = profile_levels(prof, pr.start, kp, n_t, len(t), cs)
     banded = least < cs * hi_v - band_tol * abs(contrast)
     if holder_face is not None:
         banded &= ~holder_face[e_idx]                    # a holder's shading and highlights are its own
@@ -146,7 +154,7 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
         # carried to the edge: the 50 % level is halfway between the levels *at* the edge
         step = t[1] - t[0]
         i2 = np.minimum(n_t - kp + int(round(2.0 / step)), n_t - 1)
-        lo_w = 0.5 * (prof[rows, i2] + prof[rows, i2 + 1])
+        lo_w = 0.5 * (pr.at(rows, i2) + pr.at(rows, i2 + 1))
         with np.errstate(invalid="ignore", divide="ignore"):
             slope = (lo_w - lo_v) / ((i2 - (n_t - kp)) * step)
         use = span_ok & np.isfinite(slope) & ~banded
@@ -175,7 +183,8 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
         q_hi = (hi_v - lo_p) / span
     # the normalised profiles, their crossings nearest the centre (on a tie the first) and their rises
     order = np.argsort(np.abs(0.5 * (t[:-1] + t[1:])), kind="stable")
-    qa, n_fin, q_peak, tc, found, rise = profile_crossings(prof, lo_c, hi[e_idx] - lo_c, t, order, step, rise_step)
+    n_fin, q_peak, tc, found, rise = profile_crossings(prof, pr.start, kp, n_t, lo_c, hi[e_idx] - lo_c, t, order,
+                                                       step, rise_step)
     sel_ = span_ok & ~fp & np.isfinite(q_lo)
     sq = 1.4826 * float(np.median(np.abs(q_lo[sel_]))) if sel_.sum() >= 10 else 0.0
     lim = max(lim, 4.0 * sq)
@@ -185,7 +194,7 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     # the object's
     with np.errstate(invalid="ignore"):
         valid &= np.where(fp, q_peak > 1 - 0.5 * lim, np.abs(q_hi - 1) < lim)
-    return tc, valid, qa, q_lo, rise
+    return tc, valid, q_lo, rise
 
 
 def _rise_widths(qa, t, step) -> np.ndarray:
@@ -214,9 +223,10 @@ def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1
     median rise exceeds ``min_excess`` times the median over all edges, the
     excess width ``Δ = sqrt(rise² - rise_all²)`` is taken as the spread of
     two edges and ``Δ² / 12`` (a uniform offset over it) returned; 0 elsewhere.
-    ``widths``: the valid profiles' rise widths when already measured.
+    ``widths``: the valid profiles' rise widths when already measured (``qa``, the normalised profiles
+    (Np, T), is then not read and may be None).
     """
-    wd = np.full(len(qa), np.nan)
+    wd = np.full(len(valid), np.nan)
     wd[valid] = _rise_widths(qa[valid], t, step) if widths is None else widths
     per_edge = group_median(wd, edge, n_edges)
     fin = wd[np.isfinite(wd)]
@@ -229,7 +239,7 @@ def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1
 
 def edge_blur(qa, valid, t, step, widths=None) -> float:
     """Gaussian σ of the edges from the 25 % -> 75 % rise of valid profiles (1.349 σ) [px] (``widths``: the
-    valid profiles' rises when already measured)."""
+    valid profiles' rises when already measured; ``qa`` is then not read and may be None)."""
     if valid.sum() < 5:
         return math.nan
     wd = _rise_widths(qa[valid], t, step) if widths is None else widths
@@ -603,12 +613,11 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if pr is None:
         return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout, \
             np.zeros((K, 2, 2))
-    tc, valid, qa, q_lo, rises = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
-                                                holder_face=sp.holder_face,
-                                                extrapolate=bool(np.isfinite(blur_prior)))
+    tc, valid, q_lo, rises = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
+                                            holder_face=sp.holder_face, extrapolate=bool(np.isfinite(blur_prior)))
     fp = sp.face[pr.edge]
     rises = rises[valid]
-    blur = edge_blur(qa, valid & ~fp, pr.t, step, widths=rises[~fp[valid]])
+    blur = edge_blur(None, valid & ~fp, pr.t, step, widths=rises[~fp[valid]])
     raw = pr.base[valid] + tc[valid, None] * pr.normal[valid] + off
     und = camera.undistort_pixels(raw)
     # floor on the crossing variance: image noise over the edge slope (a few crossings can scatter
@@ -623,7 +632,7 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     # the offsets that an edge's own profiles show (two rims, a shadow's edge) add to the reported
     # uncertainty, not to the fit's (which decides whether the corner is found)
     cov_sys = np.zeros((K, 2, 2))
-    s2_edge = edge_spread(qa, valid, pr.t, step, pr.edge, 2 * K, widths=rises) if np.isfinite(radius_px) \
+    s2_edge = edge_spread(None, valid, pr.t, step, pr.edge, 2 * K, widths=rises) if np.isfinite(radius_px) \
         else np.zeros(2 * K)                 # the last pass's (the one whose corners are reported)
     if s2_edge.any():
         cov_sys = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor,
