@@ -1,5 +1,6 @@
-"""The detector's faster implementations give the same outputs as the straightforward numpy formulations they
-replace (issue 25): the compiled profile loops of the refinement, to the last bit."""
+"""The detector's faster implementations give the same outputs as the straightforward numpy / OpenCV
+formulations they replace (issue 25), bit for bit: the compiled loops over the refinement's edge profiles,
+the working copy of an 8-bit image; and the grouped median is each group's median."""
 
 import cv2
 import numpy as np
