@@ -82,6 +82,15 @@ def _linearised(image, gamma: float):
     return (full * np.power(np.clip(img.astype(np.float32) / full, 0, None), gamma)).astype(np.float32)
 
 
+def _gray(img) -> np.ndarray:
+    """The gray image the stages read: a 2-D 8-bit image as it is (each stage converts only the pixels it
+    reads: the working copy's blocks, the regions around the corners), anything else :func:`to_gray`'s
+    float32 copy (the same values either way)."""
+    if img.dtype == np.uint8 and img.ndim == 2 and img.size:
+        return img
+    return to_gray(img)
+
+
 def _options(options, overrides) -> DetectorOptions:
     opts = options if options is not None else DetectorOptions()
     return opts.replace(**overrides) if overrides else opts
@@ -127,7 +136,7 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
     """
     opts = _options(options, overrides)
     lin = _linearised(image, opts.tone_gamma)
-    gray = to_gray(lin)
+    gray = _gray(lin)
     colour = lin[..., :3] if np.ndim(lin) == 3 and np.shape(lin)[2] >= 3 else None
     H, W = gray.shape
     if base is not None and base not in ("top", "bottom", "left", "right"):

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ._kernels import block_mean_u8
 from .lines import otsu, poly2
 
 __all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "downsample", "fill_holes",
@@ -49,13 +50,16 @@ class Segmentation:
 
 def downsample(gray, factor: int) -> np.ndarray:
     """Block average by an integer ``factor`` (float32; the trailing rows/columns that do not fill a block are
-    dropped); a colour image (H, W, C) channel by channel."""
+    dropped); a colour image (H, W, C) channel by channel. An 8-bit gray image is averaged from its 8-bit
+    pixels from a factor of 3 up (the same values, without a float copy of the whole file)."""
     f = int(factor)
     H, W = gray.shape[:2]
     hs, ws = H // f, W // f
     g = gray[:hs * f, :ws * f]
     if f == 1:
         return np.asarray(g, np.float32)
+    if g.dtype == np.uint8 and g.ndim == 2 and f >= 3:
+        return block_mean_u8(g, f)
     return cv2.resize(np.asarray(g, np.float32), (ws, hs), interpolation=cv2.INTER_AREA)
 
 
