@@ -252,9 +252,11 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
     specs, ctx = tried[best]
     # corners found on the colour silhouette are confirmed by the tube's width on it: a polished limb that
     # mirrors the backdrop is missing from it, and an edge inside the tube then passes for the outer edge
+    # (and so are slots numbered without the tip, which would confirm the tube's width)
     by_colour = best == 2
     return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
-                             extra=extra, stations=stations, width_mask=mask if by_colour else None)
+                             extra=extra, stations=stations,
+                             width_mask=mask if by_colour or ctx.confirm_width else None)
 
 
 def _stations(ref, n_per_edge, sgn):
