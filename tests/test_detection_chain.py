@@ -166,6 +166,28 @@ def test_a_tendon_loop_at_the_tip_of_a_one_sided_wrist():
     assert ok[2:12].all() and "tip corners not found" in det.message
 
 
+def test_a_tip_first_wrist_split_by_a_streak_is_not_numbered_on_the_streak():
+    """A seeded random lab scene (tests/test_detection_scenes.py's third draw): a tip-first wrist bent almost
+    shut, a streak along it. The threshold's silhouette lacks the strip beyond the streak and has no tip;
+    numbered without it, its corners lie on the streak's edge, 0.56 mm off but consistent with the chain.
+    The width check withholds them (no corner off), and the variant that found the tip keeps its 5 corners."""
+    from pathlib import Path
+
+    from notchfit.io import load_geometry
+    from notchfit.vision.render.variety import draw_scene, render_draw, score
+
+    here = Path(__file__).resolve().parent.parent / "datasets" / "geometry"
+    geoms = [WRIST.replace(backbone="section", name="lab_wrist")] + [load_geometry(here / f"{n}.toml")
+                                                                     for n in ("wrist_asymmetric", "wrist_tip_first")]
+    rng = np.random.default_rng(15)
+    for _ in range(3):
+        d = draw_scene(rng, geoms, size=(960, 640), px_per_mm=50.0)
+        r = render_draw(d, rng)
+    assert d.geom.name == "wrist_tip_first"
+    s = score(detect_notches(r.image, d.camera, d.geom), r, 50.0)
+    assert s["invented"] == 0 and s["errors_mm"].max(initial=0) <= 0.04 and s["found"] >= 5
+
+
 def test_a_double_edge_widens_the_corner_uncertainty():
     """A face seen a little from the side shows its near and far rims a few pixels apart: the profiles
     rise in two steps. edge_spread gives that edge a shared offset variance (Δ²/12 of the excess rise
