@@ -24,7 +24,7 @@ steps on an (Np, n) window).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy.special import ndtr
@@ -128,8 +128,37 @@ def _peaks(P, step: float, k_noise: float, rel: float):
     return j, before, after
 
 
+def _residuals(x, y, w, a, b, t0, s, c):
+    """Weighted residuals (Np, n) of ``y`` from the step ``a + b Φ((x - t0) / s) + c (x - t0)`` and their
+    Jacobian (Np, n, 5) with respect to (a, b, t0, s, c)."""
+    u = x - t0[:, None]
+    z = u / s[:, None]
+    phi = np.exp(-0.5 * z * z) / _SQRT2PI
+    cdf = ndtr(z)
+    r = w * (y - (a[:, None] + b[:, None] * cdf + c[:, None] * u))
+    J = w[..., None] * np.stack([np.ones_like(x), cdf, -b[:, None] * phi / s[:, None] - c[:, None],
+                                 -b[:, None] * phi * z / s[:, None], u], axis=2)
+    return r, J
+
+
+def _gauss_newton(x, y, w, a, b, t0, s, c, *, n_iter: int, max_move: float, s_range):
+    """``n_iter`` Gauss-Newton steps of every profile's step (:func:`_residuals`) at once; ``t0`` moves at
+    most ``max_move`` [px] a step, ``s`` stays in ``s_range`` [px]. Returns (a, b, t0, s, c) (Np,) each."""
+    for _ in range(n_iter):
+        r, J = _residuals(x, y, w, a, b, t0, s, c)
+        Jt = J.transpose(0, 2, 1)
+        A = np.matmul(Jt, J)
+        A = A + 1e-9 * np.eye(5)[None] * np.maximum(np.trace(A, axis1=1, axis2=2), 1.0)[:, None, None]
+        dx = np.linalg.solve(A, np.matmul(Jt, r[..., None]))[..., 0]
+        dx = np.where(np.isfinite(dx), dx, 0.0)
+        a, b, c = a + dx[:, 0], b + dx[:, 1], c + dx[:, 4]
+        t0 = t0 + np.clip(dx[:, 2], -max_move, max_move)
+        s = np.clip(s + dx[:, 3], *s_range)
+    return a, b, t0, s, c
+
+
 def fit_steps(P, t, *, blur0: float = 1.0, reach: float = 3.0, k_noise: float = 5.0, rel: float = 0.5,
-              max_noise: float = 0.25, n_iter: int = 6, blur_range=(0.25, 4.0)) -> EdgeFits:
+              max_noise: float = 0.25, n_iter: int = 6, blur_range=(0.25, 4.0), min_samples: int = 8) -> EdgeFits:
     """Fit a blurred step of either sign to every profile, around its significant gradient peak nearest the
     centre.
 
@@ -140,16 +169,21 @@ def fit_steps(P, t, *, blur0: float = 1.0, reach: float = 3.0, k_noise: float = 
     t : ndarray (T,)
         Offsets along the normal [px], evenly spaced.
     blur0 : float
-        Expected Gaussian σ of the edges [px]: the fit uses the samples within ``reach blur0`` of the peak.
+        Expected Gaussian σ of the edges [px].
+    reach : float
+        The fit uses the samples within ``reach blur0`` [px] of the peak, and none past the midpoint to a
+        neighbouring significant peak.
     k_noise, rel : float
-        A gradient peak is significant above ``k_noise`` times the profile's derivative noise (its MAD) and
-        above ``rel`` times the profile's steepest gradient.
+        A gradient peak is significant above ``k_noise`` times the noise of the smoothed derivative (from
+        the profile's second differences) and above ``rel`` times the profile's steepest gradient.
     max_noise : float
         Largest residual standard deviation relative to the step [1] of a valid fit.
     n_iter : int
         Gauss-Newton steps.
     blur_range : (float, float)
         Valid fitted blur as multiples of ``blur0``.
+    min_samples : int
+        Fewest samples a valid fit uses.
 
     Returns
     -------
@@ -179,31 +213,10 @@ def fit_steps(P, t, *, blur0: float = 1.0, reach: float = 3.0, k_noise: float = 
         b = (w_hi * y).sum(axis=1) / w_hi.sum(axis=1) - a
     ok &= np.isfinite(a) & np.isfinite(b)
     a, b = np.nan_to_num(a), np.nan_to_num(b)
-    s = np.full(Np, float(blur0))
-    c = np.zeros(Np)
     lo_s, hi_s = blur_range[0] * blur0, blur_range[1] * blur0
-    for _ in range(n_iter):
-        z = (x - t0[:, None]) / s[:, None]
-        phi = np.exp(-0.5 * z * z) / _SQRT2PI
-        r = w * (y - (a[:, None] + b[:, None] * ndtr(z) + c[:, None] * (x - t0[:, None])))
-        J = w[..., None] * np.stack([np.ones_like(x), ndtr(z), -b[:, None] * phi / s[:, None] - c[:, None],
-                      -b[:, None] * phi * z / s[:, None], x - t0[:, None]], axis=2)
-        A = np.matmul(J.transpose(0, 2, 1), J)
-        g = np.matmul(J.transpose(0, 2, 1), r[..., None])[..., 0]
-        A = A + 1e-9 * np.eye(5)[None] * np.maximum(np.trace(A, axis1=1, axis2=2), 1.0)[:, None, None]
-        try:
-            dx = np.linalg.solve(A, g[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            dx = np.zeros_like(g)
-        dx = np.where(np.isfinite(dx), dx, 0.0)
-        dx[:, 2] = np.clip(dx[:, 2], -blur0, blur0)   # at most one blur width a step
-        a, b, t0, s, c = a + dx[:, 0], b + dx[:, 1], t0 + dx[:, 2], np.clip(s + dx[:, 3], 0.5 * lo_s, 2 * hi_s), \
-            c + dx[:, 4]
-    z = (x - t0[:, None]) / s[:, None]
-    r = w * (y - (a[:, None] + b[:, None] * ndtr(z) + c[:, None] * (x - t0[:, None])))
-    phi = np.exp(-0.5 * z * z) / _SQRT2PI
-    J = w[..., None] * np.stack([np.ones_like(x), ndtr(z), -b[:, None] * phi / s[:, None] - c[:, None],
-                  -b[:, None] * phi * z / s[:, None], x - t0[:, None]], axis=2)
+    a, b, t0, s, c = _gauss_newton(x, y, w, a, b, t0, np.full(Np, float(blur0)), np.zeros(Np), n_iter=n_iter,
+                                   max_move=blur0, s_range=(0.5 * lo_s, 2.0 * hi_s))
+    r, J = _residuals(x, y, w, a, b, t0, s, c)
     A = np.matmul(J.transpose(0, 2, 1), J)
     s2 = (r * r).sum(axis=1) / np.maximum(n_w - 5, 1)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -212,7 +225,8 @@ def fit_steps(P, t, *, blur0: float = 1.0, reach: float = 3.0, k_noise: float = 
         var_t = s2 * Ainv[:, 2, 2]
         noise = np.sqrt(s2) / np.abs(b)
     inside = (t0 >= x[:, 0]) & (t0 <= x[:, -1]) & (np.abs(t0 - 0.5 * (x[:, m] + x[:, m + 1])) <= reach * blur0)
-    valid = ok & (n_w >= 8) & det_ok & inside & np.isfinite(t0) & (s >= lo_s) & (s <= hi_s) & (noise < max_noise) & (var_t > 0)
+    valid = ok & (n_w >= min_samples) & det_ok & inside & np.isfinite(t0) & (s >= lo_s) & (s <= hi_s) \
+        & (noise < max_noise) & (var_t > 0)
     nan = np.full(Np, np.nan)
     return EdgeFits(np.where(valid, t0, np.nan), valid, np.where(valid, np.sqrt(np.abs(var_t)), nan),
                     np.where(valid, s, nan), np.where(valid, a, nan), np.where(valid, a + b, nan),
@@ -227,9 +241,8 @@ def profile_steps(values, start, half, n_t: int, t, *, blur0: float = 1.0, max_n
     keep = fits.valid & (fits.sigma_t <= max_sigma_t)
     if keep.all():
         return fits
-    return EdgeFits(*(np.where(keep, v, np.nan) for v in (fits.t0,)), keep,
-                    *(np.where(keep, v, np.nan) for v in (fits.sigma_t, fits.blur, fits.level_obj, fits.level_bg,
-                                                          fits.noise)))
+    out = {f.name: np.where(keep, getattr(fits, f.name), np.nan) for f in fields(EdgeFits) if f.name != "valid"}
+    return EdgeFits(valid=keep, **out)
 
 
 @dataclass(frozen=True)
