@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from ._kernels import profile_crossings, profile_levels, profile_maps
+from .edges import choose_edges
 from .lines import group_median, robust_group_lines, unit
 
 __all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "face_view_cov",
@@ -570,9 +571,23 @@ def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
     return new[0], new[1]
 
 
+def _drop_scattered(ch, edge, valid, und, rises, lines, min_points, s2_floor):
+    """A local edge whose crossings scatter about their line beyond their own σ (:meth:`.edges.EdgeChoice.
+    consistent`) is not one edge: its crossings are dropped and the lines fitted again. Returns the valid
+    profiles (Np,), their undistorted crossings and rises, and :func:`corner_lines`' outputs."""
+    keep = ch.consistent(edge, lines[6])[edge[valid]]
+    if keep.all():
+        return valid, und, rises, lines
+    valid = valid.copy()
+    valid[np.nonzero(valid)[0][~keep]] = False
+    und, rises = und[keep], rises[keep]
+    return valid, und, rises, corner_lines(und, edge[valid], len(lines[0]), min_points=min_points,
+                                           s2_floor=s2_floor)
+
+
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, lim, min_points, contrast,
                 h_face=None, blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12,
-                arc_gate: float = 2.0, view_bias: float = 0.5):
+                arc_gate: float = 2.0, view_bias: float = 0.5, local_edges: bool = True):
     """One pass of edge-profile line fits for all corners at once.
 
     Parameters
@@ -598,6 +613,8 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         fitted again as arcs. A curved face left a straight line adds
         :func:`face_view_cov` (``view_bias``) to the returned systematic
         covariance when the camera knows the plane's pose.
+    local_edges : bool
+        Edges the image-wide levels do not describe take each profile's own step (:func:`.edges.choose_edges`).
 
     Returns
     -------
@@ -615,6 +632,11 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
             np.zeros((K, 2, 2))
     tc, valid, q_lo, rises = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
                                             holder_face=sp.holder_face, extrapolate=bool(np.isfinite(blur_prior)))
+    if local_edges:
+        # the edge model's hook: edges the image-wide levels do not describe take each profile's own step
+        ch = choose_edges(pr.values, pr.start, pr.half, pr.n_t, pr.t, pr.edge, 2 * K, tc, valid, q_lo, rises,
+                          blur0=blur_prior if np.isfinite(blur_prior) else 1.0)
+        tc, valid, q_lo, rises = ch.tc, ch.valid, ch.noise, ch.rise
     fp = sp.face[pr.edge]
     rises = rises[valid]
     blur = edge_blur(None, valid & ~fp, pr.t, step, widths=rises[~fp[valid]])
@@ -627,8 +649,10 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if plateau.sum() >= 10 and np.isfinite(blur_prior):
         sq = 1.4826 * float(np.median(np.abs(q_lo[plateau])))
         s2_floor = (sq * math.sqrt(2 * math.pi) * blur_prior) ** 2
-    X, cov, okc, c, dd, good_e, s2_line = corner_lines(und, pr.edge[valid], K, min_points=min_points,
-                                                        s2_floor=s2_floor)
+    lines = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor)
+    if local_edges and ch.local.any():
+        valid, und, rises, lines = _drop_scattered(ch, pr.edge, valid, und, rises, lines, min_points, s2_floor)
+    X, cov, okc, c, dd, good_e, s2_line = lines
     # the offsets that an edge's own profiles show (two rims, a shadow's edge) add to the reported
     # uncertainty, not to the fit's (which decides whether the corner is found)
     cov_sys = np.zeros((K, 2, 2))
