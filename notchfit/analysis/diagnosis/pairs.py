@@ -54,7 +54,7 @@ def _fit_all(args):
     """A model fitted on every experiment and its in-sample mean squared error (a batch item)."""
     preps, model, start, scales, base, kw, variant = args
     with threadpool_limits(limits=1):
-        cache = SimulationCache()
+        cache = SimulationCache.shared()
         cal = calibrate(preps, model, start, cache=cache, scales=scales, base=base,
                         paper_start=model[-1] in PAPER_START, **kw)
         reg = cal.registration or (None,) * len(preps)

@@ -116,7 +116,7 @@ def _fit_ramp(args):
     preps, ramp, known, base, scales, kw, seed = args
     preps = tuple(p if p.name in known else dataclasses.replace(p, ramp_time=ramp) for p in preps)
     with threadpool_limits(limits=1):
-        cache = SimulationCache()
+        cache = SimulationCache.shared()
         cal = calibrate(preps, None, None, scales=scales, base=base, cache=cache, **kw)
         pred = [predict_points(p, cal.values, cache=cache, base=base, tubes=cal.tubes)[0] for p in preps]
         ms = pooled_mse([sample_mse(p, q) for p, q in zip(preps, pred)])
