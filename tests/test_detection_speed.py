@@ -1,13 +1,15 @@
 """The detector's faster implementations give the same outputs as the straightforward numpy / OpenCV
 formulations they replace (issue 25), bit for bit: the compiled loops over the refinement's edge profiles,
-the working copy of an 8-bit image; and the grouped median is each group's median."""
+the working copy of an 8-bit image, the segmentation's one-pass threshold, the distance transforms cut to
+the box they are needed in; and the grouped median is each group's median."""
 
 import cv2
 import numpy as np
 import pytest
 from scipy.special import erf
 
-from notchfit.vision.detection._kernels import profile_crossings, profile_levels
+from notchfit.vision.detection._kernels import profile_crossings, profile_levels, surface_threshold
+from notchfit.vision.detection.base import _distance_near
 
 
 def _profiles(rng, n=400, n_t=12, step=0.5):
@@ -142,3 +144,44 @@ def test_group_median_is_each_groups_median():
     for k in range(41):
         vals = v[(g == k) & np.isfinite(v)]
         assert (np.isnan(got[k]) and not len(vals)) or got[k] == np.median(vals)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_surface_threshold_equals_the_numpy_broadcasts(dtype):
+    """The background surface, the deviation from it and both thresholds in one pass equal the numpy
+    formulation (float32 surface, Python-float thresholds cast as numpy casts them), ties included."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        hs, ws = (int(v) for v in rng.integers(20, 200, 2))
+        small = rng.normal(100, 30, (hs, ws)).astype(dtype)
+        c = rng.normal(0, 50, 6).astype(np.float32)
+        sign = np.float32(rng.choice([-1.0, 1.0]))
+        X = (np.arange(ws, dtype=np.float32) / ws - 0.5)[None, :]
+        Y = (np.arange(hs, dtype=np.float32) / hs - 0.5)[:, None]
+        bg = (c[0] + c[1] * X + c[3] * X * X) + (c[2] * Y + c[5] * Y * Y) + c[4] * (Y * X)
+        dev = (small - bg) * sign
+        hi, lo = float(dev[rng.integers(hs), rng.integers(ws)]), -abs(float(rng.normal(10, 5)))   # a tie at hi
+        ref = ((dev > hi) | (dev < lo)).astype(np.uint8)
+        X, Y = X[0], Y[:, 0]
+        got = surface_threshold(small, c[0] + c[1] * X + c[3] * X * X, c[2] * Y + c[5] * Y * Y, X, Y, c[4], sign,
+                                small.dtype.type(hi), small.dtype.type(lo))
+        np.testing.assert_array_equal(got, ref)
+
+
+def test_distance_cut_to_its_box_equals_the_full_transform():
+    """Up to the reach, the 5x5 chamfer distance computed in the box around the mask equals the whole
+    image's, and it is above the reach exactly where the whole image's is (sparse and solid masks)."""
+    rng = np.random.default_rng(6)
+    for k in range(100):
+        h, w = rng.integers(30, 250, 2)
+        m = np.zeros((h, w), np.uint8)
+        for _ in range(rng.integers(1, 5)):
+            cv2.circle(m, (int(rng.integers(w)), int(rng.integers(h))), int(rng.integers(1, 20)), 1, -1)
+        if k % 2:
+            m &= (rng.random((h, w)) > 0.3).astype(np.uint8)
+        reach = float(rng.uniform(1, 30))
+        full = cv2.distanceTransform(1 - m, cv2.DIST_L2, cv2.DIST_MASK_5)
+        got = _distance_near(m, reach)
+        near = full <= reach
+        np.testing.assert_array_equal(got <= reach, near)
+        np.testing.assert_array_equal(got[near], full[near])

@@ -1,4 +1,4 @@
-"""Compiled (numba) row loops of the edge-profile refinement (:mod:`.refine`).
+"""Compiled (numba) row loops of the edge-profile refinement (:mod:`.refine`) and of the segmentation.
 
 Each profile's levels, its normalised copy, its 50 % crossing nearest the
 centre and its 25 % -> 75 % rise in one pass over its samples, instead of a
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["block_mean_u8", "profile_crossings", "profile_levels", "profile_maps"]
+__all__ = ["block_mean_u8", "profile_crossings", "profile_levels", "profile_maps", "surface_threshold"]
 
 
 @njit(cache=True, nogil=True)
@@ -169,4 +169,19 @@ def block_mean_u8(img, f):
             for c in range(j * f, j * f + f):
                 s += rows[c]
             out[i, j] = np.float32(s) * scale
+    return out
+
+
+@njit(cache=True, nogil=True)
+def surface_threshold(small, row, col, X, Y, c4, sign, hi, lo):
+    """The object mask of :func:`.segment.segment` in one pass (h, w) uint8: with the background surface
+    ``bg = (row[j] + col[i]) + c4 (Y[i] X[j])`` and ``dev = (small - bg) sign``, 1 where ``dev > hi`` or
+    ``dev < lo``; float32 throughout, operation for operation as the numpy broadcasts compute it."""
+    hs, ws = small.shape
+    out = np.empty((hs, ws), np.uint8)
+    for i in range(hs):
+        ci, yi = col[i], Y[i]
+        for j in range(ws):
+            dev = (small[i, j] - ((row[j] + ci) + c4 * (yi * X[j]))) * sign
+            out[i, j] = 1 if (dev > hi or dev < lo) else 0
     return out
