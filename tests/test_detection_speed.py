@@ -185,3 +185,23 @@ def test_distance_cut_to_its_box_equals_the_full_transform():
         near = full <= reach
         np.testing.assert_array_equal(got <= reach, near)
         np.testing.assert_array_equal(got[near], full[near])
+
+
+def test_closings_sharing_the_distance_to_the_region_equal_separate_ones():
+    """A series of disk closings that takes its dilation's distances from one transform of the most padded
+    copy equals closings computed one by one, bit for bit (a region touching the image border included)."""
+    from notchfit.vision.detection.width import _close_disk, _distance_to
+
+    rng = np.random.default_rng(7)
+    for k in range(20):
+        h, w = (int(v) for v in rng.integers(40, 200, 2))
+        m = np.zeros((h, w), np.uint8)
+        for _ in range(rng.integers(1, 6)):
+            cv2.circle(m, (int(rng.integers(w)), int(rng.integers(h))), int(rng.integers(2, 25)), 1, -1)
+        m &= (rng.random((h, w)) > 0.05 * (k % 3)).astype(np.uint8)
+        near = _distance_to(m, 30)
+        for r in (1, 2, 3, 6, 12, 28):
+            a, pa = _close_disk(m, r)
+            b, pb = _close_disk(m, r, near=near)
+            assert pa == pb
+            np.testing.assert_array_equal(a, b)
