@@ -205,3 +205,33 @@ def test_closings_sharing_the_distance_to_the_region_equal_separate_ones():
             b, pb = _close_disk(m, r, near=near)
             assert pa == pb
             np.testing.assert_array_equal(a, b)
+
+
+def _width_crossings_numpy(t, P, level, t0, sign):
+    """The numpy formulation of the width profiles' nearest crossing (the reference)."""
+    q = sign * (P - level[:, None])
+    with np.errstate(invalid="ignore"):
+        cr = (q[:, :-1] < 0) & (q[:, 1:] >= 0)
+    d = np.where(cr, np.abs(t[None, :-1] - t0[:, None]), np.inf)
+    j = np.argmin(d, axis=1)
+    rows = np.arange(len(P))
+    q0, q1 = q[rows, j], q[rows, j + 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tc = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
+    return np.where(np.isfinite(d[rows, j]), tc, np.nan)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_width_profile_crossings_equal_the_numpy_formulation(sign):
+    """Several crossings per row (the nearest taken, ties to the first), none, NaN samples (outside the
+    image), an infinite level (no level fitted) and a NaN centre."""
+    from notchfit.vision.detection.width import _crossings
+
+    rng = np.random.default_rng(8)
+    prof, _, _, t = _profiles(rng)
+    prof[:, ::7] += rng.normal(0, 60, prof[:, ::7].shape)           # extra crossings
+    level = rng.uniform(60, 180, len(prof))
+    level[rng.random(len(prof)) < 0.05] = np.inf
+    t0 = np.round(rng.normal(0, 2, len(prof)) * 2) / 2               # on the samples: equidistant ties
+    t0[rng.random(len(prof)) < 0.03] = np.nan
+    np.testing.assert_array_equal(_crossings(t, prof, level, t0, sign), _width_crossings_numpy(t, prof, level, t0, sign))

@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["block_mean_u8", "profile_crossings", "profile_levels", "profile_maps", "surface_threshold"]
+__all__ = ["block_mean_u8", "nearest_crossings", "profile_crossings", "profile_levels", "profile_maps",
+           "surface_threshold"]
 
 
 @njit(cache=True, nogil=True)
@@ -184,4 +185,32 @@ def surface_threshold(small, row, col, X, Y, c4, sign, hi, lo):
         for j in range(ws):
             dev = (small[i, j] - ((row[j] + ci) + c4 * (yi * X[j]))) * sign
             out[i, j] = 1 if (dev > hi or dev < lo) else 0
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def nearest_crossings(t, P, level, t0, sign):
+    """Per row of ``P`` (rows, n): the interpolated crossing of ``level[row]`` nearest ``t0[row]`` where
+    ``sign (P - level)`` goes from < 0 to >= 0, NaN where there is none (:func:`.width._crossings`, one
+    pass per row; numpy's ``argmin`` semantics: the first nearest, a NaN distance first)."""
+    rows, n = P.shape
+    out = np.empty(rows)
+    for r in range(rows):
+        lv, c = level[r], t0[r]
+        best_j, best = 0, np.inf
+        q_prev = sign * (P[r, 0] - lv)
+        for k in range(n - 1):
+            q_next = sign * (P[r, k + 1] - lv)
+            d = np.abs(t[k] - c) if (q_prev < 0 and q_next >= 0) else np.inf
+            if k == 0 or np.isnan(d) or d < best:
+                best_j, best = k, d
+                if np.isnan(d):
+                    break
+            q_prev = q_next
+        if not np.isfinite(best):
+            out[r] = np.nan
+            continue
+        j = best_j
+        q0, q1 = sign * (P[r, j] - lv), sign * (P[r, j + 1] - lv)
+        out[r] = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
     return out

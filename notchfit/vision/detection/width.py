@@ -18,6 +18,8 @@ import math
 import cv2
 import numpy as np
 
+from ._kernels import nearest_crossings
+
 __all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along",
            "tube_radius"]
 
@@ -235,17 +237,10 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
 
 def _crossings(t, P, level, t0, sign):
     """Per row: interpolated crossing of ``level`` (rows,) nearest ``t0`` (rows,) where ``sign * (P - level)``
-    goes from < 0 to >= 0; NaN where there is none."""
-    q = sign * (P - level[:, None])
-    with np.errstate(invalid="ignore"):
-        cr = (q[:, :-1] < 0) & (q[:, 1:] >= 0)
-    d = np.where(cr, np.abs(t[None, :-1] - t0[:, None]), np.inf)
-    j = np.argmin(d, axis=1)
-    rows = np.arange(len(P))
-    q0, q1 = q[rows, j], q[rows, j + 1]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tc = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
-    return np.where(np.isfinite(d[rows, j]), tc, np.nan)
+    goes from < 0 to >= 0; NaN where there is none (compiled: :func:`._kernels.nearest_crossings`)."""
+    f = lambda a: np.ascontiguousarray(np.broadcast_to(np.asarray(a, float), (len(P),)))
+    return nearest_crossings(np.ascontiguousarray(t, float), np.ascontiguousarray(P, float), f(level), f(t0),
+                             float(sign))
 
 
 def _line_levels(t, P, t0, win):
@@ -401,8 +396,9 @@ def band_width_along(img, centres, normals, width0_px: float, contrast: float, *
     t = np.arange(-reach * width0_px, reach * width0_px + step, step)
     pts = centres[:, None, :] + t[None, :, None] * normals[:, None, :]
     H, W = img.shape
-    lo = np.maximum(np.floor(pts.reshape(-1, 2).min(0)) - 2, 0).astype(int)
-    hi = np.minimum(np.ceil(pts.reshape(-1, 2).max(0)) + 3, [W, H]).astype(int)
+    xs, ys = pts[..., 0], pts[..., 1]
+    lo = np.maximum(np.floor([xs.min(), ys.min()]) - 2, 0).astype(int)
+    hi = np.minimum(np.ceil([xs.max(), ys.max()]) + 3, [W, H]).astype(int)
     if np.any(hi <= lo):
         nan = np.full(len(centres), np.nan)
         return nan, nan, nan
