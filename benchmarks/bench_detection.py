@@ -30,7 +30,9 @@ error, the spread of (found - true) / sigma; --pbr-render re-renders the gallery
 Speed side by side (--speed): ms per 1920x1200 seed image, per 16 MP photograph (the lab's wrist in a
 chuck, 4928x3264 at 130 px/mm) and per 2 MP phone photograph (a large printed tube on coloured paper,
 1320x1629 at 20 px/mm, its base entering from the image border), with the camera and without it, all
-in one run (best of --repeat each), with the corners found.
+in one run (best of --repeat each, wall and CPU time), with the corners found; then what the first
+seed image costs in a fresh interpreter (as the CLI on one image), with the numba kernels loaded from
+their on-disk cache and compiled into an empty one.
 
 Run:  python benchmarks/bench_detection.py [--images 12] [--repeat 3]
       python benchmarks/bench_detection.py --speed [--repeat 5]
@@ -44,15 +46,19 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
+from pathlib import Path
 
 import cv2
 import numpy as np
 
-from notchfit.vision.camera import CameraModel
-from notchfit.vision.detection import detect_notches, mirror_without_camera
-from notchfit.physics.geometry import default_geometry
-from notchfit.vision.render import place_in_view, render_manipulator
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))            # this checkout's notchfit, not an installed one
+from notchfit.vision.camera import CameraModel  # noqa: E402
+from notchfit.vision.detection import detect_notches, mirror_without_camera  # noqa: E402
+from notchfit.physics.geometry import default_geometry  # noqa: E402
+from notchfit.vision.render import place_in_view, render_manipulator  # noqa: E402
 
 
 def generic(image, max_corners=400, quality=0.01, min_distance=5, win=5):
@@ -205,6 +211,52 @@ def speed(repeat, seed):
     ms, cpu, _ = _best_ms(lambda: generic(cases[0][1].image), repeat)
     print(f"(reference in the same run: goodFeaturesToTrack + cornerSubPix on the 1920x1200 image, {ms:.0f} ms, "
           f"{cpu:.0f} ms CPU)")
+    name, r, c, g, _ = cases[0]
+    for cold in (False, True):
+        t = _first_images(r.image, c, g, cold)
+        how = "numba kernels compiled into an empty cache" if cold else "numba kernels from their on-disk cache"
+        print(f"first seed image in a fresh interpreter ({how}): import {t['import_cpu']:.0f} ms CPU, first image "
+              f"{t['first_cpu']:.0f} ms CPU ({t['first_wall']:.0f} ms), second {t['second_cpu']:.0f} ms CPU",
+              flush=True)
+
+
+_FIRST = """
+import json, pickle, sys, time
+c0 = time.process_time()
+from notchfit.vision.detection import detect_notches
+out = {"import_cpu": 1e3 * (time.process_time() - c0)}
+image, camera, geom = pickle.load(open(sys.argv[1], "rb"))
+for k in ("first", "second"):
+    c0, w0 = time.process_time(), time.perf_counter()
+    detect_notches(image, camera, geom)
+    out[k + "_cpu"], out[k + "_wall"] = 1e3 * (time.process_time() - c0), 1e3 * (time.perf_counter() - w0)
+print(json.dumps(out))
+"""
+
+
+def _first_images(image, camera, geom, cold: bool) -> dict:
+    """CPU and wall ms of importing the detector and of its first and second image in a fresh interpreter
+    (this checkout); ``cold``: the numba kernels compile into an empty cache (a fresh install, a changed
+    kernel) instead of loading from theirs."""
+    import json
+    import os
+    import pickle
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "case.pkl")
+        with open(path, "wb") as fh:
+            pickle.dump((image, camera, geom), fh)
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        if cold:
+            env["NUMBA_CACHE_DIR"] = os.path.join(tmp, "numba")
+        else:
+            # the kernels' cache filled before the timed run
+            subprocess.run([sys.executable, "-c", _FIRST, path], env=env, capture_output=True, check=True)
+        done = subprocess.run([sys.executable, "-c", _FIRST, path], env=env, capture_output=True, text=True,
+                              check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def scene_rows(per_scene, seed, size=(4928, 3264), px_per_mm=130.0, repeat=2):

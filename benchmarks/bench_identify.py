@@ -20,12 +20,13 @@ and 5 mN load-cell noise, truth by the reference solver (recipe as in
   loading-only trials (5, 4, 4) of 11 samples, cut errors of 10 um, 0.5 deg noise; the fit on every
   trial (4 shared parameters, 28 per-tube unknowns), 13 leave-one-trial-out and 3 leave-one-tube-out
   refits, with ``--jobs 1`` and ``--jobs 2``: wall and CPU time (the parent's and its workers'),
-  beside the same with every held-out fit run from its probe grid (``warm_start=False``). Target:
-  <= 10 s on 2 cores.
+  beside the same with every held-out fit run from its probe grid (``warm_start=False``; ``--no-cold``
+  leaves it out). Target: <= 10 s on 2 cores. On a shared machine compare CPU seconds, and wall times
+  of runs alternated with the version before (``benchmarks/compare_versions.py``).
 
 Usage::
 
-    python benchmarks/bench_identify.py [--jobs 1,2] [--only stock]
+    python benchmarks/bench_identify.py [--jobs 1,2] [--only stock] [--no-cold]
 """
 
 from __future__ import annotations
@@ -90,28 +91,29 @@ def _cpu() -> float:
     return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
-def bench_stock(jobs_list) -> None:
-    """identify on the 3-tube, 13-trial stock: wall and CPU time, warm-started held-out fits and not."""
+def bench_stock(jobs_list, cold: bool = True) -> None:
+    """identify on the 3-tube, 13-trial stock: wall and CPU time, warm-started held-out fits (and not)."""
     exps, _ = synthetic_stock(0)
     identify(exps[:2], heldout=False)                      # compile / load the kernels' cache
     print(f"== identify on a stock of 3 wrists, {len(exps)} trials (17 fits: all, 13 trials and 3 tubes held out)")
-    for warm in (True, False):
+    for warm in (True, False) if cold else (True,):
         for jobs in jobs_list:
             t0, c0 = time.perf_counter(), _cpu()
             r = identify(exps, jobs=jobs, warm_start=warm)
             dt, cpu = time.perf_counter() - t0, _cpu() - c0
-            tubes = ", ".join(f"{k} {v:.2f}" for k, v in r.heldout_by_tube.items())
+            tubes = ", ".join(f"{k} {v:.4f}" for k, v in r.heldout_by_tube.items())
             print(f"warm_start={warm!s:5s} --jobs {jobs}: {dt:6.1f} s wall, {cpu:6.1f} s CPU; held-out rms "
-                  f"{r.heldout_rms:.3f} deg, tubes held out: {tubes} deg")
+                  f"{r.heldout_rms:.5f} deg, tubes held out: {tubes} deg")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", default="1,2")
     ap.add_argument("--only", choices=("stock",), default=None, help="run the stock benchmark alone")
+    ap.add_argument("--no-cold", action="store_true", help="leave out the stock's fits without a warm start")
     args = ap.parse_args(argv)
     jobs_list = [int(j) for j in args.jobs.split(",")]
-    bench_stock(jobs_list)
+    bench_stock(jobs_list, cold=not args.no_cold)
     if args.only == "stock":
         return
     with tempfile.TemporaryDirectory() as tmp:

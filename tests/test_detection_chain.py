@@ -150,6 +150,44 @@ def test_a_wire_from_the_tip_to_the_image_border():
     _no_wrong_number(det, r, min_found=10)
 
 
+def test_a_tendon_loop_at_the_tip_of_a_one_sided_wrist():
+    """A tendon leaving the tip in a loop, with a droplet at its exit, rounds the tip corners off: no tip is
+    found. A one-sided wrist's slots all open on its one side, so they need no tip to be told apart from the
+    other side's; numbered from the base corners, every slot corner is found (before: none), the loop's gaps
+    are candidates that the chain does not take."""
+    cam, r = _wrist(1)
+    img = r.image.copy()
+    tip_mid = 0.5 * (r.points_px[12] + r.points_px[13])
+    out = (tip_mid - r.points_px[11]) / np.linalg.norm(tip_mid - r.points_px[11])
+    cv2.circle(img, tuple(np.round(tip_mid + 6 * out).astype(int)), 12, _tube_level(r), -1, cv2.LINE_AA)
+    cv2.circle(img, tuple(np.round(tip_mid + 50 * out).astype(int)), 40, _tube_level(r), 4, cv2.LINE_AA)
+    det = detect_notches(img, cam, WRIST)
+    ok = _no_wrong_number(det, r, min_found=10)
+    assert ok[2:12].all() and "tip corners not found" in det.message
+
+
+def test_a_tip_first_wrist_split_by_a_streak_is_not_numbered_on_the_streak():
+    """A seeded random lab scene (tests/test_detection_scenes.py's third draw): a tip-first wrist bent almost
+    shut, a streak along it. The threshold's silhouette lacks the strip beyond the streak and has no tip;
+    numbered without it, its corners lie on the streak's edge, 0.56 mm off but consistent with the chain.
+    The width check withholds them (no corner off), and the variant that found the tip keeps its 5 corners."""
+    from pathlib import Path
+
+    from notchfit.io import load_geometry
+    from notchfit.vision.render.variety import draw_scene, render_draw, score
+
+    here = Path(__file__).resolve().parent.parent / "datasets" / "geometry"
+    geoms = [WRIST.replace(backbone="section", name="lab_wrist")] + [load_geometry(here / f"{n}.toml")
+                                                                     for n in ("wrist_asymmetric", "wrist_tip_first")]
+    rng = np.random.default_rng(15)
+    for _ in range(3):
+        d = draw_scene(rng, geoms, size=(960, 640), px_per_mm=50.0)
+        r = render_draw(d, rng)
+    assert d.geom.name == "wrist_tip_first"
+    s = score(detect_notches(r.image, d.camera, d.geom), r, 50.0)
+    assert s["invented"] == 0 and s["errors_mm"].max(initial=0) <= 0.04 and s["found"] >= 5
+
+
 def test_a_double_edge_widens_the_corner_uncertainty():
     """A face seen a little from the side shows its near and far rims a few pixels apart: the profiles
     rise in two steps. edge_spread gives that edge a shared offset variance (Δ²/12 of the excess rise

@@ -8,6 +8,7 @@ import pytest
 
 from notchfit.vision.detection import DetectorOptions, detect_notches
 from notchfit.vision.detection.base import find_base, holder_mask, image_side
+from notchfit.vision.detection.edges import fit_steps
 from notchfit.vision.detection.lines import intersect, robust_group_lines
 from notchfit.vision.detection.outline import bridge_slots, crop_region, slot_mouths
 from notchfit.vision.detection.refine import CornerSpecs, refine_pass
@@ -510,3 +511,48 @@ def test_link_width_beside_a_corner_tells_an_inner_edge_from_the_outer_one():
                     1.0 / m_per_px, R_px * m_per_px)
     assert w[0] / (2 * R_px * m_per_px) == pytest.approx(1.0, abs=0.04)
     assert w[1] / (2 * R_px * m_per_px) < 0.85
+
+
+@pytest.mark.parametrize("bg", [60.0, 240.0])
+def test_local_edge_model_finds_a_step_of_either_sign_beside_a_bright_strip_under_shading(bg):
+    """A polished limb: the object's level shaded along the edge (110 -> 150), a bright strip (170) 6 px wide
+    along its edge, the background darker or brighter than the strip (a step of either sign); blurred 1 px,
+    noise 1.5. Each profile's own fitted step (edges.fit_steps) puts the edge within 0.1 px of the truth
+    along its whole length; the image-wide 50 % level between object and background would not (it lies
+    inside the strip or beyond it)."""
+    rng = np.random.default_rng(11)
+    H, W = 80, 60
+    ang = 0.05                                              # the edge: u = u_e + v tan(ang)
+    u_e = 30.3
+    ue = lambda v: u_e + v * math.tan(ang)
+    obj = polygon_coverage([np.array([[-5, -5], [ue(-5), -5], [ue(H + 5), H + 5], [-5, H + 5]])], (H, W),
+                           supersample=16)
+    strip = polygon_coverage([np.array([[ue(-5) - 6, -5], [ue(-5), -5], [ue(H + 5), H + 5],
+                                        [ue(H + 5) - 6, H + 5]])], (H, W), supersample=16)
+    shade = np.linspace(110.0, 150.0, H)[:, None]
+    img = bg + (shade - bg) * obj + (170.0 - shade) * strip
+    img = cv2.GaussianBlur(img, (0, 0), 1.0) + rng.normal(0, 1.5, (H, W))
+    nrm = np.array([math.cos(ang), -math.sin(ang)])         # object -> background, across the edge
+    v = np.arange(10.0, 70.0)
+    base = np.c_[ue(v), v] + rng.uniform(-1.0, 1.0, (len(v), 1)) * nrm      # predicted edge within 1 px
+    t = np.arange(-14, 15) * 0.5
+    pts = base[:, None, :] + t[None, :, None] * nrm
+    P = cv2.remap(img.astype(np.float32), pts[..., 0].astype(np.float32), pts[..., 1].astype(np.float32),
+                  cv2.INTER_LINEAR)
+    fits = fit_steps(P.astype(float), t, blur0=1.0)
+    assert fits.valid.mean() > 0.9
+    edge = base + fits.t0[:, None] * nrm
+    off = (edge - np.c_[ue(edge[:, 1]), edge[:, 1]]) @ nrm   # signed distance to the true edge [px]
+    off = off[fits.valid]
+    # the located edge (the mean of the crossings) within 0.1 px of the truth; single profiles within 0.5
+    assert abs(np.mean(off)) < 0.1 and np.all(np.abs(off) < 0.5)
+    ok = fits.valid
+    assert np.sign(np.median(fits.level_bg[ok] - fits.level_obj[ok])) == np.sign(bg - 170.0)
+    # the 50 % level between the profiles' far ends (the image-wide model's levels) lies off the edge
+    half = 0.5 * (P[:, :3].mean(1) + P[:, -3:].mean(1))
+    q = (P - half[:, None]) * np.sign(bg - 170.0)
+    j = np.array([np.nonzero((q[i, :-1] < 0) & (q[i, 1:] >= 0))[0][-1] for i in range(len(q))])
+    r = np.arange(len(q))
+    t50 = t[j] + q[r, j] / (q[r, j] - q[r, j + 1]) * 0.5
+    e50 = base + t50[:, None] * nrm
+    assert abs(np.mean((e50 - np.c_[ue(e50[:, 1]), e50[:, 1]]) @ nrm)) > 0.3

@@ -80,7 +80,7 @@ class FoldResult:
 def run_fold(task: FoldTask) -> FoldResult:
     """Calibrate on the training experiments, predict the held-out ones (a batch item)."""
     with threadpool_limits(limits=1):
-        cache = SimulationCache()
+        cache = SimulationCache.shared()
         train = [task.preps[i] for i in task.train]
         # the candidates whose fit may end in another basin from the baseline's (or, for a pair, the
         # first cause's) optimum are also fitted from the paper's values (specs.PAPER_START)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+from dataclasses import dataclass, field
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -35,9 +36,36 @@ from .noise import paired_z, pooled_mse, pooled_rms
 from ..estimation.observations import sample_mse
 from .results import Contribution
 from .signatures import signatures
-from .specs import CANDIDATES, PAPER_START, model_key
+from .specs import CANDIDATES, PAPER_START, Thresholds, model_key
 
-__all__ = ["contributions", "pair_sentence", "screen_pairs", "second_candidates", "second_step"]
+__all__ = ["SecondStep", "contributions", "pair_sentence", "screen_pairs", "second_candidates", "second_step"]
+
+
+@dataclass(frozen=True)
+class SecondStep:
+    """The second-cause step's outcome.
+
+    Attributes
+    ----------
+    causes : tuple of str
+        The causes named (none, the first, or the first and a second).
+    first : str
+        The first cause the step started from (the decision's, or for ``unexplained`` the better alone of the
+        best screened pair).
+    results : tuple of CandidateResult
+        Each cross-validated pair scored against ``first`` alone.
+    within_noise : bool
+        ``first`` alone explains the held-out data within the noise (no second cause tried).
+    screened : dict
+        The screen's ``{model key: (Calibration, in-sample mse, start)}`` (empty without one).
+    """
+
+    causes: tuple
+    first: str
+    results: tuple = ()
+    within_noise: bool = False
+    screened: dict = field(default_factory=dict)
+
 
 def second_candidates(c1: str, cands, *, max_second: int = 4) -> list[str]:
     """Second causes worth fitting with ``c1``: the other single candidates, best held-out first, at
@@ -54,7 +82,7 @@ def _fit_all(args):
     """A model fitted on every experiment and its in-sample mean squared error (a batch item)."""
     preps, model, start, scales, base, kw, variant = args
     with threadpool_limits(limits=1):
-        cache = SimulationCache()
+        cache = SimulationCache.shared()
         cal = calibrate(preps, model, start, cache=cache, scales=scales, base=base,
                         paper_start=model[-1] in PAPER_START, **kw)
         reg = cal.registration or (None,) * len(preps)
@@ -117,9 +145,8 @@ def _to_cross_validate(c1, second, screen, noise, min_excess_removed, screen_tol
     return [c for c in order if ms[c] <= screen_tol * ms[order[0]]][:max_cv]
 
 
-def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit: float,
-                min_excess_removed: float, none_tol: float, against_baseline=None, screen=None,
-                screen_tol: float = 1.05, max_cv: int = 2):
+def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thresholds, *, against_baseline=None,
+                screen=None, screen_tol: float = 1.05, max_cv: int = 2):
     """Fit ``c1`` with each second candidate and name the best if it is significant.
 
     Parameters
@@ -135,7 +162,7 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
         The noise floor [m² or rad²].
     second : sequence of str
         The second candidates (:func:`second_candidates`).
-    z_crit, min_excess_removed, none_tol : float
+    rule : Thresholds
         The thresholds of the first step, applied to this one.
     against_baseline : (list of ndarray, float), optional
         The baseline's per-sample held-out errors and their mean: when ``c1``
@@ -163,11 +190,11 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
     m1 = held[c1]
     mse1 = m1.sample_mse(preps)
     ms1 = pooled_mse(mse1)
-    if ms1 <= noise * (1.0 + none_tol) or not second:
+    if ms1 <= noise * (1.0 + rule.none_tol) or not second:
         return None, {}, (), {}
     screened = screen(second) if screen is not None else {}
     if screened:
-        second = _to_cross_validate(c1, second, screened, noise, min_excess_removed, screen_tol, max_cv)
+        second = _to_cross_validate(c1, second, screened, noise, rule.min_excess_removed, screen_tol, max_cv)
         if not second:
             return None, {}, (), screened
     models = [(c1, c2) for c2 in second]
@@ -177,14 +204,14 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, *, z_crit
         starts[model_key(m)] = [union_start(c.values, c1, held[m[1]].calibrations[k].values) if union
                                 else c.values for k, c in enumerate(m1.calibrations)]
     hp = run(models, starts)
-    res = tuple(score_candidate(m, hp[model_key(m)], preps, mse1, ms1, ms1 - noise, z_crit=z_crit,
-                                min_excess_removed=min_excess_removed, new=(m[1],)) for m in models)
+    res = tuple(score_candidate(m, hp[model_key(m)], preps, mse1, ms1, ms1 - noise, z_crit=rule.z_crit,
+                                min_excess_removed=rule.min_excess_removed, new=(m[1],)) for m in models)
     best = min(res, key=lambda r: r.heldout_rms)
     ok = best.significant
     if ok and against_baseline is not None:
         base_mse, base_ms = against_baseline
         ok = score_candidate(best.cause.split("+"), hp[best.cause], preps, base_mse, base_ms, base_ms - noise,
-                             z_crit=z_crit, min_excess_removed=min_excess_removed).significant
+                             z_crit=rule.z_crit, min_excess_removed=rule.min_excess_removed).significant
     c2 = best.cause.split("+")[1] if ok else None
     return c2, hp, res, screened
 
@@ -254,17 +281,18 @@ def contributions(causes, held: dict, preps, noise: float, values: dict, *, metr
     return tuple(sorted(out, key=lambda c: -c.share))
 
 
-def pair_sentence(causes, contribs, pair_results, c1: str, *, metric: str, z_crit: float,
-                  min_removed: float, within_noise: bool, alone: bool = True, screened=None) -> str:
-    """The second step and each cause's contribution, in words (``alone``: ``c1`` was significant
-    by itself; ``screened``: the screen's ``{model key: (Calibration, in-sample mse)}``)."""
+def pair_sentence(step: SecondStep, contribs, rule: Thresholds, *, metric: str, alone: bool = True) -> str:
+    """The second step and each cause's contribution, in words (``contribs``: the named causes'
+    :class:`Contribution`; ``alone``: the first cause was significant by itself)."""
+    causes, pair_results, c1, screened = tuple(c.cause for c in contribs), step.results, step.first, step.screened
+    z_crit, min_removed = rule.z_crit, rule.min_excess_removed
     if not alone and len(causes) == 2:
         r = next(x for x in pair_results if set(x.cause.split("+")) == set(causes))
         step = (f" No cause is significant alone, but two together are: starting from the best single "
                 f"candidate, {c1}, {r.cause} lowers the held-out rms to {fmt_err(r.heldout_rms, metric)} "
                 f"(z = {r.z:.1f} against {c1} alone, {100 * r.excess_removed:.0f}% of its remaining excess "
                 "over noise; significant against the baseline as well).")
-    elif within_noise:
+    elif step.within_noise:
         step = f" {c1} alone explains the held-out data within the noise: no second cause was tried."
     elif not pair_results and screened and len(screened) > 1:
         best = min((k for k in screened if "+" in k), key=lambda k: screened[k][1])

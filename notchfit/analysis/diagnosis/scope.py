@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import multiprocessing
+from dataclasses import dataclass
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -110,17 +111,31 @@ def applicable_causes(preps, causes) -> tuple[tuple, dict, dict]:
     return tuple(c for c in causes if c not in skipped), skipped, reveal
 
 
-def _fit_ramp(args):
+@dataclass(frozen=True)
+class _RampFits:
+    """What the protocol's calibrations share: the experiments, those whose protocol is recorded, the base
+    model, the study scales, :func:`calibrate`'s options and the noise floors' seed."""
+
+    preps: tuple
+    known: set
+    base: object
+    scales: object
+    calibrate_kw: dict
+    seed: int
+
+
+def _fit_ramp(item):
     """Baseline on every experiment with the unknown protocols set to one ramp time, its mean squared
-    error and its noise floor [m² or rad²] (a batch item)."""
-    preps, ramp, known, base, scales, kw, seed = args
-    preps = tuple(p if p.name in known else dataclasses.replace(p, ramp_time=ramp) for p in preps)
+    error and its noise floor [m² or rad²] (a batch item: ``(_RampFits, ramp time [s])``)."""
+    fits, ramp = item
+    preps = tuple(p if p.name in fits.known else dataclasses.replace(p, ramp_time=ramp) for p in fits.preps)
+    base = fits.base
     with threadpool_limits(limits=1):
-        cache = SimulationCache()
-        cal = calibrate(preps, None, None, scales=scales, base=base, cache=cache, **kw)
+        cache = SimulationCache.shared()
+        cal = calibrate(preps, None, None, scales=fits.scales, base=base, cache=cache, **fits.calibrate_kw)
         pred = [predict_points(p, cal.values, cache=cache, base=base, tubes=cal.tubes)[0] for p in preps]
         ms = pooled_mse([sample_mse(p, q) for p, q in zip(preps, pred)])
-        floor = pooled_mse([noise_floor(p, cal.params(base, p.tube), cache, seed=seed) for p in preps])
+        floor = pooled_mse([noise_floor(p, cal.params(base, p.tube), cache, seed=fits.seed) for p in preps])
     return ramp, cal, ms, floor
 
 
@@ -172,20 +187,22 @@ def resolve_protocol(preps, recorded: dict, base, scales, calibrate_kw: dict | N
         text = (f"experiment.toml gives no [protocol] for {', '.join(unknown)}: a step was assumed (the "
                 "tensions jump to each sample's values and the tube comes to rest).")
     else:
-        preps, cal, text, how = _estimate(preps, known, unknown, base, scales, dict(calibrate_kw or {}),
-                                          fractions, none_tol, seed, ramp_cutoff, jobs)
+        fits = _RampFits(tuple(preps), known, base, scales, dict(calibrate_kw or {}), seed)
+        preps, cal, text, how = _estimate(fits, unknown, fractions, none_tol=none_tol, ramp_cutoff=ramp_cutoff,
+                                          jobs=jobs)
     source = {p.name: "experiment.toml" if p.name in known else how for p in preps}
     return preps, {"ramp_time_s": {p.name: p.ramp_time for p in preps}, "source": source, "text": text}, cal
 
 
-def _estimate(preps, known, unknown, base, scales, kw, fractions, none_tol, seed, ramp_cutoff, jobs):
+def _estimate(ramp_fits: _RampFits, unknown, fractions, *, none_tol: float, ramp_cutoff: float, jobs: int):
     """A step unless only a ramp brings the calibrated baseline within the noise (module docstring)."""
+    preps, known = ramp_fits.preps, ramp_fits.known
     dt = float(np.median(np.concatenate([np.diff(p.time) for p in preps if p.name in unknown])))
-    _, cal0, ms0, fl0 = _fit_ramp((tuple(preps), 0.0, known, base, scales, kw, seed))
+    _, cal0, ms0, fl0 = _fit_ramp((ramp_fits, 0.0))
     fits = {0.0: (cal0, ms0 / fl0)}
     if 1.0 + none_tol < ms0 / fl0 <= ramp_cutoff:
         ramps = [round(f * dt, 6) for f in fractions]
-        items = [(tuple(preps), r, known, base, scales, kw, seed) for r in ramps]
+        items = [(ramp_fits, r) for r in ramps]
         res = run_batch(_fit_ramp, items, keys=[f"ramp {r:g} s" for r in ramps], jobs=jobs, progress=False,
                         start_method=multiprocessing.get_start_method())
         if res.failures:

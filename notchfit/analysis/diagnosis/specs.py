@@ -13,6 +13,8 @@ baseline, ``("joint_hysteresis",)`` one cause, two causes for a pair.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from ..causes import CAUSES, REGISTRY
 from ..estimation.specs import BASELINE, BASELINE_MU_EXCESS, MATERIAL_BASELINE, ParamSpec, StudyScales
 from ..estimation.specs import baseline_specs as paper_baseline_specs
@@ -34,12 +36,35 @@ __all__ = [
     "WARP_RADIUS",
     "ParamSpec",
     "StudyScales",
+    "Thresholds",
     "as_model",
     "baseline_specs",
     "model_key",
     "model_params",
     "specs_for",
 ]
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """The decision rule's thresholds (:func:`notchfit.analysis.diagnosis.diagnose`), the same for the first
+    cause and the second.
+
+    Attributes
+    ----------
+    none_tol : float
+        ``none`` (no second cause) when the held-out mean squared error is below ``1 + none_tol`` times
+        the noise floor.
+    z_crit : float
+        Significance of a held-out improvement (paired z).
+    min_excess_removed : float
+        Fraction of the excess over the noise floor a candidate must remove.
+    """
+
+    none_tol: float = 0.5
+    z_crit: float = 3.0
+    min_excess_removed: float = 0.3
+
 
 #: Extension parameters of each cause (:attr:`notchfit.analysis.causes.Cause.params`).
 CANDIDATES: dict[str, tuple[ParamSpec, ...]] = {c.id: c.params for c in REGISTRY.values()}

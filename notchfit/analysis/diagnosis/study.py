@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import partial
+from typing import Callable
 
 import numpy as np
 
@@ -13,13 +14,13 @@ from .calibration import calibrate
 from .crossval import folds_by_experiment, run_folds
 from .decision import decide, explain, hysteresis_shape, rank_candidates, score_candidate
 from .noise import pooled_mse, pooled_rms
-from .pairs import contributions, pair_sentence, screen_pairs, second_candidates, second_step
+from .pairs import SecondStep, contributions, pair_sentence, screen_pairs, second_candidates, second_step
 from .replicates import heldout_lack_of_fit, lack_of_fit_first
 from ..estimation.observations import choose_metric, observe_study
 from .results import Diagnosis, Gain
 from .scope import applicable_causes, base_model, resolve_protocol
 from .signatures import signatures, skipped_signatures
-from .specs import CANDIDATES, CAUSES, StudyScales, model_key
+from .specs import CANDIDATES, CAUSES, StudyScales, Thresholds, model_key
 from .tubes import has_tube_unknowns
 
 __all__ = ["diagnose"]
@@ -60,6 +61,23 @@ def _baseline_words(base, preps) -> str:
     return "the paper's friction model with k_lin, k_mid and μ_d fitted"
 
 
+@dataclass(frozen=True)
+class _Options:
+    """What :func:`diagnose` was asked: the candidates, the measurements compared, how the fits run, the
+    decision rule and the second-cause step."""
+
+    causes: tuple
+    metric: str
+    estimate_protocol: bool
+    calibrate_kw: dict
+    jobs: int
+    seed: int
+    say: Callable
+    rule: Thresholds
+    second_cause: bool
+    max_second: int
+
+
 @dataclass
 class _Study:
     """The prepared study and what every fit shares."""
@@ -73,24 +91,53 @@ class _Study:
     order: tuple = ()
 
 
-def _setup(experiments, causes, metric, estimate_protocol, kw, jobs, say, *, none_tol, seed) -> _Study:
+@dataclass(frozen=True)
+class _First:
+    """The first step: the decision on the single candidates.
+
+    ``cause`` the decision (a candidate, ``none`` or ``unexplained``), the discrepancy signatures, the scored
+    candidates, the baseline's held-out per-sample errors (list of (S,) [m² or rad²]), the noise floor
+    [m² or rad²] and the baseline's held-out lack of fit.
+    """
+
+    cause: str
+    sigs: list
+    cands: list
+    base_mse: list
+    noise: float
+    lack_of_fit: object
+
+
+@dataclass(frozen=True)
+class _Fits:
+    """The models fitted on every experiment (the baseline, the extended one or None) and the extended
+    model's held-out per-sample errors and lack of fit (the baseline's without a named cause; None)."""
+
+    baseline: object
+    extended: object
+    ext_mse: list
+    ext_lack_of_fit: object
+
+
+def _setup(experiments, opts: _Options) -> _Study:
     """Measurements, base model, scales, protocol and the candidates that apply."""
-    metric = choose_metric(experiments, metric)
+    say, kw = opts.say, opts.calibrate_kw
+    metric = choose_metric(experiments, opts.metric)
     say(f"registering measurements and fitting measured shapes ({metric})")
     preps = observe_study(experiments, metric)
     base = base_model(preps)
     scales = StudyScales.of(preps, base)
     recorded = {e.name: e.ramp_time for e in experiments}
-    if any(v is None for v in recorded.values()) and estimate_protocol:
+    if any(v is None for v in recorded.values()) and opts.estimate_protocol:
         say("estimating the protocol of the experiments without [protocol]")
-    preps, protocol, cal = resolve_protocol(preps, recorded, base, scales, kw, estimate=estimate_protocol,
-                                            none_tol=none_tol, seed=seed, jobs=jobs)
-    usable, skipped, reveal = applicable_causes(preps, causes)
+    preps, protocol, cal = resolve_protocol(preps, recorded, base, scales, kw, estimate=opts.estimate_protocol,
+                                            none_tol=opts.rule.none_tol, seed=opts.seed, jobs=opts.jobs)
+    usable, skipped, reveal = applicable_causes(preps, opts.causes)
     return _Study(preps, base, scales, protocol, cal,
                   {"signatures": skipped_signatures(preps), "candidates": skipped, "experiments": reveal}, usable)
 
 
-def _masked_first(st: _Study, cands, held, kw, jobs, say):
+def _masked_first(st: _Study, opts: _Options, cands, held):
     """For ``unexplained``: every pair of the candidates screened on all experiments; the pair that
     lowers the in-sample error most gives the first cause (the one better alone) and the second.
 
@@ -100,47 +147,46 @@ def _masked_first(st: _Study, cands, held, kw, jobs, say):
             if c.cause in st.order and (not REGISTRY[c.cause].second_if_significant or c.significant)]
     if len(pool) < 2:
         return None, None, {}
-    say(f"no single cause is significant: screening the {len(pool) * (len(pool) - 1) // 2} pairs of candidates")
+    opts.say(f"no single cause is significant: screening the {len(pool) * (len(pool) - 1) // 2} pairs of "
+             "candidates")
     screened = {}
     for i, a in enumerate(pool[:-1]):
         screened.update(screen_pairs(a, pool[i + 1:], st.preps, held[a].mean_values(), scales=st.scales,
                                      others={c: held[c].mean_values() for c in pool[i + 1:]}, base=st.base,
-                                     calibrate_kw=kw, jobs=jobs))
+                                     calibrate_kw=opts.calibrate_kw, jobs=opts.jobs))
     best = min((k for k in screened if "+" in k), key=lambda k: screened[k][1])
     first, second = best.split("+")
     return first, second, screened
 
 
-def _second(st: _Study, cause, held, cands, run, noise, base_mse, *, second_cause, max_second, z_crit,
-            min_excess_removed, none_tol, say, kw, jobs):
-    """The second-cause step (:mod:`notchfit.analysis.diagnosis.pairs`): (causes, pair results, within noise,
-    first cause, screened fits). For ``unexplained`` (two strong effects can each keep the other's
-    candidate from significance) every pair is screened and the best is cross-validated from the
-    candidate better alone; it must be significant against the baseline too."""
+def _second(st: _Study, opts: _Options, held, step: _First, run) -> SecondStep:
+    """The second-cause step (:mod:`notchfit.analysis.diagnosis.pairs`). For ``unexplained`` (two strong
+    effects can each keep the other's candidate from significance) every pair is screened and the best is
+    cross-validated from the candidate better alone; it must be significant against the baseline too."""
+    cause, cands, noise, base_mse = step.cause, step.cands, step.noise, step.base_mse
     base_ms = pooled_mse(base_mse)
-    if not second_cause or (cause not in CANDIDATES and cause != "unexplained"):
-        return ((cause,) if cause in CANDIDATES else ()), (), False, cause, {}
+    if not opts.second_cause or (cause not in CANDIDATES and cause != "unexplained"):
+        return SecondStep((cause,) if cause in CANDIDATES else (), cause)
     if cause == "unexplained":
-        first, c2, pre = _masked_first(st, cands, held, kw, jobs, say)
+        first, c2, pre = _masked_first(st, opts, cands, held)
         if first is None:
-            return (), (), False, cause, {}
+            return SecondStep((), cause)
         second, against, screen = [c2], (base_mse, base_ms), (lambda sec: pre)
     else:
         first, against = cause, None
-        second = [c for c in second_candidates(first, cands, max_second=max_second) if c in st.order]
+        second = [c for c in second_candidates(first, cands, max_second=opts.max_second) if c in st.order]
         screen = partial(screen_pairs, first, preps=st.preps, start=held[first].mean_values(), scales=st.scales,
-                         others={c: held[c].mean_values() for c in second}, base=st.base, calibrate_kw=kw,
-                         jobs=jobs)
+                         others={c: held[c].mean_values() for c in second}, base=st.base,
+                         calibrate_kw=opts.calibrate_kw, jobs=opts.jobs)
         if second:
-            say(f"screening {len(second)} second causes with {first} on all experiments")
-    within = pooled_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + none_tol)
-    c2, hp, res, screened = second_step(first, held, st.preps, run, noise, second, z_crit=z_crit,
-                                        min_excess_removed=min_excess_removed, none_tol=none_tol,
+            opts.say(f"screening {len(second)} second causes with {first} on all experiments")
+    within = pooled_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + opts.rule.none_tol)
+    c2, hp, res, screened = second_step(first, held, st.preps, run, noise, second, opts.rule,
                                         against_baseline=against, screen=screen)
     held.update(hp)
     if against is not None:
-        return ((first, c2) if c2 else ()), res, within, first, screened
-    return ((first, c2) if c2 else (first,)), res, within, first, screened
+        return SecondStep((first, c2) if c2 else (), first, res, within, screened)
+    return SecondStep((first, c2) if c2 else (first,), first, res, within, screened)
 
 
 def _extended(st: _Study, causes, held, screened, kw):
@@ -217,10 +263,13 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     -------
     Diagnosis
     """
-    say, kw, unknown = progress or (lambda msg: None), dict(calibrate_kw or {}), set(causes) - set(CAUSES)
+    unknown = set(causes) - set(CAUSES)
     if unknown:
         raise ValueError(f"unknown cause(s) {sorted(unknown)}; known: {', '.join(CAUSES)}")
-    st = _setup(experiments, tuple(causes), metric, estimate_protocol, kw, jobs, say, none_tol=none_tol, seed=seed)
+    opts = _Options(tuple(causes), metric, estimate_protocol, dict(calibrate_kw or {}), jobs, seed,
+                    progress or (lambda msg: None), Thresholds(none_tol, z_crit, min_excess_removed), second_cause,
+                    max_second)
+    say, kw, st = opts.say, opts.calibrate_kw, _setup(experiments, opts)
     preps, folds = st.preps, folds_by_experiment(len(st.preps), max_folds)
     run = partial(run_folds, preps, folds, calibrate_kw=kw, seed=seed, jobs=jobs, scheduler=scheduler,
                   scales=st.scales, base=st.base)
@@ -234,7 +283,6 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     say(f"fitting {len(order)} candidate extensions")
     singles = run(order, {c: base_start for c in order}) if order else {}
     held.update(singles)
-
     base_mse = base.sample_mse(preps)
     base_ms = pooled_mse(base_mse)
     noise = _noise(base, singles, preps)
@@ -244,16 +292,14 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
                              min_excess_removed=min_excess_removed) for c in order]
     lof_kw = dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
     cause, lof = _lack_of_fit_first(cands, base_ms, preps, base, lof_kw, noise, none_tol)
-    named, pair_res, within, first, screened = _second(
-        st, cause, held, cands, run, noise, base_mse, second_cause=second_cause, max_second=max_second,
-        z_crit=z_crit, min_excess_removed=min_excess_removed, none_tol=none_tol, say=say, kw=kw, jobs=jobs)
+    first = _First(cause, sigs, cands, base_mse, noise, lof)
+    second = _second(st, opts, held, first, run)
+    named = second.causes
     say(f"fitting the extended model ({model_key(named)}) on all experiments")
-    extended = _extended(st, named, held, screened, kw)
-    ext_mse = held[model_key(named)].sample_mse(preps) if named else base_mse
-    ext_lof = heldout_lack_of_fit(preps, held[model_key(named)].predicted, **lof_kw) if named else None
-    return _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
-                   ext_mse, noise, seed, screened, (lof, ext_lof), none_tol=none_tol, z_crit=z_crit,
-                   min_removed=min_excess_removed)
+    fits = _Fits(full_base, _extended(st, named, held, second.screened, kw),
+                 held[model_key(named)].sample_mse(preps) if named else base_mse,
+                 heldout_lack_of_fit(preps, held[model_key(named)].predicted, **lof_kw) if named else None)
+    return _result(st, opts, held, first, second, fits)
 
 
 def _lack_of_fit_first(cands, base_ms: float, preps, base, lof_kw: dict, noise: float, none_tol: float):
@@ -265,21 +311,19 @@ def _lack_of_fit_first(cands, base_ms: float, preps, base, lof_kw: dict, noise: 
     return lack_of_fit_first(cause, lof, noise, preps[0].point_factor, none_tol=none_tol), lof
 
 
-def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_base, extended, base_mse,
-            ext_mse, noise, seed, screened, lofs, *, none_tol, z_crit, min_removed) -> Diagnosis:
+def _result(st: _Study, opts: _Options, held, first: _First, second: SecondStep, fits: _Fits) -> Diagnosis:
     """The :class:`Diagnosis`: contributions, explanation, gains."""
-    preps = st.preps
+    preps, rule, named, cause, sigs = st.preps, opts.rule, second.causes, first.cause, first.sigs
     metric = preps[0].metric
-    base_rms, noise_rms = math.sqrt(pooled_mse(base_mse)), math.sqrt(noise)
-    contribs = contributions(named, held, preps, noise, extended.values, metric=metric) if named else ()
+    base_rms, noise_rms = math.sqrt(pooled_mse(first.base_mse)), math.sqrt(first.noise)
+    extended = fits.extended
+    contribs = contributions(named, held, preps, first.noise, extended.values, metric=metric) if named else ()
     causes = tuple(c.cause for c in contribs)
-    text = explain(cause, sigs, cands, base_rms, noise_rms, none_tol=none_tol, z_crit=z_crit,
-                   min_removed=min_removed, metric=metric, baseline=_baseline_words(st.base, preps),
-                   lack_of_fit=lofs[0])
+    text = explain(cause, sigs, first.cands, base_rms, noise_rms, none_tol=rule.none_tol, z_crit=rule.z_crit,
+                   min_removed=rule.min_excess_removed, metric=metric, baseline=_baseline_words(st.base, preps),
+                   lack_of_fit=first.lack_of_fit)
     if named:
-        text += pair_sentence(causes, contribs, pair_res, first, metric=metric, z_crit=z_crit,
-                              min_removed=min_removed, within_noise=within, alone=cause == first,
-                              screened=screened)
+        text += pair_sentence(second, contribs, rule, metric=metric, alone=cause == second.first)
         if "joint_hysteresis" in named:
             text += hysteresis_shape(extended.values, st.scales.angle)
     if st.skipped["candidates"]:
@@ -287,11 +331,12 @@ def _result(st, named, cause, first, held, sigs, cands, pair_res, within, full_b
     if st.skipped["experiments"]:
         text += " To reveal what this study cannot: " + "; ".join(st.skipped["experiments"].values()) + "."
     text += " " + st.protocol["text"]
-    return Diagnosis(experiments=tuple(p.name for p in preps), baseline=full_base,
-                     baseline_heldout_rms=base_rms, discrepancies=tuple(sigs), candidates=tuple(cands),
+    return Diagnosis(experiments=tuple(p.name for p in preps), baseline=fits.baseline,
+                     baseline_heldout_rms=base_rms, discrepancies=tuple(sigs), candidates=tuple(first.cands),
                      cause=causes[0] if causes else cause, explanation=text,
-                     gain=Gain(base_rms, math.sqrt(pooled_mse(ext_mse))), extended=extended,
-                     per_regime=_per_regime(preps, base_mse, ext_mse), noise_rms=noise_rms, seed=seed,
-                     heldout=held, prepared=preps, causes=causes, contributions=contribs,
-                     pair_candidates=tuple(pair_res), metric=metric, protocol=st.protocol,
-                     skipped=st.skipped, base=st.base, lack_of_fit=lofs[0], extended_lack_of_fit=lofs[1])
+                     gain=Gain(base_rms, math.sqrt(pooled_mse(fits.ext_mse))), extended=extended,
+                     per_regime=_per_regime(preps, first.base_mse, fits.ext_mse), noise_rms=noise_rms,
+                     seed=opts.seed, heldout=held, prepared=preps, causes=causes, contributions=contribs,
+                     pair_candidates=tuple(second.results), metric=metric, protocol=st.protocol,
+                     skipped=st.skipped, base=st.base, lack_of_fit=first.lack_of_fit,
+                     extended_lack_of_fit=fits.ext_lack_of_fit)

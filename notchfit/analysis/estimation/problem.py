@@ -24,6 +24,8 @@ errors are in :mod:`notchfit.analysis.estimation.solve`.
 
 from __future__ import annotations
 
+import hashlib
+import weakref
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -33,15 +35,20 @@ from ...physics.friction import FrictionParams, simulate_angles
 from ...physics.notches import notch_points, to_plane
 from .observations import Observations
 
-__all__ = ["Block", "Problem", "Simulations", "measure_registered", "whitened", "with_values"]
+__all__ = ["Block", "Problem", "Simulations", "history_key", "measure_registered", "whitened", "with_values"]
 
 
 class Simulations:
-    """Fast-solver joint angles cached by (experiment, protocol, parameters).
+    """Fast-solver joint angles cached by (experiment's inputs, protocol, parameters).
 
     A finite-difference Jacobian perturbs parameters that need no new
     simulation (registrations, point warps) and revisits the same models; the
-    cache makes those evaluations cost only the measurement.
+    cache makes those evaluations cost only the measurement. The key is the
+    simulator's whole input (the experiment's times, tensions and geometry,
+    its protocol, the model), so one cache may serve several problems: the
+    process-wide one of :meth:`shared` lets the folds of a cross-validation
+    reuse the simulations they have in common (the same training experiment
+    under the same start model or probe), bit for bit.
 
     Parameters
     ----------
@@ -56,16 +63,50 @@ class Simulations:
         self.max_items = max_items
         self._d: dict = {}
 
+    @classmethod
+    def shared(cls, sim_kw: dict | None = None, max_items: int = 8192) -> Simulations:
+        """The process-wide cache for the solver options ``sim_kw`` (created on first use; a forked
+        worker starts with its parent's). ``max_items`` bounds its memory: (S, n) angles per history,
+        about 55 MB for 31 samples of the 27-joint seed tube."""
+        key = tuple(sorted((sim_kw or {}).items()))
+        sims = _SHARED.get(key)
+        if sims is None:
+            sims = _SHARED[key] = cls(sim_kw, max_items)
+        return sims
+
     def theta(self, obs: Observations, params: FrictionParams) -> np.ndarray:
-        """Simulated joint angles [rad] (S, n) of ``obs`` driven by its measured tensions and protocol."""
-        key = (obs.name, obs.ramp_time, params)
+        """Simulated joint angles [rad] (S, n) of ``obs`` driven by its measured tensions and protocol
+        (read-only: a cached array may be handed to other callers)."""
+        key = (history_key(obs), obs.ramp_time, params)
         th = self._d.get(key)
         if th is None:
             if len(self._d) >= self.max_items:
                 self._d.clear()
             th = predict(obs, params, self.sim_kw)
+            th.setflags(write=False)
             self._d[key] = th
         return th
+
+
+#: The process-wide caches of :meth:`Simulations.shared`, by solver options.
+_SHARED: dict = {}
+#: :func:`history_key` of the experiments seen, by object (weak: dropped with the experiment).
+_HISTORY_KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def history_key(obs: Observations) -> bytes:
+    """A digest of what the simulator is driven with besides the model and the protocol: the experiment's
+    name, sample times, tensions and geometry (computed once per experiment object)."""
+    key = _HISTORY_KEYS.get(obs)
+    if key is None:
+        h = hashlib.blake2b(digest_size=20)
+        arrays = (obs.time, obs.tension_left, obs.tension_right)
+        for part in (obs.name.encode(), repr(obs.geom).encode(),
+                     *(np.ascontiguousarray(a, dtype=float).tobytes() for a in arrays)):
+            h.update(len(part).to_bytes(8, "little"))
+            h.update(part)
+        key = _HISTORY_KEYS[obs] = h.digest()
+    return key
 
 
 def predict(obs: Observations, params: FrictionParams, sim_kw: dict | None = None) -> np.ndarray:

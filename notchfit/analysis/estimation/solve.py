@@ -137,12 +137,13 @@ class _Jacobian:
     whatever the Jacobian, and the previous one is returned: the optimum, its cost and the counts of
     evaluations are those of the full run, bit for bit, one Jacobian (``p`` residual evaluations)
     cheaper. Only scipy's status word may differ (its gradient test, ``gtol``, reads this Jacobian:
-    "xtol" where "gtol" would have been said, both a success).
+    "xtol" where "gtol" would have been said, both a success). ``J0``: the Jacobian at ``x0`` when the
+    caller has it, returned for the first call there.
     """
 
-    def __init__(self, jac, xtol: float, margin: float = 1e-9):
+    def __init__(self, jac, xtol: float, margin: float = 1e-9, x0=None, J0=None):
         self.jac, self.xtol, self.margin = jac, xtol, margin
-        self.x = self.J = None
+        self.x, self.J = (None, None) if J0 is None else (np.asarray(x0, dtype=float).copy(), J0)   # known at x0
         self.skipped = 0
 
     def __call__(self, x):
@@ -196,7 +197,7 @@ def se_values(pb: Problem, x, se) -> dict:
 
 def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_scale: float = 3.0,
           max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6, diff_rel: float = 2e-3,
-          block_steps: dict | None = None, nfev: int = 0, errors: bool = True) -> Solution:
+          block_steps: dict | None = None, nfev: int = 0, errors: bool = True, jacobian0=None) -> Solution:
     """Bounded least squares from each start; the lowest cost wins, with its standard errors.
 
     Parameters
@@ -212,12 +213,15 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
         Evaluations already spent (probes), added to the count.
     errors : bool
         Compute the standard errors (else NaN: a fit whose errors nobody reads).
+    jacobian0 : ndarray, optional
+        The ``"forward"`` Jacobian at the first start, when the caller has it (an earlier fit's at
+        that point, same steps): that run does not compute it.
     """
     best = None
-    for x0 in starts:
+    for j, x0 in enumerate(starts):
         if jac == "forward":
             h = pb.steps(x0, diff_rel, block_steps)
-            jac_of = _Jacobian(lambda x, h=h: forward_jacobian(pb, x, h), xtol)
+            jac_of = _Jacobian(lambda x, h=h: forward_jacobian(pb, x, h), xtol, x0=x0, J0=None if j else jacobian0)
         else:
             # scipy's own 2-point differences (least_squares(jac="2-point", diff_step=diff_rel)), called here
             jac_of = _Jacobian(lambda x: approx_derivative(pb.residuals, x, method="2-point", rel_step=diff_rel,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -172,11 +173,10 @@ def fit_samples(points, geom: Geometry, model, transform, *, sigma=2e-5, loss: s
     if not use.any():
         return tuple(out)
     prob = Problem(Q[use], sig[use], geom, model, T.mirror)
-    P, conv, msgs, nfev = _solve(prob, T.params, model.initial(theta0[use]), solver, loss=loss,
-                                 f_scale=f_scale, ftol=ftol, xtol=xtol, max_iter=max_iter)
-    fits = _assemble(prob, T.params, P, conv, msgs, nfev, Q[use], loss=loss, f_scale=f_scale,
-                     transform_cov=transform_cov, samples=[samples[s] for s in np.nonzero(use)[0]],
-                     sig=sig[use], npts=npts[use])
+    opts = _Settings(loss, f_scale, ftol, xtol, max_iter)
+    solved = _solve(prob, T.params, model.initial(theta0[use]), solver, opts)
+    data = _Samples(Q[use], sig[use], npts[use], [samples[s] for s in np.nonzero(use)[0]])
+    fits = _assemble(prob, T.params, solved, data, opts, transform_cov)
     for s, f in zip(np.nonzero(use)[0], fits):
         out[s] = f
     return tuple(out)
@@ -206,25 +206,58 @@ def _screen(samples, model, geom, sig, npts, min_points) -> list:
     return out
 
 
-def _solve(prob, t, P0, solver, *, loss, f_scale, ftol, xtol, max_iter):
-    """Per-sample optimum ``P`` (S, k), converged (S,), messages and evaluation counts."""
+@dataclass(frozen=True)
+class _Settings:
+    """The loss (as ``scipy.optimize.least_squares``, its scale in σ units) and the solver's tolerances
+    and iteration limit of the per-sample fits."""
+
+    loss: str
+    f_scale: float
+    ftol: float
+    xtol: float
+    max_iter: int
+
+
+@dataclass(frozen=True)
+class _Samples:
+    """The samples solved: points (S, m, 2) [m], σ (S, m) [m], valid points (S,) and ids."""
+
+    Q: np.ndarray
+    sig: np.ndarray
+    npts: np.ndarray
+    ids: list
+
+
+@dataclass(frozen=True)
+class _Solved:
+    """Per-sample optimum ``P`` (S, k), converged (S,), messages and evaluation counts (S,)."""
+
+    P: np.ndarray
+    conv: np.ndarray
+    msgs: list
+    nfev: np.ndarray
+
+
+def _solve(prob, t, P0, solver, opts: _Settings) -> _Solved:
+    """The per-sample optima of ``prob`` with the transform ``t`` fixed, from ``P0`` (S, k)."""
     if solver == "lm":
-        _, P, conv, nit, *_ = levenberg_marquardt(prob, t, P0, joint=False, loss=loss, f_scale=f_scale,
-                                                  ftol=ftol, xtol=xtol, max_iter=max_iter)
+        _, P, conv, nit, *_ = levenberg_marquardt(prob, t, P0, joint=False, loss=opts.loss, f_scale=opts.f_scale,
+                                                  ftol=opts.ftol, xtol=opts.xtol, max_iter=opts.max_iter)
         msgs = [f"converged in at most {nit} iterations" if c else
-                f"not converged in {max_iter} iterations" for c in conv]
-        return P, conv, msgs, np.full(P.shape[0], nit)
+                f"not converged in {opts.max_iter} iterations" for c in conv]
+        return _Solved(P, conv, msgs, np.full(P.shape[0], nit))
     if solver == "scipy":
-        return scipy_fits(prob, t, P0, loss, f_scale, ftol, xtol, max_iter)
+        return _Solved(*scipy_fits(prob, t, P0, opts.loss, opts.f_scale, opts.ftol, opts.xtol, opts.max_iter))
     raise ValueError(f"solver must be 'lm' or 'scipy', got {solver!r}")
 
 
-def _assemble(prob, t, P, conv, msgs, nfev, Q, *, loss, f_scale, transform_cov, samples, sig, npts):
+def _assemble(prob, t, solved: _Solved, data: _Samples, opts: _Settings, transform_cov) -> list:
     """:class:`SampleFit` of every solved sample: covariance, effective parameters, χ², status."""
     model = prob.model
     k = model.n_params
+    P, npts = solved.P, data.npts
     r, Jp, Jt, plane, theta = prob.evaluate(t, P)
-    w = loss_weights(r * r / f_scale ** 2, loss)
+    w = loss_weights(r * r / opts.f_scale ** 2, opts.loss)
     D = model.prior_jacobian()
     JpW = Jp * w[..., None]
     JtJ = np.einsum("sri,srj->sij", JpW, Jp)
@@ -234,21 +267,21 @@ def _assemble(prob, t, P, conv, msgs, nfev, Q, *, loss, f_scale, transform_cov, 
     if transform_cov is not None and np.isfinite(transform_cov).all() and np.any(transform_cov):
         G = Ainv @ np.einsum("sri,srj->sij", JpW, Jt)
         cov = cov + G @ np.asarray(transform_cov, dtype=float) @ np.swapaxes(G, 1, 2)
-    resid = plane - Q
+    resid = plane - data.Q
     chi2 = (r * r).sum(-1)
     out = []
-    for j in range(len(samples)):
-        ok = bool(conv[j] and np.isfinite(P[j]).all())
-        msg = msgs[j]
+    for j in range(len(data.ids)):
+        ok = bool(solved.conv[j] and np.isfinite(P[j]).all())
+        msg = solved.msgs[j]
         if model.n_prior == 0 and k_eff[j] < k - 0.5:
             # a parameter the points do not determine (e.g. only base-link points, or a
             # free-model joint whose links lost all their points)
             ok = False
             msg = (f"the {npts[j]} valid points determine only {k_eff[j]:.0f} of the {k} "
                    f"parameters of model {model.name!r}")
-        out.append(SampleFit(samples[j], model.name, model.param_names, P[j], cov[j], theta[j],
-                             model.basis, plane[j], resid[j], sig[j], int(npts[j]), float(k_eff[j]),
-                             float(chi2[j]), ok, msg, int(nfev[j])))
+        out.append(SampleFit(data.ids[j], model.name, model.param_names, P[j], cov[j], theta[j],
+                             model.basis, plane[j], resid[j], data.sig[j], int(npts[j]), float(k_eff[j]),
+                             float(chi2[j]), ok, msg, int(solved.nfev[j])))
     return out
 
 
@@ -324,13 +357,12 @@ def fit_experiment(points, geom: Geometry, models=("cc", "linear"), *, mirror: b
     sigma_estimated = sigma is None
     sig = as_sigma(sigma_default if sigma is None else sigma, (S, m))
     valid = np.isfinite(Q).all(-1) & np.isfinite(sig)
+    pts = _Points(Q, valid, sig, geom, mirror, sigma_estimated)
     if transform is None:
-        T, sig, theta_start = _joint_transform(Q, valid, sig, geom, tmodel, mirror, sigma_estimated,
-                                               sigma_default, settings)
+        T, sig, theta_start = _joint_transform(pts, tmodel, sigma_default, settings)
     else:
-        T, sig, theta_start = _given_transform(Q, valid, sig, geom, tmodel, transform, mirror,
-                                               sigma_estimated, dict(settings, min_points=min_points,
-                                                                     solver=solver))
+        T, sig, theta_start = _given_transform(pts, tmodel, transform,
+                                               dict(settings, min_points=min_points, solver=solver))
     if theta_start is None or not np.isfinite(theta_start).all():
         est = estimate_angles(Q, geom, T)
         theta_start = est if theta_start is None else np.where(np.isfinite(theta_start), theta_start, est)
@@ -366,16 +398,30 @@ def _shape_models(models, n_joints) -> list:
     return shape_models
 
 
-def _joint_transform(Q, valid, sig, geom, tmodel, mirror, sigma_estimated, sigma_default, settings):
+@dataclass(frozen=True)
+class _Points:
+    """One experiment's points (S, m, 2) [m], which are valid (S, m), their σ (S, m) [m] (the nominal one
+    when ``sigma_estimated``), its geometry and ``mirror`` flag."""
+
+    Q: np.ndarray
+    valid: np.ndarray
+    sig: np.ndarray
+    geom: Geometry
+    mirror: bool
+    sigma_estimated: bool
+
+
+def _joint_transform(pts: _Points, tmodel, sigma_default, settings):
     """Step 2 of :func:`fit_experiment`: the transform estimated jointly (and σ when not given).
 
     Returns the transform, the σ (S, m) [m] to use and the start angles (S, n).
     """
+    Q, geom, mirror, sig = pts.Q, pts.geom, pts.mirror, pts.sig
     loss = settings["loss"]
     T, Pt = fit_transform(Q, geom, tmodel, mirror=mirror, sigma=sig, **settings)
     theta_start = Pt @ tmodel.basis.T
-    if sigma_estimated:
-        s_hat = _estimate_sigma(Q, valid, Pt, tmodel, geom, T, loss)
+    if pts.sigma_estimated:
+        s_hat = _estimate_sigma(pts, Pt, tmodel, T, loss)
         sig = np.where(np.isfinite(sig), s_hat, np.nan)
         if loss != "linear":     # refit: f_scale is in units of the (now known) σ
             T, Pt = fit_transform(Q, geom, tmodel, mirror=mirror, sigma=sig, x0=T.params,
@@ -388,25 +434,26 @@ def _joint_transform(Q, valid, sig, geom, tmodel, mirror, sigma_estimated, sigma
     return T, sig, theta_start
 
 
-def _given_transform(Q, valid, sig, geom, tmodel, transform, mirror, sigma_estimated, settings):
+def _given_transform(pts: _Points, tmodel, transform, settings):
     """Step 2 with the transform given: σ estimated from ``tmodel`` fits when not given.
 
     Returns the transform, the σ (S, m) [m] to use and the start angles (S, n) or None.
     """
-    T = as_transform(transform, mirror)
-    if T.mirror != bool(mirror):
-        raise ValueError(f"transform.mirror={T.mirror} disagrees with mirror={bool(mirror)}")
-    if not sigma_estimated:
-        return T, sig, None
-    fits_t = fit_samples(Q, geom, tmodel, T, sigma=sig, **settings)
+    T = as_transform(transform, pts.mirror)
+    if T.mirror != bool(pts.mirror):
+        raise ValueError(f"transform.mirror={T.mirror} disagrees with mirror={bool(pts.mirror)}")
+    if not pts.sigma_estimated:
+        return T, pts.sig, None
+    fits_t = fit_samples(pts.Q, pts.geom, tmodel, T, sigma=pts.sig, **settings)
     Pt = np.stack([f.params for f in fits_t])
-    s_hat = _estimate_sigma(Q, valid, Pt, tmodel, geom, T, settings["loss"])
-    sig = np.where(np.isfinite(sig), s_hat, np.nan)
+    s_hat = _estimate_sigma(pts, Pt, tmodel, T, settings["loss"])
+    sig = np.where(np.isfinite(pts.sig), s_hat, np.nan)
     return T, sig, np.stack([f.theta for f in fits_t])
 
 
-def _estimate_sigma(Q, valid, P, model, geom, T, loss) -> float:
+def _estimate_sigma(pts: _Points, P, model, T, loss) -> float:
     """Pooled per-coordinate noise estimate [m] from a fit's residuals."""
+    Q, valid, geom = pts.Q, pts.valid, pts.geom
     ok = np.isfinite(P).all(1)
     if not ok.any():
         raise ValueError("cannot estimate sigma: no sample could be fitted; pass sigma explicitly")

@@ -21,6 +21,7 @@ sample; lengths in m, angles in rad.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -125,18 +126,47 @@ class Problem:
         return r, Jp, Jt, plane, theta
 
 
-def _joint_steps(A, g, dA, JpW, Jp, Jt, w, r, mu, eye):
+@dataclass(frozen=True)
+class _Normal:
+    """The robust Gauss–Newton model of one iteration: whitened residuals ``r`` (S, 2m), Jacobians ``Jp``
+    (S, 2m, k) and ``Jt`` (S, 2m, 3), loss weights ``w`` (S, 2m), the per-sample normal matrices ``A``
+    (S, k, k) (prior included), gradients ``g`` (S, k) and damping scales ``dA`` (S, k)."""
+
+    r: np.ndarray
+    Jp: np.ndarray
+    Jt: np.ndarray
+    w: np.ndarray
+    A: np.ndarray
+    g: np.ndarray
+    dA: np.ndarray
+
+    @classmethod
+    def at(cls, r, Jp, Jt, P, w, DtD) -> _Normal:
+        """The model at parameters ``P`` (S, k) with weights ``w`` and the prior's normal matrix ``DtD``."""
+        JpW = Jp * w[..., None]
+        A = np.einsum("sri,srj->sij", JpW, Jp) + DtD
+        g = np.einsum("sri,sr->si", JpW, r) + P @ DtD
+        dA = np.diagonal(A, axis1=1, axis2=2)
+        dA = np.maximum(dA, np.maximum(1e-12 * dA.max(-1, keepdims=True), 1e-30))
+        return cls(r, Jp, Jt, w, A, g, dA)
+
+    def damped(self, mu) -> np.ndarray:
+        """``A + μ diag(dA)`` (S, k, k) with ``mu`` a scalar or (S,)."""
+        return self.A + np.reshape(mu, (-1, 1, 1)) * self.dA[:, :, None] * np.eye(self.A.shape[-1])
+
+
+def _joint_steps(nm: _Normal, mu: float):
     """Damped and undamped joint steps ``(dt, dP)`` and the Newton decrement (Schur complement on t)."""
-    JtW = Jt * w[..., None]
-    Bm = np.einsum("sri,srj->sij", JpW, Jt)
-    C = np.einsum("sri,srj->ij", JtW, Jt)
-    gt = np.einsum("sri,sr->i", JtW, r)
+    JtW = nm.Jt * nm.w[..., None]
+    Bm = np.einsum("sri,srj->sij", nm.Jp * nm.w[..., None], nm.Jt)
+    C = np.einsum("sri,srj->ij", JtW, nm.Jt)
+    gt = np.einsum("sri,sr->i", JtW, nm.r)
     dC = np.maximum(np.diag(C), 1e-12 * np.diag(C).max())
 
     def step(mu_):
-        Am = A + mu_ * dA[:, :, None] * eye
+        Am = nm.damped(mu_)
         AiB = np.linalg.solve(Am, Bm)
-        Aig = np.linalg.solve(Am, g[..., None])[..., 0]
+        Aig = np.linalg.solve(Am, nm.g[..., None])[..., 0]
         Sc = C + mu_ * np.diag(dC) - np.einsum("sia,sib->ab", Bm, AiB)
         rhs = gt - np.einsum("sia,si->a", Bm, Aig)
         dt_ = -np.linalg.solve(Sc, rhs)
@@ -145,16 +175,15 @@ def _joint_steps(A, g, dA, JpW, Jp, Jt, w, r, mu, eye):
     dt, dP = step(mu)
     dt0, dP0 = step(1e-12)
     # Newton decrement of the undamped Gauss–Newton step
-    return dt, dP, -0.5 * (gt @ dt0 + np.sum(g * dP0))
+    return dt, dP, -0.5 * (gt @ dt0 + np.sum(nm.g * dP0))
 
 
-def _independent_steps(A, g, dA, mu, done, eye):
+def _independent_steps(nm: _Normal, mu, done):
     """Per-sample damped steps ``dP`` (S, k) and Newton decrements (S,)."""
-    Am = A + mu[:, None, None] * dA[:, :, None] * eye
-    dP = -np.linalg.solve(Am, g[..., None])[..., 0]
+    dP = -np.linalg.solve(nm.damped(mu), nm.g[..., None])[..., 0]
     dP[done] = 0.0
-    dP0 = -np.linalg.solve(A + 1e-12 * dA[:, :, None] * eye, g[..., None])[..., 0]
-    return dP, -0.5 * np.sum(g * dP0, axis=-1)
+    dP0 = -np.linalg.solve(nm.damped(1e-12), nm.g[..., None])[..., 0]
+    return dP, -0.5 * np.sum(nm.g * dP0, axis=-1)
 
 
 def _step_tests(joint, S, cost, cost_new, done, t, P, dt, dP, tscale, ftol, xtol):
@@ -210,7 +239,7 @@ def levenberg_marquardt(prob: Problem, t, P, *, joint: bool, loss: str, f_scale:
     """
     D = prob.model.prior_jacobian()
     DtD = D.T @ D
-    S, k = P.shape
+    S = P.shape[0]
     f2 = f_scale * f_scale
     tscale = np.array([MM, MM, 1.0])               # step tests with t in mm
 
@@ -223,21 +252,15 @@ def levenberg_marquardt(prob: Problem, t, P, *, joint: bool, loss: str, f_scale:
     cost = cost_of(r, P)
     done = np.zeros(S, dtype=bool)
     mu = np.full(S, mu0)
-    eye = np.eye(k)
     it = 0
     for it in range(1, max_iter + 1):
-        w = loss_weights(r * r / f2, loss)
-        JpW = Jp * w[..., None]
-        A = np.einsum("sri,srj->sij", JpW, Jp) + DtD
-        g = np.einsum("sri,sr->si", JpW, r) + P @ DtD
-        dA = np.diagonal(A, axis1=1, axis2=2)
-        dA = np.maximum(dA, np.maximum(1e-12 * dA.max(-1, keepdims=True), 1e-30))
+        nm = _Normal.at(r, Jp, Jt, P, loss_weights(r * r / f2, loss), DtD)
         if joint:
-            dt, dP, decr = _joint_steps(A, g, dA, JpW, Jp, Jt, w, r, mu[0], eye)
+            dt, dP, decr = _joint_steps(nm, mu[0])
             decr = np.full(S, decr)
         else:
             dt = np.zeros(3)
-            dP, decr = _independent_steps(A, g, dA, mu, done, eye)
+            dP, decr = _independent_steps(nm, mu, done)
         # at a minimum to precision: the Gauss–Newton model predicts no decrease
         done |= decr <= ftol * (cost + f2) + 1e-14
         if done.all():

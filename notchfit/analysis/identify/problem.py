@@ -28,8 +28,8 @@ from ..estimation.solve import Solution, grid_starts, standard_errors
 from ..estimation.solve import solve as solve_problem
 from .specs import DEPTH_TOLERANCE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN
 
-__all__ = ["Problem", "Solution", "errors", "make_problem", "predict", "solve", "standard_errors", "whitened",
-           "with_values"]
+__all__ = ["Problem", "Solution", "errors", "make_problem", "predict", "solve", "standard_errors", "steps",
+           "whitened", "with_values"]
 
 #: Finite-difference step of the cut-depth offsets [m].
 DEPTH_STEP = 2e-7
@@ -231,9 +231,14 @@ def make_problem(obs, base: dict, specs, *, rest: bool = False, depth: bool = Fa
                    model=partial(_tube_model, base, excess), sims=Simulations(sim_kw), prior_offset=offset)
 
 
+def steps(pb: Problem, x, diff_rel: float = 2e-3, rest_step: float = 2e-4):
+    """The forward-difference steps of :func:`solve` at ``x`` (:meth:`Problem.steps`)."""
+    return pb.steps(x, diff_rel, {"rest_angle": rest_step})
+
+
 def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: float = 3.0,
           max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6, diff_rel: float = 2e-3,
-          rest_step: float = 2e-4, grid: bool = True, starts=(), errors: bool = True) -> Solution:
+          rest_step: float = 2e-4, grid: bool = True, starts=(), errors: bool = True, jacobian0=None) -> Solution:
     """Minimise the problem's cost from the best ``n_starts`` of its probe grid (the core's
     :func:`~notchfit.analysis.estimation.solve.solve`, forward differences).
 
@@ -257,8 +262,12 @@ def solve(pb: Problem, *, n_starts: int = 2, loss: str = "linear", f_scale: floa
         Further starts (optimiser coordinates), each one more run.
     errors : bool
         Compute the standard errors (and the Jacobian); False for a fit whose errors nobody reads.
+    jacobian0 : ndarray, optional
+        The Jacobian at the first start when known (a warm start at an earlier fit's optimum,
+        :func:`notchfit.analysis.identify.study.identify`): its run does not compute it.
     """
     first, nprobe = grid_starts(pb, n_starts) if grid else ([pb.x0], 0)
     starts = list(first) + [np.asarray(x, float) for x in starts]
     return solve_problem(pb, starts, jac="forward", loss=loss, f_scale=f_scale, max_nfev=max_nfev, ftol=ftol,
-                         xtol=xtol, diff_rel=diff_rel, block_steps={"rest_angle": rest_step}, nfev=nprobe, errors=errors)
+                         xtol=xtol, diff_rel=diff_rel, block_steps={"rest_angle": rest_step}, nfev=nprobe,
+                         errors=errors, jacobian0=jacobian0)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 import multiprocessing
 from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
+from typing import NamedTuple
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -17,9 +19,9 @@ from ..estimation.observations import METRICS, metric_unit, observe_study
 from ..estimation.bands import NewTubePrior
 from ..estimation.identifiability import Identifiability, assess
 from ..estimation.problem import measure_registered
-from ..estimation.solve import folds, se_values, tube_folds
+from ..estimation.solve import folds, forward_jacobian, se_values, tube_folds
 from ..lack_of_fit import Trial, lack_of_fit_summary, study_lack_of_fit
-from .problem import Solution, errors, make_problem, predict, solve, with_values
+from .problem import Solution, errors, make_problem, predict, solve, steps, with_values
 from .specs import (DEPTH, DEPTH_COMMON, DEPTH_RANGE, DEPTH_TOLERANCE, REST, REST_RANGE, REST_SIGMA_GEOMETRY, REST_SIGMA_MIN,
                     base_model, default_free, parse_free, specs_for)
 
@@ -222,7 +224,11 @@ class _Task:
     """One fit: the experiments it trains on (indices into ``obs``) and the ones it predicts.
 
     ``kind``: ``"all"`` (the fit on every experiment), ``"experiment"`` (one left
-    out), ``"tube"`` (one tube's experiments left out).
+    out), ``"tube"`` (one tube's experiments left out); ``key`` names the fit. ``part``: ``""``
+    (the whole procedure: probe grid and ``n_starts`` runs), ``"warm"`` (one run from ``warm``,
+    the fit on every experiment: :func:`_warm_start`), ``"grid"`` (one run from the grid's best).
+    A tube's held-out fit with a warm start is its ``"grid"`` and ``"warm"`` parts, the lower cost
+    kept (:func:`_merge`): the grid part needs nothing of the fit on every experiment and runs beside it.
     """
 
     kind: str
@@ -234,7 +240,10 @@ class _Task:
     start: FrictionParams | None
     excess: float
     options: dict
-    warm: tuple | None = None
+    key: str = "all"
+    part: str = ""
+    warm: _FitJacobian | None = None
+    seed_jacobian: bool = True
 
 
 #: The options of :func:`_Task.options` that build the problem (the others solve it).
@@ -242,7 +251,18 @@ _PROBLEM_OPTIONS = ("sim_kw", "rest_range", "depth_range", "depth_sigma", "depth
                     "rest_sigma_geometry", "rest_sigma_min")
 
 
-def _fit(task: _Task):
+class _FitOut(NamedTuple):
+    """What one fit returns: its problem and solution, each tube's model, the held-out experiments'
+    errors (experiment -> errors) and the cost its least squares minimised (the loss's)."""
+
+    pb: object
+    sol: Solution
+    fitted: dict
+    preds: dict
+    loss_cost: float
+
+
+def _fit(task: _Task) -> _FitOut:
     """Fit on the training experiments; predict the test ones (a batch item)."""
     with threadpool_limits(limits=1):
         train = [task.obs[i] for i in task.train]
@@ -254,13 +274,13 @@ def _fit(task: _Task):
                           excess=task.excess, **prob_kw)
         if task.kind != "all":
             opt["errors"] = False            # a held-out fit predicts; its standard errors are not read
-        if task.warm is not None:
-            x_warm = _warm_x(pb, *task.warm)
-            if task.kind == "tube":          # the headline figure: the grid's best and the warm start compete
-                opt.update(starts=(x_warm,), n_starts=1)
-            else:                            # one experiment less: one run from the fit on every experiment
-                pb = replace(pb, x0=x_warm)
-                opt.update(grid=False, n_starts=1)
+        if task.part == "warm":              # one run from the fit on every experiment, with its Jacobian
+            pb = replace(pb, x0=_warm_x(pb, task.warm))
+            if task.seed_jacobian:
+                opt["jacobian0"] = task.warm.for_problem(pb, steps(pb, pb.x0, opt["diff_rel"], opt["rest_step"]))
+            opt.update(grid=False, n_starts=1)
+        elif task.part == "grid":            # one run from the grid's best (the warm part competes)
+            opt.update(n_starts=1)
         sol = solve(pb, **opt)
         fitted = pb.params(sol.x)
         vals = pb.values(sol.x)
@@ -269,21 +289,88 @@ def _fit(task: _Task):
             o = task.obs[i]
             params = fitted.get(o.tube, with_values(task.base[o.tube], vals, task.excess))
             preds[o.name] = errors(o, predict(o, params))
-        return pb, sol, fitted, preds
+        cost = _loss_cost(pb.residuals(sol.x), opt.get("loss", "linear"), opt.get("f_scale", 1.0))
+        return _FitOut(pb, sol, fitted, preds, cost)
 
 
-def _warm_x(pb, params: FrictionParams, blocks: dict) -> np.ndarray:
-    """``pb``'s unknowns at the shared values of ``params`` and the per-tube values ``blocks`` (tube ->
-    {block name: values}) where it has them, clipped inside the bounds."""
-    x0 = pb.x0.copy()
-    for i, s in enumerate(pb.specs):
-        x0[i] = s.to_x(float(getattr(params, s.name)), pb.scales[i])
-    i = pb.k
-    for b in pb.blocks:
-        v = blocks.get(b.owner, {}).get(b.name)
-        if v is not None:
-            x0[i:i + b.size] = v
-        i += b.size
+def _loss_cost(r, loss: str, f_scale: float) -> float:
+    """The cost ``scipy.optimize.least_squares`` minimises for residuals ``r``: ``½ Σ r²`` (``"linear"``)
+    or ``½ f_scale² Σ ρ((r/f_scale)²)`` with the named loss ``ρ``."""
+    if loss == "linear":
+        return 0.5 * float(np.dot(r, r))
+    z = (np.asarray(r, float) / f_scale) ** 2
+    rho = {"soft_l1": lambda z: 2.0 * (np.sqrt(1.0 + z) - 1.0),
+           "huber": lambda z: np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0),
+           "cauchy": np.log1p, "arctan": np.arctan}[loss]
+    return 0.5 * f_scale ** 2 * float(np.sum(rho(z)))
+
+
+@dataclass(frozen=True)
+class _FitJacobian:
+    """A fit's optimum and its forward-difference Jacobian there (:attr:`Solution.jacobian`), with their
+    layout: experiment -> its rows, unknown (``("", spec name)`` or ``(owner, block name)``) -> its columns.
+    ``h``, ``lo``, ``hi``: the steps and bounds the Jacobian was computed with."""
+
+    x: np.ndarray
+    J: np.ndarray
+    h: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    rows: dict
+    cols: dict
+
+    @classmethod
+    def of(cls, pb, sol, h) -> "_FitJacobian":
+        rows, r = {}, 0
+        for o in pb.obs:
+            rows[o.name] = (r, r + o.valid.size * o.values_per_item)
+            r = rows[o.name][1]
+        cols = {("", s.name): (i, i + 1) for i, s in enumerate(pb.specs)}
+        c = pb.k
+        for b in pb.blocks:
+            cols[b.owner, b.name] = (c, c + b.size)
+            c += b.size
+        return cls(np.asarray(sol.x, float), sol.jacobian, np.asarray(h, float), pb.lo, pb.hi, rows, cols)
+
+    def index(self, pb) -> np.ndarray | None:
+        """The columns of ``pb``'s unknowns (None when it has one the fit had not)."""
+        keys = [k for k, _ in _unknowns(pb)]
+        if any(k not in self.cols for k in keys):
+            return None
+        return np.concatenate([np.arange(*self.cols[k]) for k in keys])
+
+    def for_problem(self, pb, h) -> np.ndarray | None:
+        """The forward-difference Jacobian of ``pb`` (a subset of the fit's experiments and unknowns, its
+        own priors) at its start ``pb.x0`` with steps ``h``, bit for bit as
+        :func:`notchfit.analysis.estimation.solve.forward_jacobian` would compute it, without a simulation:
+        the fit's rows and columns of its experiments and unknowns (whose residuals are the fit's), then
+        the differences of its linear prior rows. None unless its start, steps and bounds are the fit's."""
+        cols = self.index(pb)
+        if self.J is None or cols is None or any(o.name not in self.rows for o in pb.obs):
+            return None
+        same = [np.array_equal(a, b[cols]) for a, b in ((pb.x0, self.x), (h, self.h), (pb.lo, self.lo),
+                                                         (pb.hi, self.hi))]
+        if not all(same):
+            return None
+        rows = np.concatenate([np.arange(*self.rows[o.name]) for o in pb.obs])
+        # the prior rows by the same differences: the problem's own, its residuals only the prior's
+        prior = forward_jacobian(SimpleNamespace(residuals=pb.prior_residuals, hi=pb.hi), pb.x0, h)
+        return np.vstack([self.J[np.ix_(rows, cols)], prior])
+
+
+def _unknowns(pb) -> list:
+    """``pb``'s unknowns in the order of ``x``: (key, size), key ``("", spec name)`` or ``(owner, block name)``."""
+    return [(("", s.name), 1) for s in pb.specs] + [((b.owner, b.name), b.size) for b in pb.blocks]
+
+
+def _warm_x(pb, jac: _FitJacobian) -> np.ndarray:
+    """``pb``'s unknowns at the fit's optimum ``jac.x`` (where it has them; its own start elsewhere),
+    clipped inside the bounds."""
+    x0, i = pb.x0.copy(), 0
+    for k, size in _unknowns(pb):
+        if k in jac.cols:
+            x0[i:i + size] = jac.x[slice(*jac.cols[k])]
+        i += size
     margin = 1e-9 * (pb.hi - pb.lo)
     return np.clip(x0, pb.lo + margin, pb.hi - margin)
 
@@ -307,27 +394,25 @@ def _base_models(obs, model: FrictionParams | None) -> dict:
     return out
 
 
-def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool,
-           warm: tuple | None = None) -> tuple[list, list]:
-    """The full fit, one fit per left-out experiment, one per left-out tube (keys and tasks). ``warm``
-    (:func:`_warm_start`): the held-out fits start from the fit on every experiment, one run without the
-    probe grid."""
+def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool, warm_start: bool) -> list:
+    """The full fit, one fit per left-out experiment, one per left-out tube (:class:`_Task`). With
+    ``warm_start`` the held-out fits start from the fit on every experiment (their ``"warm"`` parts,
+    :func:`_warm_start` fills ``warm`` in); a tube's also from the probe grid (its ``"grid"`` part)."""
     idx = tuple(range(len(obs)))
-    keys, tasks = ["all"], [_Task("all", obs, idx, (), base, free, start, excess, options)]
-    held = (base, free, start, excess, options, warm)
+    tasks = [_Task("all", obs, idx, (), base, free, start, excess, options)]
 
-    def held_out(kind, test):
+    def held_out(kind, key, test, part):
         test = tuple(int(i) for i in test)
-        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, *held)
+        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, base, free, start, excess, options,
+                     key=key, part=part)
 
     if heldout and len(obs) > 1:
         for f in folds(len(obs)):
-            keys.append(f"without {obs[f[0]].name}")
-            tasks.append(held_out("experiment", f))
+            tasks.append(held_out("experiment", f"without {obs[f[0]].name}", f, "warm" if warm_start else ""))
     for t, f in (tube_folds(obs) if by_tube else {}).items():
-        keys.append(f"without tube {t}")
-        tasks.append(held_out("tube", f))
-    return keys, tasks
+        parts = ("grid", "warm") if warm_start else ("",)
+        tasks += [held_out("tube", f"without tube {t}", f, part) for part in parts]
+    return tasks
 
 
 def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: bool = True,
@@ -380,8 +465,11 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
         experiment therefore runs before the held-out fits.
     warm_start : bool
         The held-out fits start from the fit on every experiment (one least-squares run, no probe
-        grid: the data of all but one experiment or tube put the optimum near it); False: each
-        runs the full procedure from the probe grid.
+        grid: the data of all but one experiment or tube put the optimum near it; a tube's also runs
+        from the best of its probe grid, the lower cost kept); False: each runs the full procedure
+        from the probe grid. With ``jobs`` > 1 the fits that need nothing of the fit on every
+        experiment (a tube's from its grid; every held-out fit without ``warm_start``) run beside it,
+        and every batch of fits is handed out largest first.
 
     Returns
     -------
@@ -397,46 +485,49 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
                    depth_sigma=depth_sigma, depth_common=depth_common, rest_prior=rest_prior,
                    rest_sigma_geometry=rest_sigma_geometry, rest_sigma_min=rest_sigma_min,
                    sim_kw=dict(FIT_SOLVER if sim_kw is None else sim_kw))
-    run = dict(jobs=jobs, scheduler=scheduler, heldout=heldout, by_tube=by_tube)
-    first_fit = _run(obs, base, free, model, excess, options, dict(run, heldout=False, by_tube=False))[0]
-    verdicts = _identifiability(first_fit[0], first_fit[1])
+    run = dict(jobs=jobs, scheduler=scheduler)
+    # in parallel, the held-out fits that need nothing of the fit on every experiment run beside it
+    beside = (jobs != 1 or scheduler is not None)
+
+    def plan(free):
+        tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube, warm_start)
+        return tasks, [t for t in tasks if t.kind == "all" or (beside and t.part != "warm")]
+
+    tasks, early = plan(free)
+    outs = _run(early, run)
+    verdicts = _identifiability(outs["all", ""].pb, outs["all", ""].sol)
     drop = [f for f in verdicts.undetermined() if f in free] if fix_undetermined else []
     if drop:
         # a parameter the data do not determine stays at its start value; every fit is made without it
         free = tuple(f for f in free if f not in drop)
-        first_fit = _run(obs, base, free, model, excess, options, dict(run, heldout=False, by_tube=False))[0]
-    warm = _warm_start(first_fit, base, excess, model) if warm_start else None
-    outs = [first_fit] + _run(obs, base, free, model, excess, options, run, skip_all=True, warm=warm)
-    tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube, warm)[1]
+        tasks, early = plan(free)
+        outs = _run(early, run)
+    warm = _warm_start(outs["all", ""], options) if warm_start else None
+    later = [replace(t, warm=warm if t.part == "warm" else None) for t in tasks if (t.key, t.part) not in outs]
+    outs.update(_run(later, run))
     result = _result(obs, base, free, excess, tasks, outs)
-    start = next(iter(base.values()))
-    return replace(result, identifiability=verdicts, fixed={f: float(getattr(start, f)) for f in drop})
+    return replace(result, identifiability=verdicts, fixed={f: float(getattr(first, f)) for f in drop})
 
 
-def _warm_start(fit, base: dict, excess: float, model: FrictionParams | None) -> tuple:
-    """Where the held-out fits start: the base model with the shared values of ``fit``, and each tube's
-    unknowns as ``fit`` found them (tube -> {block name: values})."""
-    pb, sol = fit[0], fit[1]
-    start = model if model is not None else next(iter(base.values()))
-    return with_values(start, pb.values(sol.x), excess), pb.tube_values(sol.x)
+def _warm_start(fit: _FitOut, options: dict) -> _FitJacobian:
+    """Where the held-out fits start: the optimum of ``fit`` (the fit on every experiment) with its
+    Jacobian there, which their first least-squares step uses."""
+    return _FitJacobian.of(fit.pb, fit.sol, steps(fit.pb, fit.sol.x, options["diff_rel"], options["rest_step"]))
 
 
-def _run(obs, base, free, model, excess, options, run: dict, skip_all: bool = False,
-         warm: tuple | None = None) -> list:
-    """The fits of :func:`_tasks` on :func:`notchfit.batch.run_batch` (without the fit on every
-    experiment when ``skip_all``); their outputs in task order."""
-    keys, tasks = _tasks(obs, base, free, model, excess, options, run["heldout"], run["by_tube"], warm)
-    if skip_all:
-        keys, tasks = keys[1:], tasks[1:]
+def _run(tasks: list, run: dict) -> dict:
+    """The fits ``tasks`` on :func:`notchfit.batch.run_batch`, the largest first (those from the probe grid,
+    then by training samples: two workers end together); (key, part) -> :class:`_FitOut`."""
     if not tasks:
-        return []
+        return {}
+    tasks = sorted(tasks, key=lambda t: (t.part != "warm", sum(t.obs[i].time.size for i in t.train)), reverse=True)
     # the platform's default start method (fork on Linux), as the diagnosis's folds: spawned workers
     # re-import notchfit and reload the kernels, several seconds for fits of about one second
-    res = run_batch(_fit, tasks, keys=keys, jobs=run["jobs"], scheduler=run["scheduler"], desc="identify",
-                    start_method=multiprocessing.get_start_method())
+    res = run_batch(_fit, tasks, keys=[f"{t.key} {t.part}".strip() for t in tasks], jobs=run["jobs"],
+                    scheduler=run["scheduler"], desc="identify", start_method=multiprocessing.get_start_method())
     if res.failures:
         raise ValueError("identify: " + "; ".join(f"the fit {r.key}: {r.error}" for r in res.failures))
-    return res.values()
+    return {(t.key, t.part): v for t, v in zip(tasks, res.values())}
 
 
 def _block_priors(pb) -> dict:
@@ -490,9 +581,9 @@ def _identifiability(pb, sol) -> Identifiability:
     return assess(J, names, x, scales)
 
 
-def _result(obs, base, free, excess, tasks, outs) -> Identification:
+def _result(obs, base, free, excess, tasks, outs: dict) -> Identification:
     """Collect the full fit and the held-out predictions."""
-    pb, sol, fitted, _ = outs[0]
+    pb, sol, fitted = outs["all", ""][:3]
     _, unit = metric_unit(obs[0].metric)
     vals = pb.values(sol.x)
     se = se_values(pb, sol.x, sol.se)
@@ -500,10 +591,11 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
     theta = {o.name: predict(o, fitted[o.tube]) for o in obs}
     train_err = {o.name: errors(o, theta[o.name]) for o in obs}
     held, by_tube = {}, {}
-    for task, (_, _, _, preds) in zip(tasks[1:], outs[1:]):
+    for task in tasks[1:]:
         if task.kind == "experiment":
-            held.update(preds)
-        else:
+            held.update(outs[task.key, task.part].preds)
+        elif task.part != "warm":            # a tube's fit: its only part, or its grid part against its warm one
+            preds = _merge(outs[task.key, task.part], outs.get((task.key, "warm"))).preds
             by_tube[obs[task.test[0]].tube] = _rms([p / unit for p in preds.values()])
     names = list(tubes)
     shared = fitted[names[0]] if len(names) == 1 else with_values(base[names[0]], vals, excess)
@@ -515,6 +607,12 @@ def _result(obs, base, free, excess, tasks, outs) -> Identification:
         heldout_rms=_rms([e / unit for e in held.values()]), heldout={k: _rms([e / unit]) for k, e in held.items()},
         heldout_by_tube=by_tube, solution=sol, lack_of_fit=_lack_of_fit(obs, pb, theta),
         new_tube=_new_tube_prior(pb, sol, tubes, base, free))
+
+
+def _merge(grid: _FitOut, warm: _FitOut | None) -> _FitOut:
+    """A tube's held-out fit from its grid and warm parts: the lower cost, the grid's on a tie (as one
+    least-squares call from both starts keeps)."""
+    return grid if warm is None or grid.loss_cost <= warm.loss_cost else warm
 
 
 def _new_tube_prior(pb, sol, tubes: dict, base: dict, free, *, min_rest_sd: float = REST_SIGMA_MIN) -> NewTubePrior:

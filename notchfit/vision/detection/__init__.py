@@ -82,6 +82,15 @@ def _linearised(image, gamma: float):
     return (full * np.power(np.clip(img.astype(np.float32) / full, 0, None), gamma)).astype(np.float32)
 
 
+def _gray(img) -> np.ndarray:
+    """The gray image the stages read: a 2-D 8-bit image as it is (each stage converts only the pixels it
+    reads: the working copy's blocks, the regions around the corners), anything else :func:`to_gray`'s
+    float32 copy (the same values either way)."""
+    if img.dtype == np.uint8 and img.ndim == 2 and img.size:
+        return img
+    return to_gray(img)
+
+
 def _options(options, overrides) -> DetectorOptions:
     opts = options if options is not None else DetectorOptions()
     return opts.replace(**overrides) if overrides else opts
@@ -127,7 +136,7 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
     """
     opts = _options(options, overrides)
     lin = _linearised(image, opts.tone_gamma)
-    gray = to_gray(lin)
+    gray = _gray(lin)
     colour = lin[..., :3] if np.ndim(lin) == 3 and np.shape(lin)[2] >= 3 else None
     H, W = gray.shape
     if base is not None and base not in ("top", "bottom", "left", "right"):
@@ -215,7 +224,7 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
         / low_m ** 2
     lay = notch_layout(geom)
     wanted = {i for i in range(m) if lay.kind[i] != "base"}
-    tried = []
+    tried, masks = [], []
     for variant in ("threshold", "streaks", "colour"):
         if variant == "threshold":
             mask = seg.mask
@@ -232,6 +241,7 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
             mask = remove_thin(seg_c.mask, thin_px=thin, max_length_px=1.5 * float(slot_widths(geom).max()) / low_m)
             # and gaps of a pixel or two closed (a backbone whose highlight mirrors the card)
             mask = close_disk(mask, opts.colour_close_px) if opts.colour_close_px > 0 else mask
+        masks.append(mask)
         region, box = largest_region(mask)
         ratio = float(region.sum()) / exp_area
         if ratio < opts.area_range[0] or region.mean() > 0.95:
@@ -248,13 +258,24 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
     conflict = [t[1] for t in tried if t[0] is None and "opposite mirror flag" in t[1].message]
     if not found or (conflict and not any(wanted <= {s_.point for s_ in t[0]} for t in found)):
         return (conflict or [tried[0][1]])[0], None
-    best = max(range(len(tried)), key=lambda k: -1 if tried[k][0] is None else len(tried[k][0]))
-    specs, ctx = tried[best]
-    # corners found on the colour silhouette are confirmed by the tube's width on it: a polished limb that
-    # mirrors the backdrop is missing from it, and an edge inside the tube then passes for the outer edge
-    by_colour = best == 2
-    return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
-                             extra=extra, stations=stations, width_mask=mask if by_colour else None)
+    order = sorted((k for k in range(len(tried)) if tried[k][0] is not None), key=lambda k: -len(tried[k][0]))
+
+    def refined(k):
+        # corners found on the colour silhouette are confirmed by the tube's width on it: a polished limb that
+        # mirrors the backdrop is missing from it, and an edge inside the tube then passes for the outer edge
+        # (and so are slots numbered without the tip, which would confirm the tube's width)
+        specs, ctx = tried[k]
+        return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
+                                 extra=extra, stations=stations,
+                                 width_mask=masks[k] if k == 2 or ctx.confirm_width else None)
+
+    out = refined(order[0])
+    # the most corners numbered without the tip can confirm fewer than a variant that found it
+    alt = [k for k in order[1:] if not tried[k][1].confirm_width]
+    if tried[order[0]][1].confirm_width and alt:
+        other = refined(alt[0])
+        out = other if other[0].n_ok > out[0].n_ok else out
+    return out
 
 
 def _stations(ref, n_per_edge, sgn):

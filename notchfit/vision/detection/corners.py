@@ -8,6 +8,7 @@ directions taken from the unbridged outline in a cone around the rough ones.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -51,15 +52,24 @@ class CornerSpec:
     face_in: bool = False
     face_out: bool = False
 
-def edge_room(geom, z: float, up: bool) -> float:
-    """Straight edge from z along a side, towards the tip (``up``) or the base, before the next slot [m]."""
+@functools.lru_cache(maxsize=32)
+def _slot_bounds(geom) -> tuple:
+    """Every slot's lower and upper z (n,) x 2, the tip's and the base edge's z [m] (computed once per geometry)."""
     zj, w = joint_z(geom), slot_widths(geom)
     lo, hi = zj - w / 2, zj + w / 2
+    lo.setflags(write=False)
+    hi.setflags(write=False)
+    return lo, hi, geom.tip_z, geom.base_edge_z
+
+
+def edge_room(geom, z: float, up: bool) -> float:
+    """Straight edge from z along a side, towards the tip (``up``) or the base, before the next slot [m]."""
+    lo, hi, tip_z, base_z = _slot_bounds(geom)
     if up:
         nxt = lo[lo > z + 1e-12]
-        return (min(nxt.min(), geom.tip_z) if len(nxt) else geom.tip_z) - z
+        return (min(nxt.min(), tip_z) if len(nxt) else tip_z) - z
     prv = hi[hi < z - 1e-12]
-    return z - (max(prv.max(), geom.base_edge_z) if len(prv) else geom.base_edge_z)
+    return z - (max(prv.max(), base_z) if len(prv) else base_z)
 
 
 def outline_directions(mcnt, P, rough, a2, a1=2.0, cone_deg=35.0):

@@ -3,7 +3,9 @@
 Along the bridged outline, anticlockwise in the manipulator frame from the
 base: the right side's slots, the tip, the left side's slots. The tip
 corners are two convex ~90° corners ``2R`` apart with no slot between
-them. Each side's slots (joints with ``slot_sides = +1`` on the right,
+them; without them (a tendon loop or a droplet rounds them off) a one-sided
+tube's slots are all on its one side, two-sided tubes' sides cannot be told
+apart. Each side's slots (joints with ``slot_sides = +1`` on the right,
 ``-1`` on the left) are numbered by agreement with the rigid-link chain
 (:mod:`.chain`), the base and tip corners as anchors where found: a missing
 slot, a spurious gap, a side cut off by the image border at either end cost
@@ -38,6 +40,11 @@ class Numbering:
     messages : list of str
     mirror_conflict : bool
         The slot counts fit the opposite mirror flag.
+    tipless : bool
+        A one-sided tube's slots numbered without its tip: no tip pair ``2R``
+        apart confirms that the silhouette is the whole tube (half of it, split
+        along a highlight, has consistent corners on an inner edge), so each
+        corner's link must be ``2R`` wide beside it (``pipeline.link_widths``).
     """
 
     right: list
@@ -46,6 +53,7 @@ class Numbering:
     status: list
     messages: list = field(default_factory=list)
     mirror_conflict: bool = False
+    tipless: bool = False
 
 
 def orient_corner_pair(be: BaseEnd, mouths: dict, cnt) -> BaseEnd:
@@ -157,6 +165,7 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dis
     slots = sorted((pos(v[0]), s) for s, v in mouths.items() if 0 <= pos(v[0]) < L_tube)
     msg = []
     tip = None
+    tipless = False
     if not tube_border:
         tip = _tip(cnt, convex, slots, pos, L_tube, dist, two_R, pair_tol)
         if tip is None:
@@ -170,6 +179,11 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dis
         left = [s for p_, s in slots if p_ > max(tube_border)]
         cut = True
         msg.append("the tube is cut off by the image border")
+    elif len(set(geom.slot_sides)) == 1:
+        # a one-sided tube: every slot opens on its one side, the tip is not needed to tell the sides apart
+        # (a gap on the backbone's side is a candidate that the chain does not take)
+        right, left = ([s for _, s in slots], []) if geom.slot_sides[0] > 0 else ([], [s for _, s in slots])
+        cut = tipless = True
     else:
         # no tip and no border between the sides: which side a slot is on cannot be told
         msg.append("the slots' sides cannot be told apart without the tip")
@@ -181,4 +195,4 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dis
         return Numbering([], [], tip, status, msg, mirror_conflict=True)
     right_pairs = _side_numbers(right, +1, chain, geom, tip, msg) if right_j else []
     left_pairs = _side_numbers(left[::-1], -1, chain, geom, tip, msg) if left_j else []
-    return Numbering(right_pairs, left_pairs, tip, status, msg)
+    return Numbering(right_pairs, left_pairs, tip, status, msg, tipless=tipless)

@@ -77,6 +77,8 @@ class Located:
         Low-res crop coordinates -> full-resolution pixels.
     tube_px : ndarray (T, 2)
         The tube's part of the outline [px] (diameter stations).
+    confirm_width : bool
+        Slots numbered without the tip (``Numbering.tipless``): each corner's link must be 2R wide.
     """
 
     contour_px: np.ndarray
@@ -85,6 +87,7 @@ class Located:
     side: str
     full: object
     tube_px: np.ndarray
+    confirm_width: bool = False
 
 
 @dataclass(frozen=True)
@@ -305,7 +308,7 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
                         geom=geom, low_m=low_m, raw_corners=rawc)
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
-    return specs, Located(res.contour_px, num.status, num.messages, be.side, full, res.contour_px[tube])
+    return specs, Located(res.contour_px, num.status, num.messages, be.side, full, res.contour_px[tube], num.tipless)
 
 
 def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):

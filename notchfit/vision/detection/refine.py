@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ._kernels import profile_crossings, profile_levels, profile_maps
+from .edges import choose_edges
 from .lines import group_median, robust_group_lines, unit
 
 __all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "face_view_cov",
@@ -66,15 +68,23 @@ class CornerSpecs:
 
 @dataclass
 class Profiles:
-    """Profiles across the edges (Np profiles of T samples)."""
+    """Profiles across the edges (Np profiles on an axis of T samples, each sampled in its window only)."""
 
-    values: np.ndarray      # (Np, T) normalised later
+    values: np.ndarray      # (sum of 2 half + 1,) float32: each profile's window, one after the other
     base: np.ndarray        # (Np, 2) profile centre in ROI px
     normal: np.ndarray      # (Np, 2) unit, object -> background
     edge: np.ndarray        # (Np,) edge index 0..2K-1
     t: np.ndarray           # (T,) offsets along the normal [px]
-    half: np.ndarray        # (Np,) half window [samples]
+    half: np.ndarray        # (Np,) half window [samples]: profile i covers t[n_t - half_i .. n_t + half_i]
     n_t: int
+    start: np.ndarray       # (Np,) where each profile's window starts in ``values``
+
+    def at(self, rows, cols) -> np.ndarray:
+        """Samples (float64) of profiles ``rows`` at axis positions ``cols`` inside their windows."""
+        return self.values[self.start[rows] + cols - (self.n_t - self.half[rows])].astype(float)
+
+
+_MAP_WIDTH = 4096           # samples per row of the remap maps (OpenCV wants sides below 32767)
 
 
 def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, step, h_curved=0.0) -> Profiles | None:
@@ -100,13 +110,11 @@ def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, ste
     s_val = s0 + (np.arange(Np) - np.repeat(np.cumsum(n_s) - n_s, n_s))
     base = E_C[e_idx] + s_val[:, None] * E_dir[e_idx] - off
     nrm = E_nrm[e_idx]
-    mapx = (base[:, 0, None] + t[None, :] * nrm[:, 0, None]).astype(np.float32)
-    mapy = (base[:, 1, None] + t[None, :] * nrm[:, 1, None]).astype(np.float32)
-    prof = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=float("nan")).astype(float)
     kp = kt[e_idx]
-    win = np.abs(np.arange(-n_t, n_t + 1))[None, :] <= kp[:, None]
-    return Profiles(np.where(win, prof, np.nan), base, nrm, e_idx, t, kp, n_t)
+    n_w = 2 * kp + 1
+    mapx, mapy = profile_maps(base, nrm, t, kp, n_t, _MAP_WIDTH)
+    prof = cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
+    return Profiles(prof.ravel()[:int(n_w.sum())], base, nrm, e_idx, t, kp, n_t, np.cumsum(n_w) - n_w)
 
 
 def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True, own_level=None,
@@ -118,26 +126,22 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     tc : ndarray (Np,)
         Crossing offset along each profile's normal [px] (NaN where invalid).
     valid : ndarray (Np,) bool
-    qa : ndarray (Np, T)
-        Normalised profiles (0 object, 1 background).
     q_lo : ndarray (Np,)
         Normalised object-side plateau (noise measure).
+    rise : ndarray (Np,)
+        The 25 % -> 75 % rise of every profile [px] (NaN where it does not rise; :func:`_rise_widths` of the
+        profiles normalised to 0 on the object, 1 on the background).
     """
     K2 = len(face)
     K = K2 // 2
     prof, e_idx, kp, n_t, t = pr.values, pr.edge, pr.half, pr.n_t, pr.t
     rows = np.arange(len(e_idx))
-    lo_v = 0.5 * (prof[rows, n_t - kp] + prof[rows, n_t - kp + 1])
-    hi_v = 0.5 * (prof[rows, n_t + kp] + prof[rows, n_t + kp - 1])
+    rise_step = step
     # a specular streak along the tube near its edge, brighter than the background (darker for a light
     # object), at the far end of the object side: the object's level is the most object-like part of that
     # side (3-sample mean) there
     cs = 1.0 if contrast > 0 else -1.0
-    idx = np.arange(prof.shape[1])[None, :]
-    obj_side = (idx >= (n_t - kp)[:, None]) & (idx < n_t)
-    smooth = cv2.blur(np.nan_to_num(prof).astype(np.float32), (3, 1), borderType=cv2.BORDER_REPLICATE)
-    ext = np.max(np.where(obj_side, cs * smooth, -np.inf), axis=1)
-    least = np.min(np.where(obj_side, cs * smooth, np.inf), axis=1)
+    lo_v, hi_v, ext, least = profile_levels(prof, pr.start, kp, n_t, len(t), cs)
     banded = least < cs * hi_v - band_tol * abs(contrast)
     if holder_face is not None:
         banded &= ~holder_face[e_idx]                    # a holder's shading and highlights are its own
@@ -151,7 +155,7 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
         # carried to the edge: the 50 % level is halfway between the levels *at* the edge
         step = t[1] - t[0]
         i2 = np.minimum(n_t - kp + int(round(2.0 / step)), n_t - 1)
-        lo_w = 0.5 * (prof[rows, i2] + prof[rows, i2 + 1])
+        lo_w = 0.5 * (pr.at(rows, i2) + pr.at(rows, i2 + 1))
         with np.errstate(invalid="ignore", divide="ignore"):
             slope = (lo_w - lo_v) / ((i2 - (n_t - kp)) * step)
         use = span_ok & np.isfinite(slope) & ~banded
@@ -160,7 +164,9 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
         mad = 1.4826 * group_median(np.where(use, np.abs(slope - med[e_idx]), np.nan), e_idx, K2)
         n_use = np.bincount(e_idx, use.astype(float), K2)
         sig = np.abs(med) > 3 * 1.2533 * mad / np.sqrt(np.maximum(n_use, 1))
-        lo_edge = lo + np.where(sig, np.nan_to_num(med), 0.0) * group_median((kp * step).astype(float), e_idx, K2)
+        reach = np.full(K2, np.nan)
+        reach[e_idx] = kp * step                 # every profile of an edge has the edge's half length
+        lo_edge = lo + np.where(sig, np.nan_to_num(med), 0.0) * reach
     else:
         lo_edge = lo
     partner = np.concatenate([np.arange(K) + K, np.arange(K)])
@@ -174,42 +180,33 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     lo_c = np.where(fo, lo_v, np.where(face, lo_edge[partner], lo_edge)[e_idx])  # at the edge: crossing
     span = hi[e_idx] - lo_p
     with np.errstate(invalid="ignore", divide="ignore"):
-        qa = (prof - lo_c[:, None]) / (hi[e_idx] - lo_c)[:, None]
         q_lo = (lo_v - lo_p) / span
         q_hi = (hi_v - lo_p) / span
+    # the normalised profiles, their crossings nearest the centre (on a tie the first) and their rises
+    order = np.argsort(np.abs(0.5 * (t[:-1] + t[1:])), kind="stable")
+    n_fin, q_peak, tc, found, rise = profile_crossings(prof, pr.start, kp, n_t, lo_c, hi[e_idx] - lo_c, t, order,
+                                                       step, rise_step)
     sel_ = span_ok & ~fp & np.isfinite(q_lo)
     sq = 1.4826 * float(np.median(np.abs(q_lo[sel_]))) if sel_.sum() >= 10 else 0.0
     lim = max(lim, 4.0 * sq)
-    valid = (np.isfinite(qa).sum(axis=1) == 2 * kp + 1) & (np.abs(span) > 1e-6) & (np.abs(q_lo) < lim)
+    valid = (n_fin == 2 * kp + 1) & (np.abs(span) > 1e-6) & (np.abs(q_lo) < lim) & found & np.isfinite(tc)
     # a brighter band inside the object (a specular streak along the tube, near its edge) makes the far end
     # of the object side more background-like than its part next to the edge: that profile's level is not
     # the object's
-    win = np.abs(np.arange(-n_t, n_t + 1))[None, :] <= kp[:, None]
     with np.errstate(invalid="ignore"):
-        q_peak = np.max(np.where((t[None, :] > 0) & win, np.nan_to_num(qa, nan=-np.inf), -np.inf), axis=1)
-    valid &= np.where(fp, q_peak > 1 - 0.5 * lim, np.abs(q_hi - 1) < lim)
-    with np.errstate(invalid="ignore"):
-        cr = (qa[:, :-1] < 0.5) & (qa[:, 1:] >= 0.5)
-    tm = np.abs(0.5 * (t[:-1] + t[1:]))
-    dist = np.where(cr, tm[None, :], np.inf)
-    j = np.argmin(dist, axis=1)
-    valid &= np.isfinite(dist[rows, j])
-    q0, q1 = qa[rows, j], qa[rows, np.minimum(j + 1, len(t) - 1)]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tc = t[j] + (0.5 - q0) / (q1 - q0) * step
-    valid &= np.isfinite(tc)
-    return tc, valid, qa, q_lo
+        valid &= np.where(fp, q_peak > 1 - 0.5 * lim, np.abs(q_hi - 1) < lim)
+    return tc, valid, q_lo, rise
 
 
 def _rise_widths(qa, t, step) -> np.ndarray:
     """The 25 % -> 75 % rise of every profile [px] (NaN where it does not rise)."""
-    qv = np.nan_to_num(qa, nan=-1.0)
-    rr = np.arange(len(qv))
+    rr = np.arange(len(qa))
     pos = []
     for lvl in (0.25, 0.75):
-        i1 = np.argmax(qv >= lvl, axis=1)
+        with np.errstate(invalid="ignore"):
+            i1 = np.argmax(qa >= lvl, axis=1)            # NaN (outside the window) is below every level
         i0 = np.maximum(i1 - 1, 0)
-        a0, a1 = qv[rr, i0], qv[rr, i1]
+        a0, a1 = np.nan_to_num(qa[rr, i0], nan=-1.0), np.nan_to_num(qa[rr, i1], nan=-1.0)
         with np.errstate(invalid="ignore", divide="ignore"):
             pos.append(t[i0] + np.where(a1 > a0, (lvl - a0) / (a1 - a0), 0.0) * step)
     wd = pos[1] - pos[0]
@@ -227,9 +224,10 @@ def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1
     median rise exceeds ``min_excess`` times the median over all edges, the
     excess width ``Δ = sqrt(rise² - rise_all²)`` is taken as the spread of
     two edges and ``Δ² / 12`` (a uniform offset over it) returned; 0 elsewhere.
-    ``widths``: the valid profiles' rise widths when already measured.
+    ``widths``: the valid profiles' rise widths when already measured (``qa``, the normalised profiles
+    (Np, T), is then not read and may be None).
     """
-    wd = np.full(len(qa), np.nan)
+    wd = np.full(len(valid), np.nan)
     wd[valid] = _rise_widths(qa[valid], t, step) if widths is None else widths
     per_edge = group_median(wd, edge, n_edges)
     fin = wd[np.isfinite(wd)]
@@ -242,7 +240,7 @@ def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1
 
 def edge_blur(qa, valid, t, step, widths=None) -> float:
     """Gaussian σ of the edges from the 25 % -> 75 % rise of valid profiles (1.349 σ) [px] (``widths``: the
-    valid profiles' rises when already measured)."""
+    valid profiles' rises when already measured; ``qa`` is then not read and may be None)."""
     if valid.sum() < 5:
         return math.nan
     wd = _rise_widths(qa[valid], t, step) if widths is None else widths
@@ -415,13 +413,18 @@ def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_po
     us, vs, gs, far = [], [], [], []
     order = np.argsort(grp, kind="stable")
     first = np.searchsorted(grp[order], np.arange(2 * K + 1))
+    faces = []
     for g, (k, fe, le) in enumerate(cand):
         rel = pts[order[first[fe]:first[fe + 1]]] - c[le]
-        if len(rel) < min_points + 3:
-            continue
-        d = dd[le]
-        u, v = rel @ np.array([-d[1], d[0]]), rel @ d
-        u = u * (1.0 if np.median(u) >= 0 else -1.0)
+        if len(rel) >= min_points + 3:
+            d = dd[le]
+            faces.append((g, k, fe, rel @ np.array([-d[1], d[0]]), rel @ d))
+    # u measured from the limb into the tube: its median is positive (all faces' medians in one call)
+    med_u = group_median(np.concatenate([f[3] for f in faces]), np.repeat(np.arange(len(faces)),
+                                                                          [len(f[3]) for f in faces]),
+                         len(faces)) if faces else np.zeros(0)
+    for (g, k, fe, u, v), m_u in zip(faces, med_u):
+        u = u * (1.0 if m_u >= 0 else -1.0)
         near = u <= radius_px            # the half of a face next to this corner (the tip face is 2R long)
         if not near.any() or u[near].min() > max_u0:
             far.append(k)                # a face seen only far from the corner (a nearly closed mouth)
@@ -568,9 +571,23 @@ def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
     return new[0], new[1]
 
 
+def _drop_scattered(ch, edge, valid, und, rises, lines, min_points, s2_floor):
+    """A local edge whose crossings scatter about their line beyond their own σ (:meth:`.edges.EdgeChoice.
+    consistent`) is not one edge: its crossings are dropped and the lines fitted again. Returns the valid
+    profiles (Np,), their undistorted crossings and rises, and :func:`corner_lines`' outputs."""
+    keep = ch.consistent(edge, lines[6])[edge[valid]]
+    if keep.all():
+        return valid, und, rises, lines
+    valid = valid.copy()
+    valid[np.nonzero(valid)[0][~keep]] = False
+    und, rises = und[keep], rises[keep]
+    return valid, und, rises, corner_lines(und, edge[valid], len(lines[0]), min_points=min_points,
+                                           s2_floor=s2_floor)
+
+
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, lim, min_points, contrast,
                 h_face=None, blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12,
-                arc_gate: float = 2.0, view_bias: float = 0.5):
+                arc_gate: float = 2.0, view_bias: float = 0.5, local_edges: bool = True):
     """One pass of edge-profile line fits for all corners at once.
 
     Parameters
@@ -596,6 +613,8 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         fitted again as arcs. A curved face left a straight line adds
         :func:`face_view_cov` (``view_bias``) to the returned systematic
         covariance when the camera knows the plane's pose.
+    local_edges : bool
+        Edges the image-wide levels do not describe take each profile's own step (:func:`.edges.choose_edges`).
 
     Returns
     -------
@@ -611,12 +630,16 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if pr is None:
         return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout, \
             np.zeros((K, 2, 2))
-    tc, valid, qa, q_lo = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
-                                         holder_face=sp.holder_face,
-                                         extrapolate=bool(np.isfinite(blur_prior)))
+    tc, valid, q_lo, rises = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
+                                            holder_face=sp.holder_face, extrapolate=bool(np.isfinite(blur_prior)))
+    if local_edges:
+        # the edge model's hook: edges the image-wide levels do not describe take each profile's own step
+        ch = choose_edges(pr.values, pr.start, pr.half, pr.n_t, pr.t, pr.edge, 2 * K, tc, valid, q_lo, rises,
+                          blur0=blur_prior if np.isfinite(blur_prior) else 1.0)
+        tc, valid, q_lo, rises = ch.tc, ch.valid, ch.noise, ch.rise
     fp = sp.face[pr.edge]
-    rises = _rise_widths(qa[valid], pr.t, step)
-    blur = edge_blur(qa, valid & ~fp, pr.t, step, widths=rises[~fp[valid]])
+    rises = rises[valid]
+    blur = edge_blur(None, valid & ~fp, pr.t, step, widths=rises[~fp[valid]])
     raw = pr.base[valid] + tc[valid, None] * pr.normal[valid] + off
     und = camera.undistort_pixels(raw)
     # floor on the crossing variance: image noise over the edge slope (a few crossings can scatter
@@ -626,12 +649,14 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if plateau.sum() >= 10 and np.isfinite(blur_prior):
         sq = 1.4826 * float(np.median(np.abs(q_lo[plateau])))
         s2_floor = (sq * math.sqrt(2 * math.pi) * blur_prior) ** 2
-    X, cov, okc, c, dd, good_e, s2_line = corner_lines(und, pr.edge[valid], K, min_points=min_points,
-                                                        s2_floor=s2_floor)
+    lines = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor)
+    if local_edges and ch.local.any():
+        valid, und, rises, lines = _drop_scattered(ch, pr.edge, valid, und, rises, lines, min_points, s2_floor)
+    X, cov, okc, c, dd, good_e, s2_line = lines
     # the offsets that an edge's own profiles show (two rims, a shadow's edge) add to the reported
     # uncertainty, not to the fit's (which decides whether the corner is found)
     cov_sys = np.zeros((K, 2, 2))
-    s2_edge = edge_spread(qa, valid, pr.t, step, pr.edge, 2 * K, widths=rises) if np.isfinite(radius_px) \
+    s2_edge = edge_spread(None, valid, pr.t, step, pr.edge, 2 * K, widths=rises) if np.isfinite(radius_px) \
         else np.zeros(2 * K)                 # the last pass's (the one whose corners are reported)
     if s2_edge.any():
         cov_sys = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor,

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ._kernels import block_mean_u8, surface_threshold
 from .lines import otsu, poly2
 
 __all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "downsample", "fill_holes",
@@ -49,13 +50,16 @@ class Segmentation:
 
 def downsample(gray, factor: int) -> np.ndarray:
     """Block average by an integer ``factor`` (float32; the trailing rows/columns that do not fill a block are
-    dropped); a colour image (H, W, C) channel by channel."""
+    dropped); a colour image (H, W, C) channel by channel. An 8-bit gray image is averaged from its 8-bit
+    pixels from a factor of 3 up (the same values, without a float copy of the whole file)."""
     f = int(factor)
     H, W = gray.shape[:2]
     hs, ws = H // f, W // f
     g = gray[:hs * f, :ws * f]
     if f == 1:
         return np.asarray(g, np.float32)
+    if g.dtype == np.uint8 and g.ndim == 2 and f >= 3:
+        return block_mean_u8(g, f)
     return cv2.resize(np.asarray(g, np.float32), (ws, hs), interpolation=cv2.INTER_AREA)
 
 
@@ -141,15 +145,18 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
         return Segmentation(None, contrast, noise,
                             f"no manipulator found: contrast {abs(contrast):.1f} is below {min_snr:g} x the "
                             f"background noise {noise * noise_scale:.1f}")
-    X = (np.arange(ws, dtype=np.float32) / ws - 0.5)[None, :]
-    Y = (np.arange(hs, dtype=np.float32) / hs - 0.5)[:, None]
+    X = np.arange(ws, dtype=np.float32) / ws - 0.5
+    Y = np.arange(hs, dtype=np.float32) / hs - 0.5
     c_ = coef.astype(np.float32)
-    bg = (c_[0] + c_[1] * X + c_[3] * X * X) + (c_[2] * Y + c_[5] * Y * Y) + c_[4] * (Y * X)
-    dev = (small - bg) * np.float32(np.sign(contrast))
-    # the object side of the threshold, and what differs from the background as much the other way (a
-    # specular line brighter than the background along a dark tube is tube, not background)
+    # the quadratic background surface (c0 + c1 X + c3 X²) + (c2 Y + c5 Y²) + c4 Y X, evaluated with the
+    # deviation from it and the threshold in one compiled pass: the object side of the threshold, and what
+    # differs from the background as much the other way (a specular line brighter than the background along
+    # a dark tube is tube, not background)
     other = max(opposite * abs(contrast), opposite_snr * noise)
-    mask = ((dev > level * abs(contrast)) | (dev < -other)).astype(np.uint8)
+    dt = np.result_type(small.dtype, np.float32)          # the type numpy would compute ``small - bg`` in
+    mask = surface_threshold(np.ascontiguousarray(small, dt), c_[0] + c_[1] * X + c_[3] * X * X,
+                             c_[2] * Y + c_[5] * Y * Y, X, Y, c_[4], np.float32(np.sign(contrast)),
+                             dt.type(level * abs(contrast)), dt.type(-other))
     return Segmentation(mask, contrast, noise, image=small)
 
 

@@ -18,17 +18,34 @@ import math
 import cv2
 import numpy as np
 
+from ._kernels import nearest_crossings
+
 __all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along",
            "tube_radius"]
 
 
-def _close_disk(region, r: int, border=cv2.BORDER_REPLICATE):
-    """A closing by a disk of radius ``r`` (two distance transforms), padded by ``r + 2``: (closed, pad)."""
+def _close_disk(region, r: int, border=cv2.BORDER_REPLICATE, near=None):
+    """A closing by a disk of radius ``r`` (two distance transforms), padded by ``r + 2``: (closed, pad).
+    ``near``: :func:`_distance_to` of ``region`` padded by at least ``r + 2`` (``BORDER_REPLICATE``), whose
+    middle is the first transform (a series of closings of one region shares it)."""
     pad = r + 2
     big = cv2.copyMakeBorder(region, pad, pad, pad, pad, border, value=0)
     # dilate (distance to the set <= r), then erode
-    dil = (cv2.distanceTransform(1 - big, cv2.DIST_L2, 5) <= r).astype(np.uint8)
+    if near is None:
+        d = cv2.distanceTransform(1 - big, cv2.DIST_L2, 5)
+    else:
+        D, P = near
+        d = D[P - pad:D.shape[0] - P + pad, P - pad:D.shape[1] - P + pad]
+    dil = (d <= r).astype(np.uint8)
     return (cv2.distanceTransform(dil, cv2.DIST_L2, 5) > r).astype(np.uint8) | big, pad
+
+
+def _distance_to(region, pad: int):
+    """Distance [px] to ``region`` padded by ``pad`` (``BORDER_REPLICATE``), 5x5 chamfer: (distances, pad).
+    Its middle padded by less is that smaller padding's transform to the last bit: a replicated pixel beyond
+    the smaller pad has one as near inside it (the same pixel, clamped toward the point)."""
+    big = cv2.copyMakeBorder(region, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+    return cv2.distanceTransform(1 - big, cv2.DIST_L2, 5), pad
 
 
 def _ridge(dt):
@@ -36,17 +53,18 @@ def _ridge(dt):
     return dt >= cv2.dilate(dt, np.ones((3, 3), np.uint8)) - 1e-6
 
 
-def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3) -> list:
+def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3,
+                near=None) -> list:
     """Band radii [px] of a downsampled silhouette: the peaks of its distance-transform ridge values.
 
     The silhouette closed by a disk of ``close_px`` (the slots bridged) has a
     distance-transform ridge along every band at the band's half width (the
     tube's radius, a clamp's bar's, a holder's). Peaks of the ridge-value
     histogram whose count is at least ``peak_fraction`` of the largest,
-    smallest first.
+    smallest first. ``near``: see :func:`_close_disk`.
     """
     r = max(int(close_px), 1)
-    closed, pad = _close_disk(region, r)
+    closed, pad = _close_disk(region, r, near=near)
     dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)[pad:-pad, pad:-pad]
     ridge = _ridge(dt) & (dt >= min_radius_px)
     v = dt[ridge]
@@ -67,10 +85,11 @@ def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fract
     return out
 
 
-def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3) -> float:
+def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_fraction: float = 0.3,
+                 near=None) -> float:
     """Tube radius in pixels of a downsampled silhouette (NaN if not found): the smallest of
     :func:`ridge_peaks` (a holder's ridge lies higher than the tube's)."""
-    peaks = ridge_peaks(region, close_px, min_radius_px=min_radius_px, peak_fraction=peak_fraction)
+    peaks = ridge_peaks(region, close_px, min_radius_px=min_radius_px, peak_fraction=peak_fraction, near=near)
     return peaks[0] if peaks else math.nan
 
 
@@ -85,17 +104,19 @@ def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5) -> f
     (a straight band does not thicken under a closing).
     """
     best = math.nan
-    for r, est in _closing_series(region, max_close_px, lambda reg, c: [rough_radius(reg, c)]):
+    for r, est in _closing_series(region, max_close_px, lambda reg, c, near: [rough_radius(reg, c, near=near)]):
         if np.isfinite(est) and est >= min_ratio * r and not est <= best:
             best = est
     return best
 
 
 def _closing_series(region, max_close_px, fn):
-    """(closing radius, estimate) for every estimate of ``fn(region, r)`` over r = 2, 3, 4, 6, ..."""
+    """(closing radius, estimate) for every estimate of ``fn(region, r, near)`` over r = 2, 3, 4, 6, ...; the
+    closings share the distance to the region (``near``, :func:`_distance_to`)."""
     r = 2.0
+    near = _distance_to(region, int(math.ceil(max_close_px)) + 2) if max_close_px >= 2 else None
     while r <= max_close_px:
-        for est in fn(region, int(round(r))):
+        for est in fn(region, int(round(r)), near):
             yield int(round(r)), est
         r *= 1.4
 
@@ -105,7 +126,7 @@ def radius_candidates(region, *, max_close_px: int, min_ratio: float = 0.5, merg
     """Every band radius [px] the silhouette shows under closings up to ``max_close_px`` (a closing at
     most ``1 / min_ratio`` times the radius; a ridge peak ``peak_fraction`` of the highest: a short tube
     beside a long clamp bar counts), estimates within ``merge`` of each other merged."""
-    peaks = lambda reg, c: ridge_peaks(reg, c, peak_fraction=peak_fraction)
+    peaks = lambda reg, c, near: ridge_peaks(reg, c, peak_fraction=peak_fraction, near=near)
     ests = sorted(e for r, e in _closing_series(region, max_close_px, peaks) if e >= min_ratio * r)
     out = []
     for e in ests:
@@ -216,17 +237,10 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
 
 def _crossings(t, P, level, t0, sign):
     """Per row: interpolated crossing of ``level`` (rows,) nearest ``t0`` (rows,) where ``sign * (P - level)``
-    goes from < 0 to >= 0; NaN where there is none."""
-    q = sign * (P - level[:, None])
-    with np.errstate(invalid="ignore"):
-        cr = (q[:, :-1] < 0) & (q[:, 1:] >= 0)
-    d = np.where(cr, np.abs(t[None, :-1] - t0[:, None]), np.inf)
-    j = np.argmin(d, axis=1)
-    rows = np.arange(len(P))
-    q0, q1 = q[rows, j], q[rows, j + 1]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tc = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
-    return np.where(np.isfinite(d[rows, j]), tc, np.nan)
+    goes from < 0 to >= 0; NaN where there is none (compiled: :func:`._kernels.nearest_crossings`)."""
+    f = lambda a: np.ascontiguousarray(np.broadcast_to(np.asarray(a, float), (len(P),)))
+    return nearest_crossings(np.ascontiguousarray(t, float), np.ascontiguousarray(P, float), f(level), f(t0),
+                             float(sign))
 
 
 def _line_levels(t, P, t0, win):
@@ -382,8 +396,9 @@ def band_width_along(img, centres, normals, width0_px: float, contrast: float, *
     t = np.arange(-reach * width0_px, reach * width0_px + step, step)
     pts = centres[:, None, :] + t[None, :, None] * normals[:, None, :]
     H, W = img.shape
-    lo = np.maximum(np.floor(pts.reshape(-1, 2).min(0)) - 2, 0).astype(int)
-    hi = np.minimum(np.ceil(pts.reshape(-1, 2).max(0)) + 3, [W, H]).astype(int)
+    xs, ys = pts[..., 0], pts[..., 1]
+    lo = np.maximum(np.floor([xs.min(), ys.min()]) - 2, 0).astype(int)
+    hi = np.minimum(np.ceil([xs.max(), ys.max()]) + 3, [W, H]).astype(int)
     if np.any(hi <= lo):
         nan = np.full(len(centres), np.nan)
         return nan, nan, nan

@@ -1,0 +1,216 @@
+"""Compiled (numba) row loops of the edge-profile refinement (:mod:`.refine`) and of the segmentation.
+
+Each profile's levels, its normalised copy, its 50 % crossing nearest the
+centre and its 25 % -> 75 % rise in one pass over its samples, instead of a
+dozen full-array numpy passes. The arithmetic is the numpy formulation's,
+operation for operation (no fastmath, numpy's division semantics), so the
+results are the same to the last bit; ``tests/test_detection_stages.py``
+compares them with the plain numpy versions kept there as references.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["block_mean_u8", "nearest_crossings", "profile_crossings", "profile_levels", "profile_maps",
+           "surface_threshold"]
+
+
+@njit(cache=True, nogil=True)
+def profile_maps(base, nrm, t, kp, n_t, width):
+    """The sample positions ``base + t nrm`` of every profile's window (``t[n_t - kp] .. t[n_t + kp]``), one
+    profile after the other, computed in float64 and rounded to float32: ``cv2.remap``'s maps, ``width``
+    samples a row (a map's side stays below OpenCV's limit), the last row filled up with positions outside
+    the image."""
+    n = len(base)
+    total = 0
+    for i in range(n):
+        total += 2 * kp[i] + 1
+    rows = (total + width - 1) // width
+    mx = np.full(rows * width, np.float32(-10.0))
+    my = np.full(rows * width, np.float32(-10.0))
+    p = 0
+    for i in range(n):
+        for c in range(n_t - kp[i], n_t + kp[i] + 1):
+            mx[p] = np.float32(nrm[i, 0] * t[c] + base[i, 0])
+            my[p] = np.float32(nrm[i, 1] * t[c] + base[i, 1])
+            p += 1
+    return mx.reshape(rows, width), my.reshape(rows, width)
+
+
+@njit(cache=True, nogil=True)
+def _row(row, values, start, k, n_t):
+    """One profile on the full axis, written into ``row`` (T,) float64: its window's samples from
+    ``values``, NaN outside."""
+    row[:] = np.nan
+    for j in range(2 * k + 1):
+        row[n_t - k + j] = values[start + j]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def profile_levels(values, start, kp, n_t, T, cs):
+    """Per profile (its window ``n_t ± kp`` on an axis of ``T`` samples, stored from ``values[start]``; NaN
+    outside it): the mean of the two outermost object-side and background-side samples (Np,) x 2, and the
+    largest and the smallest ``cs`` times the 3-sample mean (float32; NaN counted as 0; the axis' ends
+    replicated) over the object side (``n_t - kp`` to ``n_t - 1``), -inf and +inf where it is empty (Np,)
+    float32 x 2."""
+    n = len(kp)
+    lo_v = np.empty(n)
+    hi_v = np.empty(n)
+    ext = np.empty(n, np.float32)
+    least = np.empty(n, np.float32)
+    third = 1.0 / 3.0
+    prof = np.empty(T)
+    for i in range(n):
+        k = kp[i]
+        _row(prof, values, start[i], k, n_t)
+        lo_v[i] = 0.5 * (prof[n_t - k] + prof[n_t - k + 1])
+        hi_v[i] = 0.5 * (prof[n_t + k] + prof[n_t + k - 1])
+        big = np.float32(-np.inf)
+        small = np.float32(np.inf)
+        for c in range(n_t - k, n_t):
+            s = 0.0
+            for cc in (c - 1, c, c + 1):
+                cc = min(max(cc, 0), T - 1)
+                v = np.float32(prof[cc])
+                s += 0.0 if np.isnan(v) else np.float64(v)
+            m = np.float32(cs) * np.float32(s * third)
+            big = max(big, m)
+            small = min(small, m)
+        ext[i] = big
+        least[i] = small
+    return lo_v, hi_v, ext, least
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _to_num(v):
+    """``np.nan_to_num(v, nan=-1.0)`` for one value."""
+    if np.isnan(v):
+        return -1.0
+    if np.isinf(v):
+        return 1.7976931348623157e308 if v > 0 else -1.7976931348623157e308
+    return v
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def profile_crossings(values, start, kp, n_t, lo_c, den, t, order, step, rise_step):
+    """Per profile (stored as for :func:`profile_levels` on the axis ``t``), normalised as ``(prof - lo_c) /
+    den``: the count of its finite samples, the largest of its samples at ``t > 0`` (NaN: none), the 50 %
+    crossing nearest the centre (``order``: the sample intervals by distance from the centre, on a tie the
+    first; interval 0 where there is none) as an offset [px] (interpolated over ``step``) and whether one
+    was found, and the 25 % -> 75 % rise [px] (interpolated over ``rise_step``; NaN where it does not
+    rise)."""
+    n, T = len(kp), len(t)
+    n_fin = np.empty(n, np.int64)
+    q_peak = np.empty(n)
+    tc = np.empty(n)
+    found = np.zeros(n, np.bool_)
+    rise = np.empty(n)
+    qa = np.empty(T)
+    for i in range(n):
+        qa[:] = np.nan                          # (NaN - lo_c) / den outside the window
+        cnt = 0
+        peak = np.nan
+        k = kp[i]
+        for j in range(n_t - k, n_t + k + 1):
+            q = (np.float64(values[start[i] + j - (n_t - k)]) - lo_c[i]) / den[i]
+            qa[j] = q
+            if np.isfinite(q):
+                cnt += 1
+            if t[j] > 0 and not np.isnan(q) and (np.isnan(peak) or q > peak):
+                peak = q
+        n_fin[i] = cnt
+        q_peak[i] = peak
+        j = 0
+        for jj in order:
+            if qa[jj] < 0.5 and qa[jj + 1] >= 0.5:
+                j = jj
+                found[i] = True
+                break
+        q0, q1 = qa[j], qa[j + 1]
+        tc[i] = t[j] + (0.5 - q0) / (q1 - q0) * step
+        pos0 = 0.0
+        wd = 0.0
+        for lvl in (0.25, 0.75):
+            i1 = 0
+            for jj in range(T):
+                if qa[jj] >= lvl:
+                    i1 = jj
+                    break
+            i0 = max(i1 - 1, 0)
+            a0, a1 = _to_num(qa[i0]), _to_num(qa[i1])
+            frac = (lvl - a0) / (a1 - a0) if a1 > a0 else 0.0
+            pos = t[i0] + frac * rise_step
+            if lvl == 0.25:
+                pos0 = pos
+            else:
+                wd = pos - pos0
+        rise[i] = wd if np.isfinite(wd) and wd > 0 else np.nan
+    return n_fin, q_peak, tc, found, rise
+
+
+@njit(cache=True, nogil=True)
+def block_mean_u8(img, f):
+    """Means of the ``f`` x ``f`` blocks of an 8-bit image (h // f, w // f) float32: the exact integer sum
+    times ``float32(1 / f²)``, as ``cv2.resize(..., INTER_AREA)`` computes it for an integer factor."""
+    hs, ws = img.shape[0] // f, img.shape[1] // f
+    n = ws * f
+    out = np.empty((hs, ws), np.float32)
+    rows = np.empty(n, np.int32)
+    scale = np.float32(1.0 / (f * f))
+    for i in range(hs):
+        rows[:] = 0
+        for r in range(i * f, i * f + f):
+            line = img[r]
+            for c in range(n):
+                rows[c] += line[c]
+        for j in range(ws):
+            s = 0
+            for c in range(j * f, j * f + f):
+                s += rows[c]
+            out[i, j] = np.float32(s) * scale
+    return out
+
+
+@njit(cache=True, nogil=True)
+def surface_threshold(small, row, col, X, Y, c4, sign, hi, lo):
+    """The object mask of :func:`.segment.segment` in one pass (h, w) uint8: with the background surface
+    ``bg = (row[j] + col[i]) + c4 (Y[i] X[j])`` and ``dev = (small - bg) sign``, 1 where ``dev > hi`` or
+    ``dev < lo``; float32 throughout, operation for operation as the numpy broadcasts compute it."""
+    hs, ws = small.shape
+    out = np.empty((hs, ws), np.uint8)
+    for i in range(hs):
+        ci, yi = col[i], Y[i]
+        for j in range(ws):
+            dev = (small[i, j] - ((row[j] + ci) + c4 * (yi * X[j]))) * sign
+            out[i, j] = 1 if (dev > hi or dev < lo) else 0
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def nearest_crossings(t, P, level, t0, sign):
+    """Per row of ``P`` (rows, n): the interpolated crossing of ``level[row]`` nearest ``t0[row]`` where
+    ``sign (P - level)`` goes from < 0 to >= 0, NaN where there is none (:func:`.width._crossings`, one
+    pass per row; numpy's ``argmin`` semantics: the first nearest, a NaN distance first)."""
+    rows, n = P.shape
+    out = np.empty(rows)
+    for r in range(rows):
+        lv, c = level[r], t0[r]
+        best_j, best = 0, np.inf
+        q_prev = sign * (P[r, 0] - lv)
+        for k in range(n - 1):
+            q_next = sign * (P[r, k + 1] - lv)
+            d = np.abs(t[k] - c) if (q_prev < 0 and q_next >= 0) else np.inf
+            if k == 0 or np.isnan(d) or d < best:
+                best_j, best = k, d
+                if np.isnan(d):
+                    break
+            q_prev = q_next
+        if not np.isfinite(best):
+            out[r] = np.nan
+            continue
+        j = best_j
+        q0, q1 = sign * (P[r, j] - lv), sign * (P[r, j + 1] - lv)
+        out[r] = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
+    return out

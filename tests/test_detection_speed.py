@@ -1,0 +1,237 @@
+"""The detector's faster implementations give the same outputs as the straightforward numpy / OpenCV
+formulations they replace (issue 25), bit for bit: the compiled loops over the refinement's edge profiles,
+the working copy of an 8-bit image, the segmentation's one-pass threshold, the distance transforms cut to
+the box they are needed in; and the grouped median is each group's median."""
+
+import cv2
+import numpy as np
+import pytest
+from scipy.special import erf
+
+from notchfit.vision.detection._kernels import profile_crossings, profile_levels, surface_threshold
+from notchfit.vision.detection.base import _distance_near
+
+
+def _profiles(rng, n=400, n_t=12, step=0.5):
+    """Blurred steps (either polarity, a streak on some), NaN outside each row's window and, on a few rows,
+    inside it (the image border)."""
+    t = np.arange(-n_t, n_t + 1) * step
+    kp = rng.integers(3, n_t + 1, n)
+    edge = rng.normal(0, 1.5, n)[:, None]
+    prof = 40.0 + 160.0 * 0.5 * (1 + erf((t[None, :] - edge) / (np.sqrt(2) * rng.uniform(0.5, 2.5, n)[:, None])))
+    prof += rng.normal(0, 2.0, prof.shape)
+    streak = rng.random(n) < 0.2
+    prof[streak, : n_t // 2] += 200.0
+    prof = prof.astype(np.float32).astype(float)            # sampled from a float32 image
+    prof[np.abs(np.arange(-n_t, n_t + 1))[None, :] > kp[:, None]] = np.nan
+    cut = rng.random(n) < 0.05
+    prof[cut, n_t + 1:] = np.nan
+    return prof, kp, n_t, t
+
+
+def _levels_numpy(prof, kp, n_t, cs):
+    rows = np.arange(len(prof))
+    lo_v = 0.5 * (prof[rows, n_t - kp] + prof[rows, n_t - kp + 1])
+    hi_v = 0.5 * (prof[rows, n_t + kp] + prof[rows, n_t + kp - 1])
+    idx = np.arange(prof.shape[1])[None, :]
+    obj_side = (idx >= (n_t - kp)[:, None]) & (idx < n_t)
+    smooth = cv2.blur(np.nan_to_num(prof).astype(np.float32), (3, 1), borderType=cv2.BORDER_REPLICATE)
+    return (lo_v, hi_v, np.max(np.where(obj_side, cs * smooth, -np.inf), axis=1),
+            np.min(np.where(obj_side, cs * smooth, np.inf), axis=1))
+
+
+def _crossings_numpy(prof, lo_c, den, t, step, rise_step):
+    rows = np.arange(len(prof))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        qa = (prof - lo_c[:, None]) / den[:, None]
+        q_peak = np.max(np.where(t[None, :] > 0, np.nan_to_num(qa, nan=-np.inf), -np.inf), axis=1)
+        cr = (qa[:, :-1] < 0.5) & (qa[:, 1:] >= 0.5)
+    dist = np.where(cr, np.abs(0.5 * (t[:-1] + t[1:]))[None, :], np.inf)
+    j = np.argmin(dist, axis=1)
+    q0, q1 = qa[rows, j], qa[rows, j + 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tc = t[j] + (0.5 - q0) / (q1 - q0) * step
+    qv = np.nan_to_num(qa, nan=-1.0)
+    pos = []
+    for lvl in (0.25, 0.75):
+        i1 = np.argmax(qv >= lvl, axis=1)
+        i0 = np.maximum(i1 - 1, 0)
+        a0, a1 = qv[rows, i0], qv[rows, i1]
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            pos.append(t[i0] + np.where(a1 > a0, (lvl - a0) / (a1 - a0), 0.0) * rise_step)
+    wd = pos[1] - pos[0]
+    return qa, np.isfinite(qa).sum(1), q_peak, tc, np.isfinite(dist[rows, j]), np.where(np.isfinite(wd) & (wd > 0),
+                                                                                       wd, np.nan)
+
+
+def _ragged(prof, kp, n_t):
+    """Each row's window, one after the other (float32, as sampled), and where each starts."""
+    n_w = 2 * kp + 1
+    values = np.concatenate([prof[i, n_t - k:n_t + k + 1] for i, k in enumerate(kp)]).astype(np.float32)
+    return values, np.cumsum(n_w) - n_w
+
+
+@pytest.mark.parametrize("cs", [1.0, -1.0])
+def test_profile_levels_equal_the_numpy_formulation(cs):
+    prof, kp, n_t, t = _profiles(np.random.default_rng(1))
+    values, start = _ragged(prof, kp, n_t)
+    for got, want in zip(profile_levels(values, start, kp, n_t, len(t), cs), _levels_numpy(prof, kp, n_t, cs)):
+        assert got.dtype == want.dtype
+        np.testing.assert_array_equal(got, want)
+
+
+def test_profile_crossings_equal_the_numpy_formulation():
+    """Every output bit for bit, on rows with levels from their own ends, a zero span and NaN levels; the
+    largest background sample where a row has an infinite one stands in the comparison the detector makes."""
+    rng = np.random.default_rng(2)
+    prof, kp, n_t, t = _profiles(rng)
+    rows = np.arange(len(prof))
+    lo_c = 0.5 * (prof[rows, n_t - kp] + prof[rows, n_t - kp + 1]) + rng.normal(0, 3, len(prof))
+    den = 0.5 * (prof[rows, n_t + kp] + prof[rows, n_t + kp - 1]) - lo_c
+    den[::37], lo_c[::53] = 0.0, np.nan
+    step = t[1] - t[0]
+    order = np.argsort(np.abs(0.5 * (t[:-1] + t[1:])), kind="stable")
+    values, start = _ragged(prof, kp, n_t)
+    got = profile_crossings(values, start, kp, n_t, lo_c, den, t, order, step, 0.5)
+    want = _crossings_numpy(prof, lo_c, den, t, step, 0.5)[1:]
+    for k in (0, 2, 3, 4):
+        np.testing.assert_array_equal(got[k], want[k])
+    assert got[3].sum() > 0.8 * len(prof)
+    for level in (0.9, 0.5, -1e300):
+        with np.errstate(invalid="ignore"):
+            np.testing.assert_array_equal(got[1] > level, want[1] > level)
+
+
+def test_profile_maps_hold_each_window_as_the_numpy_formulation():
+    """The maps hold every profile's window in turn (float64 positions rounded to float32), rows of the given
+    width, the rest outside the image."""
+    from notchfit.vision.detection._kernels import profile_maps
+
+    rng = np.random.default_rng(3)
+    base, nrm = rng.uniform(0, 500, (300, 2)), rng.normal(size=(300, 2))
+    kp = rng.integers(1, 16, 300)
+    t = np.arange(-15, 16) * 0.37
+    n = int(np.sum(2 * kp + 1))
+    for a, m in enumerate(profile_maps(base, nrm, t, kp, 15, 1000)):
+        assert m.shape == (-(-n // 1000), 1000) and m.dtype == np.float32
+        dense = (base[:, a, None] + t[None, :] * nrm[:, a, None]).astype(np.float32)
+        np.testing.assert_array_equal(m.ravel()[:n], _ragged(dense, kp, 15)[0])
+        assert (m.ravel()[n:] < -1).all()
+
+
+@pytest.mark.parametrize("f", [2, 3, 5, 8, 16])
+def test_working_copy_of_an_8bit_image_equals_the_float_one(f):
+    """Block means read from the 8-bit pixels equal OpenCV's area resize of the float copy, bit for bit
+    (trailing rows and columns that fill no block dropped)."""
+    from notchfit.vision.detection.segment import downsample
+
+    img = np.random.default_rng(f).integers(0, 256, (203 + f, 317 + 2 * f), dtype=np.uint8)
+    got = downsample(img, f)
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, downsample(img.astype(np.float32), f))
+
+
+def test_group_median_is_each_groups_median():
+    """Groups in any order, NaN and infinities ignored, an empty group NaN, even and odd counts."""
+    from notchfit.vision.detection.lines import group_median
+
+    rng = np.random.default_rng(4)
+    g = rng.integers(0, 40, 3000)
+    v = np.round(rng.normal(0, 5, 3000), 1)               # ties within groups
+    v[rng.random(3000) < 0.05] = np.nan
+    v[rng.random(3000) < 0.01] = np.inf
+    got = group_median(v, g, 41)
+    for k in range(41):
+        vals = v[(g == k) & np.isfinite(v)]
+        assert (np.isnan(got[k]) and not len(vals)) or got[k] == np.median(vals)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_surface_threshold_equals_the_numpy_broadcasts(dtype):
+    """The background surface, the deviation from it and both thresholds in one pass equal the numpy
+    formulation (float32 surface, Python-float thresholds cast as numpy casts them), ties included."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        hs, ws = (int(v) for v in rng.integers(20, 200, 2))
+        small = rng.normal(100, 30, (hs, ws)).astype(dtype)
+        c = rng.normal(0, 50, 6).astype(np.float32)
+        sign = np.float32(rng.choice([-1.0, 1.0]))
+        X = (np.arange(ws, dtype=np.float32) / ws - 0.5)[None, :]
+        Y = (np.arange(hs, dtype=np.float32) / hs - 0.5)[:, None]
+        bg = (c[0] + c[1] * X + c[3] * X * X) + (c[2] * Y + c[5] * Y * Y) + c[4] * (Y * X)
+        dev = (small - bg) * sign
+        hi, lo = float(dev[rng.integers(hs), rng.integers(ws)]), -abs(float(rng.normal(10, 5)))   # a tie at hi
+        ref = ((dev > hi) | (dev < lo)).astype(np.uint8)
+        X, Y = X[0], Y[:, 0]
+        got = surface_threshold(small, c[0] + c[1] * X + c[3] * X * X, c[2] * Y + c[5] * Y * Y, X, Y, c[4], sign,
+                                small.dtype.type(hi), small.dtype.type(lo))
+        np.testing.assert_array_equal(got, ref)
+
+
+def test_distance_cut_to_its_box_equals_the_full_transform():
+    """Up to the reach, the 5x5 chamfer distance computed in the box around the mask equals the whole
+    image's, and it is above the reach exactly where the whole image's is (sparse and solid masks)."""
+    rng = np.random.default_rng(6)
+    for k in range(100):
+        h, w = rng.integers(30, 250, 2)
+        m = np.zeros((h, w), np.uint8)
+        for _ in range(rng.integers(1, 5)):
+            cv2.circle(m, (int(rng.integers(w)), int(rng.integers(h))), int(rng.integers(1, 20)), 1, -1)
+        if k % 2:
+            m &= (rng.random((h, w)) > 0.3).astype(np.uint8)
+        reach = float(rng.uniform(1, 30))
+        full = cv2.distanceTransform(1 - m, cv2.DIST_L2, cv2.DIST_MASK_5)
+        got = _distance_near(m, reach)
+        near = full <= reach
+        np.testing.assert_array_equal(got <= reach, near)
+        np.testing.assert_array_equal(got[near], full[near])
+
+
+def test_closings_sharing_the_distance_to_the_region_equal_separate_ones():
+    """A series of disk closings that takes its dilation's distances from one transform of the most padded
+    copy equals closings computed one by one, bit for bit (a region touching the image border included)."""
+    from notchfit.vision.detection.width import _close_disk, _distance_to
+
+    rng = np.random.default_rng(7)
+    for k in range(20):
+        h, w = (int(v) for v in rng.integers(40, 200, 2))
+        m = np.zeros((h, w), np.uint8)
+        for _ in range(rng.integers(1, 6)):
+            cv2.circle(m, (int(rng.integers(w)), int(rng.integers(h))), int(rng.integers(2, 25)), 1, -1)
+        m &= (rng.random((h, w)) > 0.05 * (k % 3)).astype(np.uint8)
+        near = _distance_to(m, 30)
+        for r in (1, 2, 3, 6, 12, 28):
+            a, pa = _close_disk(m, r)
+            b, pb = _close_disk(m, r, near=near)
+            assert pa == pb
+            np.testing.assert_array_equal(a, b)
+
+
+def _width_crossings_numpy(t, P, level, t0, sign):
+    """The numpy formulation of the width profiles' nearest crossing (the reference)."""
+    q = sign * (P - level[:, None])
+    with np.errstate(invalid="ignore"):
+        cr = (q[:, :-1] < 0) & (q[:, 1:] >= 0)
+    d = np.where(cr, np.abs(t[None, :-1] - t0[:, None]), np.inf)
+    j = np.argmin(d, axis=1)
+    rows = np.arange(len(P))
+    q0, q1 = q[rows, j], q[rows, j + 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tc = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
+    return np.where(np.isfinite(d[rows, j]), tc, np.nan)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_width_profile_crossings_equal_the_numpy_formulation(sign):
+    """Several crossings per row (the nearest taken, ties to the first), none, NaN samples (outside the
+    image), an infinite level (no level fitted) and a NaN centre."""
+    from notchfit.vision.detection.width import _crossings
+
+    rng = np.random.default_rng(8)
+    prof, _, _, t = _profiles(rng)
+    prof[:, ::7] += rng.normal(0, 60, prof[:, ::7].shape)           # extra crossings
+    level = rng.uniform(60, 180, len(prof))
+    level[rng.random(len(prof)) < 0.05] = np.inf
+    t0 = np.round(rng.normal(0, 2, len(prof)) * 2) / 2               # on the samples: equidistant ties
+    t0[rng.random(len(prof)) < 0.03] = np.nan
+    np.testing.assert_array_equal(_crossings(t, prof, level, t0, sign), _width_crossings_numpy(t, prof, level, t0, sign))
