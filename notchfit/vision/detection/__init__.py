@@ -52,7 +52,7 @@ from ...imaging import to_gray
 from ...units import MM
 from .options import DetectorOptions
 from .overlay import draw_overlay, overlay_with_crop
-from .pipeline import link_tolerance, locate, refine_and_finish
+from .pipeline import Setup, link_tolerance, locate, refine_and_finish
 from .plane import finish
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
@@ -149,7 +149,7 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
     px_per_m, sgn = view_orientation(camera, (H, W), mirror)
     f = work_factor(geom, px_per_m, opts)
     extra = {"scale_mm_per_px": 1.0 / (px_per_m * MM), "scale_sigma": 0.0}
-    det, _ = _detect_at(gray, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base, extra=extra,
+    det, _ = _detect_at(gray, Setup(camera, geom, opts, f, px_per_m, sgn, base), extra=extra,
                         cache={"colour": colour})
     return det
 
@@ -209,16 +209,17 @@ def _fill_streaks(mask, length_px, *, holder_radius, bridge_px, radius_px):
     return filled
 
 
-def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stations=False, cache=None):
+def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
     """Stages 1-6 at a known scale. When the silhouette does not give every slot and the tip, it is located
     again with thin background lines across the tube filled (a specular streak that splits it), and the
     variant that locates more corners is refined. Returns (Detection, refinement or None)."""
+    geom, opts, f = setup.geom, setup.opts, setup.f
     m = geom.n_points
     cache = {} if cache is None else cache
     shape, seg = _segmented(gray, f, opts, cache)
     if seg.mask is None:
         return empty_detection(m, "no_manipulator", seg.message), None
-    low_m = f / px_per_m
+    low_m = setup.low_m
     R = geom.outer_radius
     exp_area = (2 * R * (geom.tip_z - geom.base_edge_z) - float(np.sum(slot_widths(geom) * slot_depths(geom)))) \
         / low_m ** 2
@@ -249,8 +250,7 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
                                                 f"{ratio:.2f} x the tube's silhouette area (wrong geometry or "
                                                 "camera file?)")))
         else:
-            tried.append(locate(region, box, shape, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn, base=base,
-                                small=seg.image, dark=seg.contrast < 0))
+            tried.append(locate(region, box, shape, setup, small=seg.image, dark=seg.contrast < 0))
         if tried[-1][0] is not None and wanted <= {s_.point for s_ in tried[-1][0]}:
             break
     found = [t for t in tried if t[0] is not None]
@@ -265,8 +265,7 @@ def _detect_at(gray, camera, geom, opts, *, f, px_per_m, sgn, base, extra, stati
         # mirrors the backdrop is missing from it, and an edge inside the tube then passes for the outer edge
         # (and so are slots numbered without the tip, which would confirm the tube's width)
         specs, ctx = tried[k]
-        return refine_and_finish(gray, seg, specs, ctx, camera, geom, opts, f=f, px_per_m=px_per_m, sgn=sgn,
-                                 extra=extra, stations=stations,
+        return refine_and_finish(gray, seg, specs, ctx, setup, extra=extra, stations=stations,
                                  width_mask=masks[k] if k == 2 or ctx.confirm_width else None)
 
     out = refined(order[0])
@@ -420,8 +419,8 @@ def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
     if scale is not None:
         px_per_m, extra = scale
         cam = DiameterScale(1 / px_per_m, (W, H))
-        return _detect_at(gray, cam, geom, opts, f=work_factor(geom, px_per_m, opts), sgn=sgn,
-                          base=base, cache=cache, px_per_m=px_per_m, extra=extra)[0]
+        return _detect_at(gray, Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base),
+                          cache=cache, extra=extra)[0]
     return _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
 
 
@@ -432,10 +431,10 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
     R = geom.outer_radius
     px_per_m = rough.px_per_m / R
     f = work_factor(geom, px_per_m, opts)
-    kw = dict(f=f, sgn=sgn, base=base, cache=cache)
     # the rough scale can be a few % off: no scale or base-edge check before the measured scale
-    det, ref = _detect_at(gray, DiameterScale(1 / px_per_m, (W, H)), geom, opts.replace(scale_tol=math.inf,
-                          base_edge_tol=math.inf), px_per_m=px_per_m, extra={}, stations=True, **kw)
+    rough_setup = Setup(DiameterScale(1 / px_per_m, (W, H)), geom,
+                        opts.replace(scale_tol=math.inf, base_edge_tol=math.inf), f, px_per_m, sgn, base)
+    det, ref = _detect_at(gray, rough_setup, extra={}, stations=True, cache=cache)
     if ref is None or not ref.ok.any():
         return det
     st = _stations(ref, opts.width_stations, sgn)
@@ -451,9 +450,8 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
     if abs(px_per_m / rough_ppm - 1) <= opts.rescale_tol and ref.plane_input is not None:
         # the corners in pixels do not depend on the scale beyond the profile lengths: map them again
         p = ref.plane_input
-        return finish(cam, geom, p.pts_px, p.ideal, p.cov, p.status, p.messages, p.blur, p.contour_px,
-                      scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=p.side,
+        return finish(cam, geom, p, scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol,
                       link_tol=link_tolerance(geom, opts), **extra)
-    kw["f"] = work_factor(geom, px_per_m, opts)
-    det, _ = _detect_at(gray, cam, geom, opts, px_per_m=px_per_m, extra=extra, **kw)
+    setup = Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base)
+    det, _ = _detect_at(gray, setup, extra=extra, cache=cache)
     return det

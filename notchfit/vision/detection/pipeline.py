@@ -17,12 +17,80 @@ from .lines import unit
 from .numbering import ChainInput, number_slots, orient_corner_pair
 from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_mouth_corners, slot_mouths, turn_angles,
                       turn_peaks)
-from .plane import finish
+from .plane import PlaneInput, finish
 from .refine import CornerSpecs, refine_pass
 from .result import empty_detection
 
-__all__ = ["Located", "Parsed", "PlaneInput", "Refinement", "link_tolerance", "locate", "refine_and_finish",
-           "refine_corners"]
+__all__ = ["Crop", "Located", "Parsed", "PlaneInput", "Refinement", "Setup", "link_tolerance", "locate",
+           "refine_and_finish", "refine_corners"]
+
+
+@dataclass(frozen=True)
+class Setup:
+    """What every stage of one detection at one scale knows: the camera, the tube, the options, the scale.
+
+    Attributes
+    ----------
+    camera : CameraModel or DiameterScale
+        Maps pixels to the plane.
+    geom : Geometry
+    opts : DetectorOptions
+    f : int
+        Block-averaging factor of the working copy.
+    px_per_m : float
+        Image scale in the plane [px/m].
+    sgn : float
+        Orientation sign of the outline (object on the left of the traversal when +1).
+    base : str or None
+        The image side the base is known to point to (None: found).
+    """
+
+    camera: object
+    geom: object
+    opts: object
+    f: int
+    px_per_m: float
+    sgn: float
+    base: str | None = None
+
+    @property
+    def low_m(self) -> float:
+        """Size of one working-copy pixel in the plane [m]."""
+        return self.f / self.px_per_m
+
+
+@dataclass(frozen=True)
+class Crop:
+    """One cropped working-copy silhouette and how its slots are bridged (:func:`locate` -> :func:`_parse`).
+
+    Attributes
+    ----------
+    roi : ndarray (h, w) bool
+        The silhouette's box on the working copy.
+    offset : (int, int)
+        Its position on the working copy [low-res px].
+    shape : (int, int)
+        The working copy's shape (rows, cols).
+    r_close : int
+        Radius of the closing that bridges the slots [low-res px].
+    slot_area : float
+        A slot's expected area [low-res px²].
+    holders : (ndarray, ndarray)
+        The grown and strict holder masks on ``roi``.
+    gray : ndarray (h, w) or None
+        The working copy's intensities on ``roi`` (which side of a hole is its mouth).
+    dark : bool
+        The object is darker than the background.
+    """
+
+    roi: np.ndarray
+    offset: tuple
+    shape: tuple
+    r_close: int
+    slot_area: float
+    holders: tuple
+    gray: np.ndarray | None = None
+    dark: bool = True
 
 
 @dataclass(frozen=True)
@@ -88,20 +156,6 @@ class Located:
     full: object
     tube_px: np.ndarray
     confirm_width: bool = False
-
-
-@dataclass(frozen=True)
-class PlaneInput:
-    """The refined corners before stage 6, kept to map them again at another scale (no calibration)."""
-
-    pts_px: np.ndarray
-    ideal: np.ndarray
-    cov: np.ndarray
-    status: list
-    messages: list
-    blur: float
-    contour_px: np.ndarray
-    side: str
 
 
 @dataclass
@@ -189,14 +243,15 @@ def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, to_plane
     return ChainInput(corners, slack, base, plane_px, low_m, tol)
 
 
-def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base, r_close, slot_area, holders,
-           exclude_holder, gray=None, dark=True):
+def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool):
     """Bridge, base end, slot numbering on one cropped silhouette: (Parsed, None) or (None, Detection)."""
+    camera, geom, opts, f, low_m, sgn = setup.camera, setup.geom, setup.opts, setup.f, setup.low_m, setup.sgn
+    r_close, small_shape, gray, dark = crop.r_close, crop.shape, crop.gray, crop.dark
     lay = notch_layout(geom)
     m = lay.n_points
     R_lo = geom.outer_radius / low_m
-    holder, strict = holders
-    ol = bridge_slots(roi, offset, small_shape, r_close=r_close, slot_area=slot_area,
+    holder, strict = crop.holders
+    ol = bridge_slots(crop.roi, crop.offset, small_shape, r_close=r_close, slot_area=crop.slot_area,
                       slot_area_range=opts.slot_area_range, sgn=sgn, holder=strict if exclude_holder else None,
                       holder_strict=strict)
     if ol is None:
@@ -210,7 +265,7 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     mouths = slot_mouths(ol, max_wall=0.5 * R_lo, gray=gray, dark=dark)
     be, why = find_base(ol, (holder, strict), R_lo=R_lo, dist=dist, sgn=sgn, min_tube_run_R=opts.min_tube_run_R,
                         min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
-                        pair_tol=opts.pair_tol, base=base, mouth_idx=[v[0] for v in mouths.values()])
+                        pair_tol=opts.pair_tol, base=setup.base, mouth_idx=[v[0] for v in mouths.values()])
     if be is None:
         return None, empty_detection(m, "partial", why, contour_px)
     if be.kind == "corners":
@@ -249,7 +304,7 @@ def _parse(roi, offset, small_shape, camera, geom, opts, *, f, low_m, sgn, base,
     return Parsed(ol, be, num, mouths, raw, full, contour_px, rawc), None
 
 
-def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, base, small=None, dark=True):
+def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True):
     """Stages 2-4 on the downsampled copy: outline, base end, numbering, first corner estimates.
 
     The slots are bridged with the holder left out of the closing (its
@@ -262,9 +317,9 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     specs : list of CornerSpec
     context : Located, or a Detection (failure)
     """
+    geom, opts, sgn, low_m = setup.geom, setup.opts, setup.sgn, setup.low_m
     lay = notch_layout(geom)
     m = lay.n_points
-    low_m = f / px_per_m
     R = geom.outer_radius
     R_lo = R / low_m
     w_max = float(slot_widths(geom).max())
@@ -275,11 +330,10 @@ def locate(region, box, small_shape, camera, geom, opts, *, f, px_per_m, sgn, ba
     strict, grown = holder_masks(roi, opts.holder_width_factor * R_lo)
     holders = (grown, strict)
     gray = None if small is None else small[offset[1]:offset[1] + roi.shape[0], offset[0]:offset[0] + roi.shape[1]]
-    kw = dict(f=f, low_m=low_m, sgn=sgn, base=base, r_close=r_close, slot_area=slot_area, holders=holders,
-              gray=gray, dark=dark)
+    crop = Crop(roi, offset, small_shape, r_close, slot_area, holders, gray, dark)
     best = None
     for exclude in ((True, False) if holders[1].any() else (False,)):
-        res, fail = _parse(roi, offset, small_shape, camera, geom, opts, exclude_holder=exclude, **kw)
+        res, fail = _parse(crop, setup, exclude_holder=exclude)
         if res is None:
             best = best or (None, fail)
             continue
@@ -361,14 +415,15 @@ def _partners(pidx, geom) -> np.ndarray:
     return out
 
 
-def refine_corners(gray, specs, camera, *, full, px_per_m, sgn, contrast, f, opts, geom, extra_px=None):
+def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None):
     """Stage 5 for all corners: first pass with long profiles, then passes sized by the measured blur.
 
     Returns
     -------
     Refinement
     """
-    kf = max(1.0, f / 2.0)
+    camera, geom, opts, px_per_m, sgn = setup.camera, setup.geom, setup.opts, setup.px_per_m, setup.sgn
+    kf = max(1.0, setup.f / 2.0)
     pidx = np.array([s.point for s in specs])
     sp = CornerSpecs(full(np.array([s.xy for s in specs])), unit(np.array([s.d_in for s in specs])),
                      unit(np.array([s.d_out for s in specs])), np.array([s.len_in for s in specs]) * px_per_m,
@@ -467,12 +522,12 @@ def link_tolerance(geom, opts):
     return opts.link_rel_tol, opts.link_abs_w * float(slot_widths(geom).min())
 
 
-def refine_and_finish(gray, seg, specs, ctx: Located, camera, geom, opts, *, f, px_per_m, sgn, extra=None,
-                      stations=None, width_mask=None):
+def refine_and_finish(gray, seg, specs, ctx: Located, setup: Setup, *, extra=None, stations=None, width_mask=None):
     """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, Refinement or None).
 
     ``width_mask``: a working-copy silhouette on which each ok slot corner's link must be ``2R`` wide
     (within ``width_tol``, :func:`link_widths`), else the corner is ambiguous."""
+    camera, geom, opts = setup.camera, setup.geom, setup.opts
     m = geom.n_points
     extra = extra or {}
     status, msg = list(ctx.status), list(ctx.messages)
@@ -481,11 +536,10 @@ def refine_and_finish(gray, seg, specs, ctx: Located, camera, geom, opts, *, f, 
     blur = math.nan
     if specs:
         far = ctx.tube_px if stations else None
-        ref = refine_corners(gray, specs, camera, full=ctx.full, px_per_m=px_per_m, sgn=sgn,
-                             contrast=seg.contrast, f=f, opts=opts, extra_px=far, geom=geom)
+        ref = refine_corners(gray, specs, setup, full=ctx.full, contrast=seg.contrast, extra_px=far)
         status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
         if width_mask is not None:
-            wid = link_widths(ref, width_mask, f, camera, px_per_m, geom.outer_radius)
+            wid = link_widths(ref, width_mask, setup.f, camera, setup.px_per_m, geom.outer_radius)
             for k in np.nonzero(np.abs(wid / (2 * geom.outer_radius) - 1) > opts.width_tol)[0]:
                 i = ref.pidx[k]
                 if status[i] == "ok":
@@ -494,8 +548,8 @@ def refine_and_finish(gray, seg, specs, ctx: Located, camera, geom, opts, *, f, 
         blur = ref.blur
         ref.plane_input = PlaneInput(pts_px.copy(), ideal.copy(), cov.copy(), list(status), list(msg), blur,
                                      ctx.contour_px, ctx.side)
-    det = finish(camera, geom, pts_px, ideal, cov, status, msg, blur, ctx.contour_px,
-                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, base_side=ctx.side,
-                 link_tol=link_tolerance(geom, opts), **extra)
+    det = finish(camera, geom, PlaneInput(pts_px, ideal, cov, status, msg, blur, ctx.contour_px, ctx.side),
+                 scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol, link_tol=link_tolerance(geom, opts),
+                 **extra)
     return det, ref
 

@@ -9,13 +9,46 @@ face is not the base edge and the base points are hidden (``occluded``).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ...physics.geometry import notch_layout
 from .dims import slot_widths
 from .result import Detection
 
-__all__ = ["base_edge_offset", "finish", "rigid_link_check", "to_plane_points"]
+__all__ = ["PlaneInput", "base_edge_offset", "finish", "rigid_link_check", "to_plane_points"]
+
+
+@dataclass(frozen=True)
+class PlaneInput:
+    """The refined corners stage 6 maps to the plane (:func:`finish`), kept to map them again at another
+    scale (no calibration).
+
+    Attributes
+    ----------
+    pts_px, ideal : ndarray (m, 2)
+        Raw and ideal (undistorted) corners [px], NaN where not found.
+    cov : ndarray (m, 2, 2)
+        Covariance of the ideal corners [px²].
+    status : list of str (m,)
+    messages : list of str
+    blur : float
+        Edge blur σ [px].
+    contour_px : ndarray (N, 2) or None
+        The bridged outline [px] (overlays).
+    side : str
+        The image side the base points to.
+    """
+
+    pts_px: np.ndarray
+    ideal: np.ndarray
+    cov: np.ndarray
+    status: list
+    messages: list
+    blur: float
+    contour_px: np.ndarray
+    side: str
 
 
 def to_plane_points(camera, ideal, cov, ok):
@@ -128,16 +161,20 @@ def _drop_link_outliers(plane, sigma, status, msg, geom, link_tol, need_partner)
     return msg
 
 
-def finish(camera, geom, pts_px, ideal, cov, status, msg, blur, contour_px, *, scale_tol, base_edge_tol,
-           check_base=True, link_tol=None, need_partner=(), **extra) -> Detection:
+def finish(camera, geom, p: PlaneInput, *, scale_tol, base_edge_tol, check_base=True, link_tol=None, need_partner=(),
+           **extra) -> Detection:
     """Plane points, scale, base-edge and rigid-link checks, statuses and the message.
+
+    ``p.pts_px`` is the detection's pixel array (base points hidden by the base-edge check are set NaN in it);
+    ``p.side`` is the detection's ``base_side``.
 
     ``need_partner``: points whose identity must be confirmed by a rigid-link
     partner (:func:`rigid_link_check`); base and tip points always need one.
     """
-    m = len(status)
+    pts_px, ideal, cov, msg, blur = p.pts_px, p.ideal, p.cov, p.messages, p.blur
+    m = len(p.status)
     lay = notch_layout(geom)
-    status = list(status)
+    status = list(p.status)
     ok = np.array([s == "ok" for s in status])
     plane, sigma = to_plane_points(camera, ideal, cov, ok)
     if check_base:
@@ -187,4 +224,5 @@ def finish(camera, geom, pts_px, ideal, cov, status, msg, blur, contour_px, *, s
         bad = [str(i + 1) for i in range(m) if status[i] != "ok"]
         text = "; ".join(msg + [f"{m - n_ok} of {m} points not ok: " + ", ".join(bad[:20])
                                 + (" ..." if len(bad) > 20 else "")])
-    return Detection(plane, pts_px, sigma, tuple(status), ist, text, contour_px, float(blur), **extra)
+    return Detection(plane, pts_px, sigma, tuple(status), ist, text, p.contour_px, float(blur), base_side=p.side,
+                     **extra)
