@@ -11,7 +11,7 @@ from notchfit.vision.detection.base import find_base, holder_mask, image_side
 from notchfit.vision.detection.edges import fit_steps
 from notchfit.vision.detection.lines import intersect, robust_group_lines
 from notchfit.vision.detection.outline import bridge_slots, crop_region, slot_mouths
-from notchfit.vision.detection.refine import CornerSpecs, refine_pass
+from notchfit.vision.detection.refine import CornerLines, CornerSpecs, ProfileLayout, refine_pass
 from notchfit.vision.detection.segment import fill_holes, largest_region, segment
 from notchfit.vision.detection.view import DiameterScale
 from notchfit.vision.detection.width import measure_diameter, rough_radius
@@ -164,10 +164,10 @@ def test_refine_pass_finds_an_l_corner_to_a_twentieth_of_a_pixel():
     cam = DiameterScale(1e-5, (120, 120))
     best = None
     for sgn in (1.0, -1.0):
-        Cn, *_, ok, blur, _, _, _ = refine_pass(img, np.zeros(2), cam, sp, sgn, s0=4, s_end=3, h=6, step=0.5,
-                                              lim=0.25, min_points=5, contrast=-160.0)
-        if ok[0]:
-            best = (sgn, Cn[0], blur)
+        res = refine_pass(img, np.zeros(2), cam, sp, sgn, ProfileLayout(s0=4, s_end=3, h=6, step=0.5), lim=0.25,
+                          min_points=5, contrast=-160.0)
+        if res.ok[0]:
+            best = (sgn, res.C[0], res.blur)
     assert best is not None, "neither edge polarity refined the corner"
     assert np.linalg.norm(best[1] - X) < 0.05
     assert 0.8 < best[2] < 1.25
@@ -219,13 +219,12 @@ def _refine_two_passes(img, X, Din, Dout, face, **kw):
                      np.array([40.0]), np.array([40.0]), np.array(face), **kw.pop("specs", {}))
     cam = DiameterScale(1e-5, img.shape[::-1])
     for it, h in enumerate((10.0, 5.0)):
-        Cn, Xi, Ci, ok, blur, Din2, Dout2, _ = refine_pass(img, np.zeros(2), cam, sp, -1.0, s0=4, s_end=3, h=h,
-                                                        step=0.5, lim=0.25, min_points=5, contrast=-160.0,
-                                                        h_face=h, blur_prior=1.0 if it else math.nan, **kw)
-        if ok[0]:
-            sp.C = Cn.copy()
-        sp.Din, sp.Dout = Din2, Dout2
-    return Cn[0] if ok[0] else None
+        res = refine_pass(img, np.zeros(2), cam, sp, -1.0, ProfileLayout(s0=4, s_end=3, h=h, step=0.5, h_face=h),
+                          lim=0.25, min_points=5, contrast=-160.0, blur_prior=1.0 if it else math.nan, **kw)
+        if res.ok[0]:
+            sp.C = res.C.copy()
+        sp.Din, sp.Dout = res.Din, res.Dout
+    return res.C[0] if res.ok[0] else None
 
 
 @pytest.mark.parametrize("streak_u", [None, 95.0, 100.0, 106.0])
@@ -386,8 +385,9 @@ def test_a_face_seen_far_from_the_side_is_measured_on_its_arc_or_not_at_all(deg)
     c, dd, *_ = robust_group_lines(pts, grp, 2)
     X_line = intersect(c[0], dd[0], c[1], dd[1])
     assert np.linalg.norm(X_line - X) > 0.2 * R * b
-    Xc, _, okc = curved_face_corners(pts, grp, 1, c, dd, np.array([False, True]), X_line[None], np.eye(2)[None] * 0.01,
-                                     np.array([True]), radius_px=R, start_px=3.0)
+    lines = CornerLines(X_line[None], np.eye(2)[None] * 0.01, np.array([True]), c, dd, np.ones(2, bool), np.zeros(2))
+    arcs = curved_face_corners(pts, grp, lines, np.array([False, True]), radius_px=R, start_px=3.0)
+    Xc, okc = arcs.X, arcs.ok
     if deg < 40:
         assert okc[0] and np.linalg.norm(Xc[0] - X) < 0.3, (Xc[0], X_line)
     else:

@@ -18,7 +18,7 @@ from .numbering import ChainInput, number_slots, orient_corner_pair
 from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_mouth_corners, slot_mouths, turn_angles,
                       turn_peaks)
 from .plane import PlaneInput, finish
-from .refine import CornerSpecs, refine_pass
+from .refine import CornerSpecs, ProfileLayout, refine_pass
 from .result import empty_detection
 
 __all__ = ["Crop", "Located", "Parsed", "PlaneInput", "Refinement", "Setup", "link_tolerance", "locate",
@@ -435,7 +435,7 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None):
     margin = 2 * max(opts.stage1_half_px, opts.stage1_face_px) * kf + 10
     extra = np.zeros((0, 2)) if extra_px is None else extra_px
     img, off = _roi(gray, sp.C, sp.Din, sp.Dout, sp.Lin, sp.Lout, extra, margin)
-    bl, ok, Xi, Ci = 1.0, np.zeros(len(specs), bool), None, None
+    bl = 1.0
     for it in range(1 + opts.iterations):
         if it == 0:
             s0, s_end, h, lim = 5.0 * kf, 3.0, opts.stage1_half_px * kf, 0.25
@@ -443,19 +443,19 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None):
         else:
             s0, s_end, h, lim = max(3.0, 3.0 * bl + 1.0), max(2.0, 2.5 * bl + 1.0), max(3.0, 3.0 * bl + 2.0), 0.1
             h_face = h
-        Cn, Xi, Ci, ok, bl_new, Din, Dout, Csys = refine_pass(
-            img, off, camera, sp, sgn, s0=s0, s_end=s_end, h=h, step=opts.profile_step_px, lim=lim,
-            min_points=opts.min_edge_points, contrast=contrast, h_face=h_face,
-            blur_prior=bl if it > 0 else math.nan, radius_px=radius_px if it == opts.iterations else math.nan)
-        if np.isfinite(bl_new):
-            bl = bl_new
-        sp.C = np.where(np.isfinite(Cn).all(1)[:, None], Cn, sp.C)
-        sp.Din, sp.Dout = Din, Dout
+        res = refine_pass(img, off, camera, sp, sgn, ProfileLayout(s0, s_end, h, opts.profile_step_px, h_face),
+                          lim=lim, min_points=opts.min_edge_points, contrast=contrast,
+                          blur_prior=bl if it > 0 else math.nan,
+                          radius_px=radius_px if it == opts.iterations else math.nan)
+        if np.isfinite(res.blur):
+            bl = res.blur
+        sp.C = np.where(np.isfinite(res.C).all(1)[:, None], res.C, sp.C)
+        sp.Din, sp.Dout = res.Din, res.Dout
     shift = np.linalg.norm(sp.C - C0, axis=1)
-    sig_px = np.sqrt(np.maximum(np.trace(Ci, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
+    sig_px = np.sqrt(np.maximum(np.trace(res.cov, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
     # the reported covariance adds what the edges' own profiles show (two rims of a face seen from the side)
-    return Refinement(pidx, sp.C, Xi, Ci + Csys / opts.sigma_inflation ** 2, ok, shift, bl, sig_px, sp, img, off,
-                      kf)
+    return Refinement(pidx, sp.C, res.X, res.cov + res.cov_sys / opts.sigma_inflation ** 2, res.ok, shift, bl,
+                      sig_px, sp, img, off, kf)
 
 
 def statuses(ref: Refinement, m, status, shape, opts):

@@ -14,7 +14,7 @@ blurred L-corners (the project's rendering notes).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -23,9 +23,8 @@ from ._kernels import profile_crossings, profile_levels, profile_maps
 from .edges import choose_edges
 from .lines import group_median, robust_group_lines, unit
 
-__all__ = ["CornerSpecs", "Profiles", "corner_lines", "curved_face_corners", "edge_crossings", "face_view_cov",
-           "refine_pass",
-           "sample_profiles"]
+__all__ = ["CornerLines", "CornerSpecs", "PassResult", "ProfileLayout", "Profiles", "corner_lines",
+           "curved_face_corners", "edge_crossings", "face_view_cov", "refine_pass", "sample_profiles"]
 
 
 @dataclass
@@ -64,6 +63,88 @@ class CornerSpecs:
     curved: np.ndarray | None = None
     partner: np.ndarray | None = None
     holder_face: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class CornerLines:
+    """Robust edge lines of K corners and their intersections (:func:`corner_lines`).
+
+    Attributes
+    ----------
+    X : ndarray (K, 2)
+        Corners [ideal px] (NaN where not ok).
+    cov : ndarray (K, 2, 2)
+        Their covariance [px²].
+    ok : ndarray (K,) bool
+    c, dd : ndarray (2K, 2)
+        Every edge's line: centroid [px] and unit direction (edge e < K: corner e's incoming edge, else its
+        outgoing edge).
+    good_e : ndarray (2K,) bool
+        Edges with enough points for a line.
+    s2 : ndarray (2K,)
+        Residual variance of each line before the noise floor [px²].
+    """
+
+    X: np.ndarray
+    cov: np.ndarray
+    ok: np.ndarray
+    c: np.ndarray
+    dd: np.ndarray
+    good_e: np.ndarray
+    s2: np.ndarray
+
+
+@dataclass(frozen=True)
+class ProfileLayout:
+    """Where the profiles of one refinement pass lie (:func:`sample_profiles`) [px].
+
+    Attributes
+    ----------
+    s0, s_end : float
+        Profiles from ``s0`` after the corner to ``s_end`` before the edge's end.
+    h : float
+        Half length of a profile.
+    step : float
+        Sample spacing along a profile.
+    h_face : float or None
+        Half length on slot faces (None: ``h``).
+    """
+
+    s0: float
+    s_end: float
+    h: float
+    step: float
+    h_face: float | None = None
+
+
+@dataclass(frozen=True)
+class PassResult:
+    """One refinement pass's corners (:func:`refine_pass`).
+
+    Attributes
+    ----------
+    C, X : ndarray (K, 2)
+        Raw and ideal (undistorted) corners [px] (NaN where not ok).
+    cov : ndarray (K, 2, 2)
+        Covariance of the ideal corners from the fit [px²].
+    ok : ndarray (K,) bool
+    blur : float
+        Edge blur σ [px] (NaN where not measured).
+    Din, Dout : ndarray (K, 2)
+        The incoming and outgoing edge directions for the next pass.
+    cov_sys : ndarray (K, 2, 2)
+        The covariance of the edges' own offsets (:func:`edge_spread`, :func:`face_view_cov`) to add to the
+        reported one [px²].
+    """
+
+    C: np.ndarray
+    X: np.ndarray
+    cov: np.ndarray
+    ok: np.ndarray
+    blur: float
+    Din: np.ndarray
+    Dout: np.ndarray
+    cov_sys: np.ndarray
 
 
 @dataclass
@@ -254,8 +335,9 @@ def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0, s2_edge=None):
     ``s2_edge`` (2K,): a variance of each line's offset shared by all its
     points (:func:`edge_spread`), added as it is (no fit averages it away).
 
-    Returns X (K,2), cov (K,2,2), ok (K,), line centroids (2K,2), directions (2K,2), good edges (2K,),
-    residual variance of each line before the floor (2K,).
+    Returns
+    -------
+    CornerLines
     """
     c, dd, n, s2_fit, stt, _ = robust_group_lines(pts, grp, 2 * K)
     s2 = np.maximum(s2_fit, s2_floor)
@@ -288,7 +370,7 @@ def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0, s2_edge=None):
     cov = Ainv @ D @ np.swapaxes(Ainv, 1, 2)
     X[~okc] = np.nan
     cov[~okc] = np.nan
-    return X, cov, okc, c, dd, good_e, s2_fit
+    return CornerLines(X, cov, okc, c, dd, good_e, s2_fit)
 
 
 def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 0.15, n_iter: int = 3):
@@ -325,7 +407,7 @@ def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor:
     return coef, cov, s2, n
 
 
-def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: float, s2_floor: float = 0.0,
+def curved_face_corners(pts, grp, lines: CornerLines, curved, *, radius_px: float, s2_floor: float = 0.0,
                         min_points: int = 5, significance: float = 16.0, start_px: float = 0.0,
                         max_start: float = 0.1, max_sin: float = 0.7, partner=None, lone_sigma: float = 6.0,
                         max_bulge_px: float = 1.0, fit=None):
@@ -356,12 +438,12 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
     ----------
     pts : ndarray (P, 2)
         Undistorted 50 % crossings; ``grp`` (P,) their edge 0..2K-1.
-    c, dd : ndarray (2K, 2)
-        Robust line fits of every edge (centroid, direction).
+    lines : CornerLines
+        The straight-line fits of every edge and their corners; a copy with the corners, covariances and
+        ok flags updated is returned (a corner whose face is seen only far from it, in a view where the
+        faces' arcs bulge by more than ``max_bulge_px``, is not ok: neither a line nor an arc extrapolates
+        to it).
     curved : ndarray (2K,) bool
-    X, cov, okc : the straight-line corners (K, 2), covariances, ok flags; updated copies are returned
-        (a corner whose face is seen only far from it, in a view where the faces' arcs bulge by more than
-        ``max_bulge_px``, is not ok: neither a line nor an arc extrapolates to it).
     radius_px : float
         Tube radius in ideal pixels.
     partner : ndarray (K,) int, optional
@@ -373,8 +455,9 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
         The curved edges worth an arc fit (default all); every curved edge is
         checked for being seen only far from its corner.
     """
-    X, cov, okc = X.copy(), cov.copy(), okc.copy()
-    fits, far, steep = _corner_arcs(pts, grp, K, c, dd, curved, okc, radius_px=radius_px, s2_floor=s2_floor,
+    c, dd = lines.c, lines.dd
+    X, cov, okc = lines.X.copy(), lines.cov.copy(), lines.ok.copy()
+    fits, far, steep = _corner_arcs(pts, grp, lines, curved, radius_px=radius_px, s2_floor=s2_floor,
                                     min_points=min_points, significance=significance, max_sin=max_sin,
                                     max_u0=start_px + max_start * radius_px, fit=curved if fit is None else fit)
     okc[steep] = False
@@ -399,15 +482,16 @@ def curved_face_corners(pts, grp, K, c, dd, curved, X, cov, okc, *, radius_px: f
     # from its corner cannot be extrapolated to it, by a line or an arc: that corner is not found
     if far and used and float(np.median(used)) * radius_px > max_bulge_px:
         okc[far] = False
-    return X, cov, okc
+    return replace(lines, X=X, cov=cov, ok=okc)
 
 
-def _corner_arcs(pts, grp, K, c, dd, curved, okc, *, radius_px, s2_floor, min_points, significance, max_sin,
-                 max_u0, fit):
+def _corner_arcs(pts, grp, lines: CornerLines, curved, *, radius_px, max_u0, fit, s2_floor: float = 0.0,
+                 min_points: int = 5, significance: float = 16.0, max_sin: float = 0.7):
     """The arc model of every curved face in its limb's frame (``u`` across from the limb, ``v`` along it),
     all faces in one batched fit: {corner: ((v0, var v0, b, sd b), limb edge)} where the arc is significant,
     the corners whose face's crossings start beyond ``max_u0`` from the limb, and the corners whose arc is
-    significant but seen more than ``max_sin`` from the side."""
+    significant but seen more than ``max_sin`` from the side (the tolerances of :func:`curved_face_corners`)."""
+    K, c, dd, okc = len(lines.X), lines.c, lines.dd, lines.ok
     cand = [(k, fe, le) for k in range(K) for fe, le in ((k, K + k), (K + k, k))
             if curved[fe] and not curved[le] and okc[k]]
     us, vs, gs, far = [], [], [], []
@@ -575,18 +659,18 @@ def _drop_scattered(ch, edge, valid, und, rises, lines, min_points, s2_floor):
     """A local edge whose crossings scatter about their line beyond their own σ (:meth:`.edges.EdgeChoice.
     consistent`) is not one edge: its crossings are dropped and the lines fitted again. Returns the valid
     profiles (Np,), their undistorted crossings and rises, and :func:`corner_lines`' outputs."""
-    keep = ch.consistent(edge, lines[6])[edge[valid]]
+    keep = ch.consistent(edge, lines.s2)[edge[valid]]
     if keep.all():
         return valid, und, rises, lines
     valid = valid.copy()
     valid[np.nonzero(valid)[0][~keep]] = False
     und, rises = und[keep], rises[keep]
-    return valid, und, rises, corner_lines(und, edge[valid], len(lines[0]), min_points=min_points,
+    return valid, und, rises, corner_lines(und, edge[valid], len(lines.X), min_points=min_points,
                                            s2_floor=s2_floor)
 
 
-def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, lim, min_points, contrast,
-                h_face=None, blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12,
+def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *, lim, min_points, contrast,
+                blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12,
                 arc_gate: float = 2.0, view_bias: float = 0.5, local_edges: bool = True):
     """One pass of edge-profile line fits for all corners at once.
 
@@ -599,7 +683,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     sp : CornerSpecs
     sgn : float
         Orientation sign (object on the left of the traversal when +1 ...).
-    s0, s_end, h, h_face, step, lim : profile layout [px] and plateau tolerance.
+    layout : ProfileLayout
+    lim : float
+        Plateau tolerance (normalised to the step).
     blur_prior : float
         Edge blur from a previous pass [px]; when given, the noise floor of
         the crossings follows from it and the object level is carried to the
@@ -618,18 +704,17 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
 
     Returns
     -------
-    raw corners (K,2), ideal corners (K,2), ideal covariance (K,2,2), ok (K,), blur [px],
-    new incoming and outgoing edge directions (K,2) x 2, the covariance of the edges' own offsets
-    (:func:`edge_spread`) to add to the reported one (K,2,2).
+    PassResult
     """
     K = len(sp.C)
-    h_face = h if h_face is None else h_face
+    s0, s_end, h, step = layout.s0, layout.s_end, layout.h, layout.step
+    h_face = h if layout.h_face is None else layout.h_face
     h_curved = curved_reach * radius_px if np.isfinite(radius_px) else 0.0
     pr = sample_profiles(img, off, sp, sgn, s0=s0, s_end=s_end, h=h, h_face=h_face, step=step, h_curved=h_curved)
     nan = np.full((K, 2), np.nan)
     if pr is None:
-        return nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din, sp.Dout, \
-            np.zeros((K, 2, 2))
+        return PassResult(nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din,
+                          sp.Dout, np.zeros((K, 2, 2)))
     tc, valid, q_lo, rises = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
                                             holder_face=sp.holder_face, extrapolate=bool(np.isfinite(blur_prior)))
     if local_edges:
@@ -652,7 +737,7 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     lines = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor)
     if local_edges and ch.local.any():
         valid, und, rises, lines = _drop_scattered(ch, pr.edge, valid, und, rises, lines, min_points, s2_floor)
-    X, cov, okc, c, dd, good_e, s2_line = lines
+    X, cov, okc, c, dd, good_e, s2_line = lines.X, lines.cov, lines.ok, lines.c, lines.dd, lines.good_e, lines.s2
     # the offsets that an edge's own profiles show (two rims, a shadow's edge) add to the reported
     # uncertainty, not to the fit's (which decides whether the corner is found)
     cov_sys = np.zeros((K, 2, 2))
@@ -660,7 +745,7 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
         else np.zeros(2 * K)                 # the last pass's (the one whose corners are reported)
     if s2_edge.any():
         cov_sys = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor,
-                               s2_edge=s2_edge)[1] - cov
+                               s2_edge=s2_edge).cov - cov
     # an arc shows as a face line's residuals well above the straight edges' (the noise): faces that are
     # straight lines within the noise are not fitted again
     straight = good_e & ~sp.curved if sp.curved is not None else good_e
@@ -668,9 +753,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     curved = None if sp.curved is None else sp.curved & (s2_line > arc_gate * max(noise2, s2_floor))
     if curved is not None and np.isfinite(radius_px) and sp.curved.any():
         X_line = X
-        X, cov, okc = curved_face_corners(und, pr.edge[valid], K, c, dd, sp.curved, X, cov, okc, fit=curved,
-                                          radius_px=radius_px, s2_floor=s2_floor, min_points=min_points,
-                                          start_px=s0, partner=sp.partner)
+        arcs = curved_face_corners(und, pr.edge[valid], lines, sp.curved, fit=curved, radius_px=radius_px,
+                                   s2_floor=s2_floor, min_points=min_points, start_px=s0, partner=sp.partner)
+        X, cov, okc = arcs.X, arcs.cov, arcs.ok
         # a face left straight meets the limb off its corner by about half its arc's bulge, which the
         # camera's view of the plane tells (without a camera file, the view DiameterScale assumes)
         on_line = okc & np.all(X == X_line, axis=1)
@@ -681,4 +766,4 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, *, s0, s_end, h, step, l
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])
     Din, Dout = _next_directions(camera, sp, c, dd, good_e, okc, Cn)
-    return Cn, X, cov, okc, blur, Din, Dout, np.nan_to_num(cov_sys)
+    return PassResult(Cn, X, cov, okc, blur, Din, Dout, np.nan_to_num(cov_sys))
