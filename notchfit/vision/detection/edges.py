@@ -29,9 +29,48 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.special import ndtr
 
-__all__ = ["EdgeChoice", "EdgeFits", "choose_edges", "dense_profiles", "fit_steps", "profile_steps"]
+__all__ = ["EdgeChoice", "EdgeFits", "Profiles", "choose_edges", "dense_profiles", "fit_steps", "profile_steps"]
 
 _SQRT2PI = math.sqrt(2.0 * math.pi)
+
+
+@dataclass
+class Profiles:
+    """Profiles across the edges (Np profiles on an axis of T samples, each sampled in its window only)."""
+
+    values: np.ndarray      # (sum of 2 half + 1,) float32: each profile's window, one after the other
+    base: np.ndarray        # (Np, 2) profile centre in ROI px
+    normal: np.ndarray      # (Np, 2) unit, object -> background
+    edge: np.ndarray        # (Np,) edge index 0..2K-1
+    t: np.ndarray           # (T,) offsets along the normal [px]
+    half: np.ndarray        # (Np,) half window [samples]: profile i covers t[n_t - half_i .. n_t + half_i]
+    n_t: int
+    start: np.ndarray       # (Np,) where each profile's window starts in ``values``
+
+    def at(self, rows, cols) -> np.ndarray:
+        """Samples (float64) of profiles ``rows`` at axis positions ``cols`` inside their windows."""
+        return self.values[self.start[rows] + cols - (self.n_t - self.half[rows])].astype(float)
+
+
+@dataclass(frozen=True)
+class _Window:
+    """The samples a step is fitted to (Np profiles, n samples each): positions ``x`` [px], values ``y``,
+    weights ``w`` (Np, n)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    w: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Step:
+    """Every profile's step ``a + b Φ((x - t0) / s) + c (x - t0)`` (Np,) each."""
+
+    a: np.ndarray
+    b: np.ndarray
+    t0: np.ndarray
+    s: np.ndarray
+    c: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -128,9 +167,10 @@ def _peaks(P, step: float, k_noise: float, rel: float):
     return j, before, after
 
 
-def _residuals(x, y, w, a, b, t0, s, c):
+def _residuals(win: _Window, p: _Step):
     """Weighted residuals (Np, n) of ``y`` from the step ``a + b Φ((x - t0) / s) + c (x - t0)`` and their
     Jacobian (Np, n, 5) with respect to (a, b, t0, s, c)."""
+    x, y, w, a, b, t0, s, c = win.x, win.y, win.w, p.a, p.b, p.t0, p.s, p.c
     u = x - t0[:, None]
     z = u / s[:, None]
     phi = np.exp(-0.5 * z * z) / _SQRT2PI
@@ -141,11 +181,12 @@ def _residuals(x, y, w, a, b, t0, s, c):
     return r, J
 
 
-def _gauss_newton(x, y, w, a, b, t0, s, c, *, n_iter: int, max_move: float, s_range):
+def _gauss_newton(win: _Window, p: _Step, *, n_iter: int, max_move: float, s_range) -> _Step:
     """``n_iter`` Gauss-Newton steps of every profile's step (:func:`_residuals`) at once; ``t0`` moves at
-    most ``max_move`` [px] a step, ``s`` stays in ``s_range`` [px]. Returns (a, b, t0, s, c) (Np,) each."""
+    most ``max_move`` [px] a step, ``s`` stays in ``s_range`` [px]."""
+    a, b, t0, s, c = p.a, p.b, p.t0, p.s, p.c
     for _ in range(n_iter):
-        r, J = _residuals(x, y, w, a, b, t0, s, c)
+        r, J = _residuals(win, _Step(a, b, t0, s, c))
         Jt = J.transpose(0, 2, 1)
         A = np.matmul(Jt, J)
         A = A + 1e-9 * np.eye(5)[None] * np.maximum(np.trace(A, axis1=1, axis2=2), 1.0)[:, None, None]
@@ -154,7 +195,7 @@ def _gauss_newton(x, y, w, a, b, t0, s, c, *, n_iter: int, max_move: float, s_ra
         a, b, c = a + dx[:, 0], b + dx[:, 1], c + dx[:, 4]
         t0 = t0 + np.clip(dx[:, 2], -max_move, max_move)
         s = np.clip(s + dx[:, 3], *s_range)
-    return a, b, t0, s, c
+    return _Step(a, b, t0, s, c)
 
 
 def fit_steps(P, t, *, blur0: float = 1.0, reach: float = 3.0, k_noise: float = 5.0, rel: float = 0.5,
@@ -214,9 +255,11 @@ def fit_steps(P, t, *, blur0: float = 1.0, reach: float = 3.0, k_noise: float = 
     ok &= np.isfinite(a) & np.isfinite(b)
     a, b = np.nan_to_num(a), np.nan_to_num(b)
     lo_s, hi_s = blur_range[0] * blur0, blur_range[1] * blur0
-    a, b, t0, s, c = _gauss_newton(x, y, w, a, b, t0, np.full(Np, float(blur0)), np.zeros(Np), n_iter=n_iter,
-                                   max_move=blur0, s_range=(0.5 * lo_s, 2.0 * hi_s))
-    r, J = _residuals(x, y, w, a, b, t0, s, c)
+    win = _Window(x, y, w)
+    fit = _gauss_newton(win, _Step(a, b, t0, np.full(Np, float(blur0)), np.zeros(Np)), n_iter=n_iter,
+                        max_move=blur0, s_range=(0.5 * lo_s, 2.0 * hi_s))
+    a, b, t0, s = fit.a, fit.b, fit.t0, fit.s
+    r, J = _residuals(win, fit)
     A = np.matmul(J.transpose(0, 2, 1), J)
     s2 = (r * r).sum(axis=1) / np.maximum(n_w - 5, 1)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -295,7 +338,7 @@ class EdgeChoice:
                 f"{int(self.local.sum())} of {len(self.local)} edges on the local model")
 
 
-def choose_edges(values, start, half, n_t: int, t, edge, n_edges: int, tc, valid, noise, rise, *,
+def choose_edges(pr: Profiles, n_edges: int, tc, valid, noise, rise, *,
                  min_valid: float = 0.5, min_count: int = 10, blur0: float = 1.0, max_noise: float = 0.35,
                  max_sigma_t: float = 0.5) -> EdgeChoice:
     """Keep the image-wide model's crossings on the edges it describes, the local fit on the others.
@@ -312,11 +355,11 @@ def choose_edges(values, start, half, n_t: int, t, edge, n_edges: int, tc, valid
 
     Parameters
     ----------
-    values, start, half, n_t, t
-        The ragged profile windows (:func:`dense_profiles`) and their axis [px].
-    edge : ndarray (Np,) int
-        Each profile's edge 0 .. n_edges - 1.
+    pr : Profiles
+        The ragged profile windows (:func:`dense_profiles`), their axis [px] and each profile's edge
+        0 .. n_edges - 1.
     """
+    edge = pr.edge
     n_all = np.bincount(edge, minlength=n_edges).astype(float)
     n_ok = np.bincount(edge, valid.astype(float), minlength=n_edges)
     local = (n_ok < min_valid * n_all) & (n_ok < min_count)
@@ -324,7 +367,7 @@ def choose_edges(values, start, half, n_t: int, t, edge, n_edges: int, tc, valid
     tc, valid, noise, rise = tc.copy(), valid.copy(), noise.copy(), rise.copy()
     sigma_t = np.full(len(tc), np.nan)
     if len(rows):
-        fits = profile_steps(values, start[rows], half[rows], n_t, t, blur0=blur0, max_noise=max_noise,
+        fits = profile_steps(pr.values, pr.start[rows], pr.half[rows], pr.n_t, pr.t, blur0=blur0, max_noise=max_noise,
                              max_sigma_t=max_sigma_t)
         tc[rows], valid[rows], noise[rows], rise[rows] = fits.t0, fits.valid, fits.noise, 1.349 * fits.blur
         sigma_t[rows] = fits.sigma_t

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from ._kernels import profile_crossings, profile_levels, profile_maps
-from .edges import choose_edges
+from .edges import Profiles, choose_edges
 from .lines import group_median, robust_group_lines, unit
 
 __all__ = ["CornerLines", "CornerSpecs", "PassResult", "ProfileLayout", "Profiles", "corner_lines",
@@ -145,24 +145,6 @@ class PassResult:
     Din: np.ndarray
     Dout: np.ndarray
     cov_sys: np.ndarray
-
-
-@dataclass
-class Profiles:
-    """Profiles across the edges (Np profiles on an axis of T samples, each sampled in its window only)."""
-
-    values: np.ndarray      # (sum of 2 half + 1,) float32: each profile's window, one after the other
-    base: np.ndarray        # (Np, 2) profile centre in ROI px
-    normal: np.ndarray      # (Np, 2) unit, object -> background
-    edge: np.ndarray        # (Np,) edge index 0..2K-1
-    t: np.ndarray           # (T,) offsets along the normal [px]
-    half: np.ndarray        # (Np,) half window [samples]: profile i covers t[n_t - half_i .. n_t + half_i]
-    n_t: int
-    start: np.ndarray       # (Np,) where each profile's window starts in ``values``
-
-    def at(self, rows, cols) -> np.ndarray:
-        """Samples (float64) of profiles ``rows`` at axis positions ``cols`` inside their windows."""
-        return self.values[self.start[rows] + cols - (self.n_t - self.half[rows])].astype(float)
 
 
 _MAP_WIDTH = 4096           # samples per row of the remap maps (OpenCV wants sides below 32767)
@@ -719,8 +701,7 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
                                             holder_face=sp.holder_face, extrapolate=bool(np.isfinite(blur_prior)))
     if local_edges:
         # the edge model's hook: edges the image-wide levels do not describe take each profile's own step
-        ch = choose_edges(pr.values, pr.start, pr.half, pr.n_t, pr.t, pr.edge, 2 * K, tc, valid, q_lo, rises,
-                          blur0=blur_prior if np.isfinite(blur_prior) else 1.0)
+        ch = choose_edges(pr, 2 * K, tc, valid, q_lo, rises, blur0=blur_prior if np.isfinite(blur_prior) else 1.0)
         tc, valid, q_lo, rises = ch.tc, ch.valid, ch.noise, ch.rise
     fp = sp.face[pr.edge]
     rises = rises[valid]
