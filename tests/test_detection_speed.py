@@ -92,7 +92,7 @@ def test_profile_crossings_equal_the_numpy_formulation():
     step = t[1] - t[0]
     order = np.argsort(np.abs(0.5 * (t[:-1] + t[1:])), kind="stable")
     values, start = _ragged(prof, kp, n_t)
-    got = profile_crossings(values, start, kp, n_t, lo_c, den, t, order, step, 0.5)
+    got = profile_crossings(values, start, kp, lo_c, den, t, order, step, 0.5)
     want = _crossings_numpy(prof, lo_c, den, t, step, 0.5)[1:]
     for k in (0, 2, 3, 4):
         np.testing.assert_array_equal(got[k], want[k])

@@ -94,14 +94,15 @@ def _to_num(v):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def profile_crossings(values, start, kp, n_t, lo_c, den, t, order, step, rise_step):
-    """Per profile (stored as for :func:`profile_levels` on the axis ``t``), normalised as ``(prof - lo_c) /
-    den``: the count of its finite samples, the largest of its samples at ``t > 0`` (NaN: none), the 50 %
+def profile_crossings(values, start, kp, lo_c, den, t, order, step, rise_step):
+    """Per profile (stored as for :func:`profile_levels` on the axis ``t`` of ``2 n_t + 1`` samples, centre
+    ``n_t``), normalised as ``(prof - lo_c) / den``: the count of its finite samples, the largest of its samples at ``t > 0`` (NaN: none), the 50 %
     crossing nearest the centre (``order``: the sample intervals by distance from the centre, on a tie the
     first; interval 0 where there is none) as an offset [px] (interpolated over ``step``) and whether one
     was found, and the 25 % -> 75 % rise [px] (interpolated over ``rise_step``; NaN where it does not
     rise)."""
     n, T = len(kp), len(t)
+    n_t = (T - 1) // 2
     n_fin = np.empty(n, np.int64)
     q_peak = np.empty(n)
     tc = np.empty(n)

@@ -247,7 +247,7 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
         q_hi = (hi_v - lo_p) / span
     # the normalised profiles, their crossings nearest the centre (on a tie the first) and their rises
     order = np.argsort(np.abs(0.5 * (t[:-1] + t[1:])), kind="stable")
-    n_fin, q_peak, tc, found, rise = profile_crossings(prof, pr.start, kp, n_t, lo_c, hi[e_idx] - lo_c, t, order,
+    n_fin, q_peak, tc, found, rise = profile_crossings(prof, pr.start, kp, lo_c, hi[e_idx] - lo_c, t, order,
                                                        step, rise_step)
     sel_ = span_ok & ~fp & np.isfinite(q_lo)
     sq = 1.4826 * float(np.median(np.abs(q_lo[sel_]))) if sel_.sum() >= 10 else 0.0
