@@ -228,6 +228,33 @@ def test_no_function_longer_than_the_limit():
     assert not long, "functions over the limit: " + "; ".join(long)
 
 
+#: the detector's stages pass records, not long argument lists: the most parameters without a default
+MAX_DETECTOR_PARAMETERS = 9
+
+
+def required_parameters(node: ast.FunctionDef) -> int:
+    """Parameters of a function definition without a default (positional and keyword-only)."""
+    a = node.args
+    return len(a.posonlyargs) + len(a.args) - len(a.defaults) + sum(d is None for d in a.kw_defaults)
+
+
+def test_required_parameters_counts_only_those_without_a_default():
+    node = ast.parse("def f(a, b=1, *c, d, e=2, **g): pass").body[0]
+    assert required_parameters(node) == 2
+
+
+def test_no_detector_function_with_ten_or_more_parameters():
+    wide = []
+    for name, path in all_modules().items():
+        if not name.startswith("notchfit.vision.detection"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and \
+                    (n := required_parameters(node)) > MAX_DETECTOR_PARAMETERS:
+                wide.append(f"{name}.{node.name}: {n} parameters")
+    assert not wide, "detector functions with too many parameters (carry them in a record): " + "; ".join(wide)
+
+
 #: how a reference to the contracts folder beside the repository would be spelled (built from
 #: parts so that this test does not contain what it looks for)
 OUTSIDE_MARKERS = ("../" + "shared", "shared/" + "spec")

@@ -150,10 +150,12 @@ class PassResult:
 _MAP_WIDTH = 4096           # samples per row of the remap maps (OpenCV wants sides below 32767)
 
 
-def sample_profiles(img, off, sp: CornerSpecs, sgn, *, s0, s_end, h, h_face, step, h_curved=0.0) -> Profiles | None:
-    """Profiles every 1 px along each edge, from ``s0`` px after the corner to ``s_end`` px before its end;
-    half length ``h``, ``h_face`` on slot faces, at least ``h_curved`` on curved edges (the arc of a face
-    seen from the side leaves its chord)."""
+def sample_profiles(img, off, sp: CornerSpecs, sgn, layout: ProfileLayout, *, h_curved=0.0) -> Profiles | None:
+    """Profiles every 1 px along each edge, from ``layout.s0`` px after the corner to ``layout.s_end`` px
+    before its end; half length ``layout.h``, ``layout.h_face`` on slot faces, at least ``h_curved`` on
+    curved edges (the arc of a face seen from the side leaves its chord)."""
+    s0, s_end, h, step = layout.s0, layout.s_end, layout.h, layout.step
+    h_face = h if layout.h_face is None else layout.h_face
     K = len(sp.C)
     E_dir = np.concatenate([-sp.Din, sp.Dout])
     E_trav = np.concatenate([sp.Din, sp.Dout])
@@ -689,10 +691,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
     PassResult
     """
     K = len(sp.C)
-    s0, s_end, h, step = layout.s0, layout.s_end, layout.h, layout.step
-    h_face = h if layout.h_face is None else layout.h_face
+    s0, step = layout.s0, layout.step
     h_curved = curved_reach * radius_px if np.isfinite(radius_px) else 0.0
-    pr = sample_profiles(img, off, sp, sgn, s0=s0, s_end=s_end, h=h, h_face=h_face, step=step, h_curved=h_curved)
+    pr = sample_profiles(img, off, sp, sgn, layout, h_curved=h_curved)
     nan = np.full((K, 2), np.nan)
     if pr is None:
         return PassResult(nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din,
