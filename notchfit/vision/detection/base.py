@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .options import DetectorOptions
 from .outline import Outline, corner_window, turn_angles, turn_peaks
 
 __all__ = ["BaseEnd", "base_runs", "find_base", "holder_mask", "holder_masks", "image_side", "raw_base_corners"]
@@ -223,10 +224,13 @@ def _trim_run(ol: Outline, strict, s: int, L: int, tol: float = 2.0):
     return (s + a) % N, b - a + 1
 
 
-def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, min_tube_run_R: float,
-              min_base_run_R: float, mouth_idx=(),
-              corner_turn_deg: float, pair_tol: float, base: str | None = None):
+def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, mouth_idx=(), base: str | None = None,
+              min_tube_run_R: float = DetectorOptions.min_tube_run_R,
+              min_base_run_R: float = DetectorOptions.min_base_run_R,
+              corner_turn_deg: float = DetectorOptions.corner_turn_deg, pair_tol: float = DetectorOptions.pair_tol):
     """Find where the tube leaves its base.
+
+    The tolerances are the detector options of the same names (:class:`.DetectorOptions`).
 
     Parameters
     ----------
@@ -301,8 +305,8 @@ def find_base(ol: Outline, holder, *, R_lo: float, dist, sgn: float, min_tube_ru
     return BaseEnd(int(i_r), int(i_l), kind, pair is not None, side, int(wide[0]), int(wide[1])), ""
 
 
-def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float, dist, pair_tol: float, R_lo: float,
-                     at_border=None):
+def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float, dist, R_lo: float, at_border=None,
+                     pair_tol: float = DetectorOptions.pair_tol):
     """The concave ~90° corners of the unbridged outline nearest two points, if they are 2R apart.
 
     Parameters
@@ -316,11 +320,14 @@ def raw_base_corners(mcnt, P_right, P_left, *, search: float, k: int, sgn: float
     k : int
         Turn window [outline points].
     dist : callable (xy_a, xy_b) -> plane distance [low-res px]
-
+    R_lo : float
+        Tube radius [low-res px].
     at_border : callable (xy) -> bool, optional
         Whether a point is next to the image border: a corner missing there
         is outside the image, and the other one stands alone (it is
         confirmed later by a slot corner of link 0).
+    pair_tol : float
+        Relative tolerance of the two corners' distance to ``2 R`` (option ``pair_tol``).
 
     Returns
     -------
