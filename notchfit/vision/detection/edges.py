@@ -29,7 +29,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.special import ndtr
 
-__all__ = ["EdgeChoice", "EdgeFits", "Profiles", "choose_edges", "dense_profiles", "fit_steps", "profile_steps"]
+__all__ = ["Crossings", "EdgeChoice", "EdgeFits", "Profiles", "choose_edges", "dense_profiles", "fit_steps", "profile_steps"]
 
 _SQRT2PI = math.sqrt(2.0 * math.pi)
 
@@ -50,6 +50,27 @@ class Profiles:
     def at(self, rows, cols) -> np.ndarray:
         """Samples (float64) of profiles ``rows`` at axis positions ``cols`` inside their windows."""
         return self.values[self.start[rows] + cols - (self.n_t - self.half[rows])].astype(float)
+
+
+@dataclass(frozen=True)
+class Crossings:
+    """The image-wide model's 50 % crossings of every profile (Np of them) (:func:`.refine.edge_crossings`).
+
+    Attributes
+    ----------
+    tc : ndarray (Np,)
+        Crossing offset along each profile's normal [px] (NaN where invalid).
+    valid : ndarray (Np,) bool
+    noise : ndarray (Np,)
+        Normalised object-side plateau (noise measure) [1].
+    rise : ndarray (Np,)
+        The 25 % -> 75 % rise of every profile [px] (NaN where it does not rise).
+    """
+
+    tc: np.ndarray
+    valid: np.ndarray
+    noise: np.ndarray
+    rise: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -338,15 +359,14 @@ class EdgeChoice:
                 f"{int(self.local.sum())} of {len(self.local)} edges on the local model")
 
 
-def choose_edges(pr: Profiles, n_edges: int, tc, valid, noise, rise, *,
+def choose_edges(pr: Profiles, n_edges: int, crossings: Crossings, *,
                  min_valid: float = 0.5, min_count: int = 10, blur0: float = 1.0, max_noise: float = 0.35,
                  max_sigma_t: float = 0.5) -> EdgeChoice:
     """Keep the image-wide model's crossings on the edges it describes, the local fit on the others.
 
     An edge whose profiles are valid under the image-wide levels (their
-    50 % crossings, ``tc``, ``valid``, ``noise``, ``rise`` (Np,)) for at
-    least ``min_valid`` of its profiles or ``min_count`` of them keeps
-    them (a slot face beside a nearly closed mouth, whose closed part the
+    50 % crossings, ``crossings``) for at least ``min_valid`` of its
+    profiles or ``min_count`` of them keeps them (a slot face beside a nearly closed mouth, whose closed part the
     image-wide model drops on purpose, is among these): there the image-wide
     levels are the edge's (a matte tube on a plain backdrop), and its
     crossings are as exact as before. The profiles of every other edge (a
@@ -359,12 +379,12 @@ def choose_edges(pr: Profiles, n_edges: int, tc, valid, noise, rise, *,
         The ragged profile windows (:func:`dense_profiles`), their axis [px] and each profile's edge
         0 .. n_edges - 1.
     """
-    edge = pr.edge
+    edge, valid = pr.edge, crossings.valid
     n_all = np.bincount(edge, minlength=n_edges).astype(float)
     n_ok = np.bincount(edge, valid.astype(float), minlength=n_edges)
     local = (n_ok < min_valid * n_all) & (n_ok < min_count)
     rows = np.nonzero(local[edge])[0]
-    tc, valid, noise, rise = tc.copy(), valid.copy(), noise.copy(), rise.copy()
+    tc, valid, noise, rise = crossings.tc.copy(), valid.copy(), crossings.noise.copy(), crossings.rise.copy()
     sigma_t = np.full(len(tc), np.nan)
     if len(rows):
         fits = profile_steps(pr.values, pr.start[rows], pr.half[rows], pr.n_t, pr.t, blur0=blur0, max_noise=max_noise,

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from ._kernels import profile_crossings, profile_levels, profile_maps
-from .edges import Profiles, choose_edges
+from .edges import Crossings, Profiles, choose_edges
 from .lines import group_median, robust_group_lines, unit
 
 __all__ = ["CornerLines", "CornerSpecs", "PassResult", "ProfileLayout", "Profiles", "corner_lines",
@@ -188,14 +188,8 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
 
     Returns
     -------
-    tc : ndarray (Np,)
-        Crossing offset along each profile's normal [px] (NaN where invalid).
-    valid : ndarray (Np,) bool
-    q_lo : ndarray (Np,)
-        Normalised object-side plateau (noise measure).
-    rise : ndarray (Np,)
-        The 25 % -> 75 % rise of every profile [px] (NaN where it does not rise; :func:`_rise_widths` of the
-        profiles normalised to 0 on the object, 1 on the background).
+    Crossings
+        The rises are :func:`_rise_widths` of the profiles normalised to 0 on the object, 1 on the background.
     """
     K2 = len(face)
     K = K2 // 2
@@ -260,7 +254,7 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     # the object's
     with np.errstate(invalid="ignore"):
         valid &= np.where(fp, q_peak > 1 - 0.5 * lim, np.abs(q_hi - 1) < lim)
-    return tc, valid, q_lo, rise
+    return Crossings(tc, valid, q_lo, rise)
 
 
 def _rise_widths(qa, t, step) -> np.ndarray:
@@ -698,12 +692,12 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
     if pr is None:
         return PassResult(nan, nan.copy(), np.full((K, 2, 2), np.nan), np.zeros(K, bool), math.nan, sp.Din,
                           sp.Dout, np.zeros((K, 2, 2)))
-    tc, valid, q_lo, rises = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
-                                            holder_face=sp.holder_face, extrapolate=bool(np.isfinite(blur_prior)))
+    cr = edge_crossings(pr, sp.face, contrast, lim=lim, step=step, own_level=sp.curved,
+                        holder_face=sp.holder_face, extrapolate=bool(np.isfinite(blur_prior)))
     if local_edges:
         # the edge model's hook: edges the image-wide levels do not describe take each profile's own step
-        ch = choose_edges(pr, 2 * K, tc, valid, q_lo, rises, blur0=blur_prior if np.isfinite(blur_prior) else 1.0)
-        tc, valid, q_lo, rises = ch.tc, ch.valid, ch.noise, ch.rise
+        cr = ch = choose_edges(pr, 2 * K, cr, blur0=blur_prior if np.isfinite(blur_prior) else 1.0)
+    tc, valid, q_lo, rises = cr.tc, cr.valid, cr.noise, cr.rise
     fp = sp.face[pr.edge]
     rises = rises[valid]
     blur = edge_blur(None, valid & ~fp, pr.t, step, widths=rises[~fp[valid]])
