@@ -19,7 +19,7 @@ from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_m
                       turn_peaks)
 from .plane import PlaneInput, finish
 from .refine import CornerSpecs, ProfileLayout, refine_pass
-from .result import empty_detection
+from .result import Detection, empty_detection
 
 __all__ = ["Crop", "Located", "Parsed", "PlaneInput", "Refinement", "Setup", "link_tolerance", "locate",
            "refine_and_finish", "refine_corners"]
@@ -243,8 +243,8 @@ def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, to_plane
     return ChainInput(corners, slack, base, plane_px, low_m, tol)
 
 
-def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool):
-    """Bridge, base end, slot numbering on one cropped silhouette: (Parsed, None) or (None, Detection)."""
+def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detection:
+    """Bridge, base end, slot numbering on one cropped silhouette: Parsed, or the Detection of a failure."""
     camera, geom, opts, f, low_m, sgn = setup.camera, setup.geom, setup.opts, setup.f, setup.low_m, setup.sgn
     r_close, small_shape, gray, dark = crop.r_close, crop.shape, crop.gray, crop.dark
     lay = notch_layout(geom)
@@ -255,7 +255,7 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool):
                       slot_area_range=opts.slot_area_range, sgn=sgn, holder=strict if exclude_holder else None,
                       holder_strict=strict)
     if ol is None:
-        return None, empty_detection(m, "no_manipulator", "no manipulator outline")
+        return empty_detection(m, "no_manipulator", "no manipulator outline")
     X0, Y0 = ol.offset
     full = lambda p: (np.asarray(p, float) + [X0, Y0]) * f + (f - 1) / 2.0     # low-res box -> px
     cnt = ol.contour
@@ -267,7 +267,7 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool):
                         min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
                         pair_tol=opts.pair_tol, base=setup.base, mouth_idx=[v[0] for v in mouths.values()])
     if be is None:
-        return None, empty_detection(m, "partial", why, contour_px)
+        return empty_detection(m, "partial", why, contour_px)
     if be.kind == "corners":
         be = orient_corner_pair(be, mouths, cnt)
     if len(set(geom.slot_sides)) == 1:
@@ -298,10 +298,10 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool):
     num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, dist=dist, pair_tol=opts.pair_tol, chain=chain)
     if num.mirror_conflict:
         n_r = sum(1 for s in geom.slot_sides if s > 0)
-        return None, empty_detection(
+        return empty_detection(
             m, "partial", f"the slot counts fit the opposite mirror flag ({n_r} right-side slots expected): "
                           "check `mirror` in experiment.toml", contour_px, status="ambiguous")
-    return Parsed(ol, be, num, mouths, raw, full, contour_px, rawc), None
+    return Parsed(ol, be, num, mouths, raw, full, contour_px, rawc)
 
 
 def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True):
@@ -331,19 +331,18 @@ def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True):
     holders = (grown, strict)
     gray = None if small is None else small[offset[1]:offset[1] + roi.shape[0], offset[0]:offset[0] + roi.shape[1]]
     crop = Crop(roi, offset, small_shape, r_close, slot_area, holders, gray, dark)
-    best = None
+    res = fail = None
     for exclude in ((True, False) if holders[1].any() else (False,)):
-        res, fail = _parse(crop, setup, exclude_holder=exclude)
-        if res is None:
-            best = best or (None, fail)
+        got = _parse(crop, setup, exclude_holder=exclude)
+        if isinstance(got, Detection):
+            fail = fail or got                   # the first failure, where no variant parses
             continue
-        if best is None or best[0] is None or res.n_found > best[1]:
-            best = (res, res.n_found)
-        if res.n_found == geom.n_joints + 1:
+        if res is None or got.n_found > res.n_found:
+            res = got
+        if got.n_found == geom.n_joints + 1:
             break
-    res = best[0]
     if res is None:
-        return None, best[1]
+        return None, fail
     ol, be, num, mouths, raw, full = res.ol, res.be, res.num, res.mouths, res.raw, res.full
     cnt = ol.contour
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
