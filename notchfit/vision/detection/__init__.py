@@ -52,7 +52,7 @@ from ...imaging import to_gray
 from ...units import MM
 from .options import DetectorOptions
 from .overlay import draw_overlay, overlay_with_crop
-from .pipeline import Setup, link_tolerance, locate, refine_and_finish
+from .pipeline import Located, Setup, link_tolerance, locate, refine_and_finish
 from .plane import finish
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
@@ -246,32 +246,33 @@ def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
         region, box = largest_region(mask)
         ratio = float(region.sum()) / exp_area
         if ratio < opts.area_range[0] or region.mean() > 0.95:
-            tried.append((None, empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is "
-                                                f"{ratio:.2f} x the tube's silhouette area (wrong geometry or "
-                                                "camera file?)")))
+            tried.append(empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is "
+                                         f"{ratio:.2f} x the tube's silhouette area (wrong geometry or "
+                                         "camera file?)"))
         else:
             tried.append(locate(region, box, shape, setup, small=seg.image, dark=seg.contrast < 0))
-        if tried[-1][0] is not None and wanted <= {s_.point for s_ in tried[-1][0]}:
+        if isinstance(tried[-1], Located) and wanted <= tried[-1].points:
             break
-    found = [t for t in tried if t[0] is not None]
+    found = [t for t in tried if isinstance(t, Located)]
     # slot counts that fit the opposite mirror flag are strong evidence: they win over an incomplete result
-    conflict = [t[1] for t in tried if t[0] is None and "opposite mirror flag" in t[1].message]
-    if not found or (conflict and not any(wanted <= {s_.point for s_ in t[0]} for t in found)):
-        return (conflict or [tried[0][1]])[0], None
-    order = sorted((k for k in range(len(tried)) if tried[k][0] is not None), key=lambda k: -len(tried[k][0]))
+    conflict = [t for t in tried if isinstance(t, Detection) and "opposite mirror flag" in t.message]
+    if not found or (conflict and not any(wanted <= t.points for t in found)):
+        return (conflict or [tried[0]])[0], None
+    order = sorted((k for k in range(len(tried)) if isinstance(tried[k], Located)),
+                   key=lambda k: -len(tried[k].specs))
 
     def refined(k):
         # corners found on the colour silhouette are confirmed by the tube's width on it: a polished limb that
         # mirrors the backdrop is missing from it, and an edge inside the tube then passes for the outer edge
         # (and so are slots numbered without the tip, which would confirm the tube's width)
-        specs, ctx = tried[k]
-        return refine_and_finish(gray, seg, specs, ctx, setup, extra=extra, stations=stations,
+        ctx = tried[k]
+        return refine_and_finish(gray, seg, ctx, setup, extra=extra, stations=stations,
                                  width_mask=masks[k] if k == 2 or ctx.confirm_width else None)
 
     out = refined(order[0])
     # the most corners numbered without the tip can confirm fewer than a variant that found it
-    alt = [k for k in order[1:] if not tried[k][1].confirm_width]
-    if tried[order[0]][1].confirm_width and alt:
+    alt = [k for k in order[1:] if not tried[k].confirm_width]
+    if tried[order[0]].confirm_width and alt:
         other = refined(alt[0])
         out = other if other[0].n_ok > out[0].n_ok else out
     return out

@@ -131,10 +131,12 @@ class Parsed:
 
 @dataclass(frozen=True)
 class Located:
-    """What stages 2-4 hand to the refinement besides the corner specs (:func:`locate`).
+    """What stages 2-4 hand to the refinement (:func:`locate`).
 
     Attributes
     ----------
+    specs : list of CornerSpec
+        The corners to refine, with their first estimates on the working copy.
     contour_px : ndarray (N, 2)
         The bridged outline [px] (overlays).
     status : list of str (m,)
@@ -149,6 +151,7 @@ class Located:
         Slots numbered without the tip (``Numbering.tipless``): each corner's link must be 2R wide.
     """
 
+    specs: list
     contour_px: np.ndarray
     status: list
     messages: list
@@ -156,6 +159,11 @@ class Located:
     full: object
     tube_px: np.ndarray
     confirm_width: bool = False
+
+    @property
+    def points(self) -> set:
+        """The point indices of the located corners."""
+        return {s.point for s in self.specs}
 
 
 @dataclass
@@ -304,7 +312,7 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detect
     return Parsed(ol, be, num, mouths, raw, full, contour_px, rawc)
 
 
-def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True):
+def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True) -> Located | Detection:
     """Stages 2-4 on the downsampled copy: outline, base end, numbering, first corner estimates.
 
     The slots are bridged with the holder left out of the closing (its
@@ -314,8 +322,7 @@ def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True):
 
     Returns
     -------
-    specs : list of CornerSpec
-    context : Located, or a Detection (failure)
+    Located, or the Detection of a failure
     """
     geom, opts, sgn, low_m = setup.geom, setup.opts, setup.sgn, setup.low_m
     lay = notch_layout(geom)
@@ -342,7 +349,7 @@ def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True):
         if got.n_found == geom.n_joints + 1:
             break
     if res is None:
-        return None, fail
+        return fail
     ol, be, num, mouths, raw, full = res.ol, res.be, res.num, res.mouths, res.raw, res.full
     cnt = ol.contour
     index = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(m)}
@@ -361,7 +368,7 @@ def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True):
     specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
                         geom=geom, low_m=low_m, raw_corners=rawc)
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
-    return specs, Located(res.contour_px, num.status, num.messages, be.side, full, res.contour_px[tube], num.tipless)
+    return Located(specs, res.contour_px, num.status, num.messages, be.side, full, res.contour_px[tube], num.tipless)
 
 
 def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
@@ -521,7 +528,7 @@ def link_tolerance(geom, opts):
     return opts.link_rel_tol, opts.link_abs_w * float(slot_widths(geom).min())
 
 
-def refine_and_finish(gray, seg, specs, ctx: Located, setup: Setup, *, extra=None, stations=None, width_mask=None):
+def refine_and_finish(gray, seg, ctx: Located, setup: Setup, *, extra=None, stations=None, width_mask=None):
     """Stages 5-6 for located corners (:func:`locate`). Returns (Detection, Refinement or None).
 
     ``width_mask``: a working-copy silhouette on which each ok slot corner's link must be ``2R`` wide
@@ -533,6 +540,7 @@ def refine_and_finish(gray, seg, specs, ctx: Located, setup: Setup, *, extra=Non
     ref = None
     pts_px, ideal, cov = np.full((m, 2), np.nan), np.full((m, 2), np.nan), np.full((m, 2, 2), np.nan)
     blur = math.nan
+    specs = ctx.specs
     if specs:
         far = ctx.tube_px if stations else None
         ref = refine_corners(gray, specs, setup, full=ctx.full, contrast=seg.contrast, extra_px=far)
