@@ -53,20 +53,23 @@ class Recorder:
     def reset(self):
         self.specs, self.first, self.stage = None, {}, {}
 
-    def __call__(self, gray, seg, specs, ctx, camera, geom, opts, **kw):
+    def __call__(self, gray, seg, ctx, setup, **kw):
+        geom, opts = setup.geom, setup.opts
         origin = ctx.full(np.zeros((1, 2)))[0]
         factor = ctx.full(np.ones((1, 2)))[0] - origin
+        specs = ctx.specs
         if self.oracle:
             pts, vis = self.truth.points_px, self.truth.visible
             specs = [dataclasses.replace(s, xy=(pts[s.point] + 2.0 - origin) / factor)
                      if vis[s.point] and np.all(np.isfinite(pts[s.point])) else s for s in specs]
-        det, ref = self.original(gray, seg, specs, ctx, camera, geom, opts, **kw)
+            ctx = dataclasses.replace(ctx, specs=specs)
+        det, ref = self.original(gray, seg, ctx, setup, **kw)
         self.specs = {s.point for s in specs}
         self.first = {s.point: s.xy * factor + origin for s in specs}
         if ref is not None:
             st = statuses(ref, geom.n_points, list(ctx.status), gray.shape, opts)[0]
             mask = kw.get("width_mask")
-            wid = None if mask is None else link_widths(ref, mask, kw["f"], camera, kw["px_per_m"],
+            wid = None if mask is None else link_widths(ref, mask, setup.f, setup.camera, setup.px_per_m,
                                                         geom.outer_radius)
             for q, i in enumerate(ref.pidx):
                 if not ref.ok[q] or st[i] == "occluded":
