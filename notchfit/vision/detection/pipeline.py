@@ -225,9 +225,10 @@ def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
     return out
 
 
-def _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, *, low_m, to_plane) -> ChainInput:
+def _chain_input(ol, mouths, rawc, raw, plane_px, setup: Setup, *, to_plane) -> ChainInput:
     """The slot candidates' outer corners and the base corners in the plane (low-res px), and the chain's
     tolerances (options ``chain_rel_tol``, ``chain_abs_w``, ``chain_abs_px``, ``chain_play``)."""
+    geom, opts, low_m = setup.geom, setup.opts, setup.low_m
     cnt, mcnt = ol.contour, ol.raw_contour
     N = len(cnt)
     w = slot_widths(geom)
@@ -301,7 +302,7 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detect
     convex = turn_peaks(turn_angles(cnt, k, sgn), k, math.radians(opts.corner_turn_deg), +1.0, exclude=near_border)
     w_lo = float(slot_widths(geom).min()) / low_m
     rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
-    chain = _chain_input(ol, mouths, rawc, raw, plane_px, geom, opts, low_m=low_m,
+    chain = _chain_input(ol, mouths, rawc, raw, plane_px, setup,
                          to_plane=lambda p: camera.pixel_to_plane(full(p)) / low_m)
     num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, dist=dist, pair_tol=opts.pair_tol, chain=chain)
     if num.mirror_conflict:
