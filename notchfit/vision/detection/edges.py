@@ -310,29 +310,19 @@ def profile_steps(values, start, half, n_t: int, t, *, blur0: float = 1.0, max_n
 
 
 @dataclass(frozen=True)
-class EdgeChoice:
-    """The crossings of every profile (Np of them) after the per-edge choice of the edge model.
+class EdgeChoice(Crossings):
+    """The crossings of every profile (Np of them) after the per-edge choice of the edge model
+    (:class:`Crossings`; ``noise`` is the image-wide model's plateau deviation, or the local fit's residual
+    standard deviation over its step).
 
     Attributes
     ----------
-    tc : ndarray (Np,)
-        Edge position along each profile's normal [px] (NaN where invalid).
-    valid : ndarray (Np,) bool
-    noise : ndarray (Np,)
-        Normalised noise of each profile [1] (the image-wide model's plateau deviation, or the local fit's
-        residual standard deviation over its step).
-    rise : ndarray (Np,)
-        25 % -> 75 % rise [px].
     local : ndarray (n_edges,) bool
         The edges whose profiles took the local model.
     sigma_t : ndarray (Np,)
         The local fits' own standard deviation of ``tc`` [px] (NaN on the image-wide model's profiles).
     """
 
-    tc: np.ndarray
-    valid: np.ndarray
-    noise: np.ndarray
-    rise: np.ndarray
     local: np.ndarray
     sigma_t: np.ndarray
 
