@@ -87,4 +87,4 @@ def test_tube_fit_in_two_parts_is_the_one_call_from_both_starts(fits):
     one = solve(pb, n_starts=1, starts=(x_warm,), errors=False, diff_rel=options["diff_rel"],
                 rest_step=options["rest_step"])
     np.testing.assert_array_equal(merged.sol.x, one.x)
-    assert merged.loss_cost == pytest.approx(one.cost, rel=1e-12)
+    assert merged.sol.loss_cost == pytest.approx(one.cost, rel=1e-12)

@@ -58,6 +58,9 @@ class Solution:
     jacobian : ndarray or None
         The forward-difference Jacobian of the whitened residuals at ``x`` that the standard
         errors came from (None when they were not computed).
+    loss_cost : float
+        The cost the least squares minimised at ``x`` (``scipy.optimize.least_squares``'s ``cost``: with
+        its robust ``loss``; equal to ``cost`` for the linear one): what decides between two runs.
     """
 
     x: np.ndarray
@@ -69,6 +72,7 @@ class Solution:
     nfev: int
     starts: int
     jacobian: np.ndarray | None = field(default=None, repr=False)
+    loss_cost: float = math.nan
 
 
 def _cost(pb: Problem, x) -> float:
@@ -238,7 +242,7 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
     if not math.isfinite(cost):
         raise ValueError("the least-squares cost is not finite at its optimum")
     return Solution(best.x, se, cost, int(pb.measured().sum()), bool(best.success), str(best.message),
-                    nfev + (best.x.size + 1 if errors else 0), len(starts), J)
+                    nfev + (best.x.size + 1 if errors else 0), len(starts), J, float(best.cost))
 
 
 # ----------------------------------------------------------------------------- leave-one-out

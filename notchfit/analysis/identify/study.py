@@ -252,14 +252,13 @@ _PROBLEM_OPTIONS = ("sim_kw", "rest_range", "depth_range", "depth_sigma", "depth
 
 
 class _FitOut(NamedTuple):
-    """What one fit returns: its problem and solution, each tube's model, the held-out experiments'
-    errors (experiment -> errors) and the cost its least squares minimised (the loss's)."""
+    """What one fit returns: its problem and solution, each tube's model and the held-out experiments'
+    errors (experiment -> errors)."""
 
     pb: object
     sol: Solution
     fitted: dict
     preds: dict
-    loss_cost: float
 
 
 def _fit(task: _Task) -> _FitOut:
@@ -289,20 +288,7 @@ def _fit(task: _Task) -> _FitOut:
             o = task.obs[i]
             params = fitted.get(o.tube, with_values(task.base[o.tube], vals, task.excess))
             preds[o.name] = errors(o, predict(o, params))
-        cost = _loss_cost(pb.residuals(sol.x), opt.get("loss", "linear"), opt.get("f_scale", 1.0))
-        return _FitOut(pb, sol, fitted, preds, cost)
-
-
-def _loss_cost(r, loss: str, f_scale: float) -> float:
-    """The cost ``scipy.optimize.least_squares`` minimises for residuals ``r``: ``½ Σ r²`` (``"linear"``)
-    or ``½ f_scale² Σ ρ((r/f_scale)²)`` with the named loss ``ρ``."""
-    if loss == "linear":
-        return 0.5 * float(np.dot(r, r))
-    z = (np.asarray(r, float) / f_scale) ** 2
-    rho = {"soft_l1": lambda z: 2.0 * (np.sqrt(1.0 + z) - 1.0),
-           "huber": lambda z: np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0),
-           "cauchy": np.log1p, "arctan": np.arctan}[loss]
-    return 0.5 * f_scale ** 2 * float(np.sum(rho(z)))
+        return _FitOut(pb, sol, fitted, preds)
 
 
 @dataclass(frozen=True)
@@ -612,7 +598,7 @@ def _result(obs, base, free, excess, tasks, outs: dict) -> Identification:
 def _merge(grid: _FitOut, warm: _FitOut | None) -> _FitOut:
     """A tube's held-out fit from its grid and warm parts: the lower cost, the grid's on a tie (as one
     least-squares call from both starts keeps)."""
-    return grid if warm is None or grid.loss_cost <= warm.loss_cost else warm
+    return grid if warm is None or grid.sol.loss_cost <= warm.sol.loss_cost else warm
 
 
 def _new_tube_prior(pb, sol, tubes: dict, base: dict, free, *, min_rest_sd: float = REST_SIGMA_MIN) -> NewTubePrior:
