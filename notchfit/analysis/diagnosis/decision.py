@@ -24,7 +24,7 @@ from ..causes import REGISTRY
 from .crossval import HeldOut
 from .noise import paired_z, pooled_mse
 from .replicates import lack_of_fit_mse
-from ..estimation.observations import metric_unit
+from ..estimation.observations import metric_unit, point_factor
 from .results import CandidateResult, Signature
 from .specs import CANDIDATES, as_model, model_key, specs_for
 
@@ -203,7 +203,7 @@ def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_
     if cause == "none" and lof is not None and base_rms > noise_rms * math.sqrt(1 + none_tol):
         if lof.overall.significant(lof.alpha):
             why = (f" The lack of fit beyond the trials' scatter is significant but small: "
-                   f"{fmt_err(math.sqrt(lack_of_fit_mse(lof, 2.0 if metric == 'points' else 1.0)), metric)} "
+                   f"{fmt_err(math.sqrt(lack_of_fit_mse(lof, point_factor(metric))), metric)} "
                    f"rms, within the {fmt_err(math.sqrt(none_tol) * noise_rms, metric)} over the noise that the "
                    "noise rule tolerates; the rest of the excess is the trials' scatter or lies in samples no "
                    "other trial repeats (on a steep part of the curve the load-cell noise and the parameters' "

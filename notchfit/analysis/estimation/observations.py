@@ -33,7 +33,7 @@ from ...physics.notches import notch_points
 from ...units import UNIT_SIZE
 
 __all__ = ["METRICS", "Observations", "angle_residuals", "choose_metric", "metric_unit", "observe",
-           "observe_study", "peak_regimes", "sample_mse", "tension_sigma", "tube_labels", "zero_tension_samples"]
+           "observe_study", "peak_regimes", "point_factor", "sample_mse", "tension_sigma", "tube_labels", "zero_tension_samples"]
 
 #: The comparison metrics: what is compared, and the unit of its errors in files.
 METRICS = {"points": "mm", "angles": "deg"}
@@ -50,6 +50,12 @@ def metric_unit(metric: str = "points") -> tuple[str, float]:
 def tension_sigma(exp) -> float:
     """The load-cell uncertainty σ_T of an experiment [N]: experiment.toml's, else 0.05 N (module docstring)."""
     return float(exp.tension_sigma) if exp.tension_sigma is not None else LOAD_CELL_SIGMA
+
+
+def point_factor(metric: str) -> float:
+    """Perfect-model mean squared error per measured value over ``σ²``: 2 for a point (two coordinates),
+    1 for an angle."""
+    return 2.0 if metric == "points" else 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,9 +136,8 @@ class Observations:
 
     @property
     def point_factor(self) -> float:
-        """Perfect-model mean squared error per measured value over ``σ²``: 2 for a point (two
-        coordinates), 1 for an angle."""
-        return 2.0 if self.metric == "points" else 1.0
+        """Perfect-model mean squared error per measured value over ``σ²`` (:func:`point_factor`)."""
+        return point_factor(self.metric)
 
     @property
     def values_per_item(self) -> int:
