@@ -209,6 +209,10 @@ def _fill_streaks(mask, length_px, *, holder_radius, bridge_px, radius_px):
     return filled
 
 
+#: The silhouettes :func:`_detect_at` tries, in order: the threshold, with thin streaks filled, by colour.
+_VARIANTS = ("threshold", "streaks", "colour")
+
+
 def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
     """Stages 1-6 at a known scale. When the silhouette does not give every slot and the tip, it is located
     again with thin background lines across the tube filled (a specular streak that splits it), and the
@@ -226,7 +230,7 @@ def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
     lay = notch_layout(geom)
     wanted = {i for i in range(m) if lay.kind[i] != "base"}
     tried, masks = [], []
-    for variant in ("threshold", "streaks", "colour"):
+    for variant in _VARIANTS:
         if variant == "threshold":
             mask = seg.mask
         elif variant == "streaks":
@@ -267,7 +271,7 @@ def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
         # (and so are slots numbered without the tip, which would confirm the tube's width)
         ctx = tried[k]
         return refine_and_finish(gray, seg, ctx, setup, extra=extra, stations=stations,
-                                 width_mask=masks[k] if k == 2 or ctx.confirm_width else None)
+                                 width_mask=masks[k] if _VARIANTS[k] == "colour" or ctx.confirm_width else None)
 
     out = refined(order[0])
     # the most corners numbered without the tip can confirm fewer than a variant that found it
