@@ -18,7 +18,7 @@ from ...physics.geometry import Geometry
 from ...physics.notches import notch_points
 from ...physics.shapes import ShapeModel, get_model
 from .first_pass import as_points, as_sigma, estimate_angles, initial_transform
-from .lm import Problem, check_loss, levenberg_marquardt, loss_weights, psd_inverse, schur_cov, scipy_fits
+from .lm import Problem, Settings, check_loss, levenberg_marquardt, loss_weights, psd_inverse, schur_cov, scipy_fits
 from .results import ExperimentFit, PlaneTransform, SampleFit, as_transform
 
 __all__ = ["fit_experiment", "fit_sample", "fit_samples", "fit_transform"]
@@ -89,8 +89,7 @@ def fit_transform(points, geom: Geometry, model="free", *, mirror: bool = False,
     theta0 = np.nan_to_num(np.asarray(theta0, dtype=float)[use])
     prob = Problem(Q[use], sig[use], geom, model, mirror)
     t, P, conv, nit, r, Jp, Jt, _, _ = levenberg_marquardt(
-        prob, np.array(t0), model.initial(theta0), joint=True, loss=loss, f_scale=f_scale, ftol=ftol,
-        xtol=xtol, max_iter=max_iter)
+        prob, np.array(t0), model.initial(theta0), Settings(loss, f_scale, ftol, xtol, max_iter), joint=True)
     w = loss_weights(r * r / f_scale ** 2, loss)
     DtD = model.prior_jacobian().T @ model.prior_jacobian()
     cov, identifiable = schur_cov(Jp, Jt, w, DtD, identifiability_tol)
@@ -173,7 +172,7 @@ def fit_samples(points, geom: Geometry, model, transform, *, sigma=2e-5, loss: s
     if not use.any():
         return tuple(out)
     prob = Problem(Q[use], sig[use], geom, model, T.mirror)
-    opts = _Settings(loss, f_scale, ftol, xtol, max_iter)
+    opts = Settings(loss, f_scale, ftol, xtol, max_iter)
     solved = _solve(prob, T.params, model.initial(theta0[use]), solver, opts)
     data = _Samples(Q[use], sig[use], npts[use], [samples[s] for s in np.nonzero(use)[0]])
     fits = _assemble(prob, T.params, solved, data, opts, transform_cov)
@@ -207,18 +206,6 @@ def _screen(samples, model, geom, sig, npts, min_points) -> list:
 
 
 @dataclass(frozen=True)
-class _Settings:
-    """The loss (as ``scipy.optimize.least_squares``, its scale in σ units) and the solver's tolerances
-    and iteration limit of the per-sample fits."""
-
-    loss: str
-    f_scale: float
-    ftol: float
-    xtol: float
-    max_iter: int
-
-
-@dataclass(frozen=True)
 class _Samples:
     """The samples solved: points (S, m, 2) [m], σ (S, m) [m], valid points (S,) and ids."""
 
@@ -238,20 +225,19 @@ class _Solved:
     nfev: np.ndarray
 
 
-def _solve(prob, t, P0, solver, opts: _Settings) -> _Solved:
+def _solve(prob, t, P0, solver, opts: Settings) -> _Solved:
     """The per-sample optima of ``prob`` with the transform ``t`` fixed, from ``P0`` (S, k)."""
     if solver == "lm":
-        _, P, conv, nit, *_ = levenberg_marquardt(prob, t, P0, joint=False, loss=opts.loss, f_scale=opts.f_scale,
-                                                  ftol=opts.ftol, xtol=opts.xtol, max_iter=opts.max_iter)
+        _, P, conv, nit, *_ = levenberg_marquardt(prob, t, P0, opts, joint=False)
         msgs = [f"converged in at most {nit} iterations" if c else
                 f"not converged in {opts.max_iter} iterations" for c in conv]
         return _Solved(P, conv, msgs, np.full(P.shape[0], nit))
     if solver == "scipy":
-        return _Solved(*scipy_fits(prob, t, P0, opts.loss, opts.f_scale, opts.ftol, opts.xtol, opts.max_iter))
+        return _Solved(*scipy_fits(prob, t, P0, opts))
     raise ValueError(f"solver must be 'lm' or 'scipy', got {solver!r}")
 
 
-def _assemble(prob, t, solved: _Solved, data: _Samples, opts: _Settings, transform_cov) -> list:
+def _assemble(prob, t, solved: _Solved, data: _Samples, opts: Settings, transform_cov) -> list:
     """:class:`SampleFit` of every solved sample: covariance, effective parameters, χ², status."""
     model = prob.model
     k = model.n_params

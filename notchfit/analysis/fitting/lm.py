@@ -30,10 +30,36 @@ from ...physics.notches import notch_points, notch_points_and_jacobian, plane_pa
 from ...physics.shapes import ShapeModel
 from ...units import MM
 
-__all__ = ["LOSSES", "Problem", "check_loss", "levenberg_marquardt", "loss_weights", "psd_inverse",
+__all__ = ["LOSSES", "Problem", "Settings", "check_loss", "levenberg_marquardt", "loss_weights", "psd_inverse",
            "rho", "schur_cov", "scipy_fits"]
 
 LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
+
+#: Scale of the transform ``(t_x, t_y, φ)`` in the step tests: its lengths measured in mm.
+_TSCALE = np.array([MM, MM, 1.0])
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The loss of a shape fit and its solver's tolerances and iteration limit.
+
+    Attributes
+    ----------
+    loss : str
+        One of :data:`LOSSES` (as ``scipy.optimize.least_squares``).
+    f_scale : float
+        The loss's scale [σ units].
+    ftol, xtol : float
+        Relative tolerances on the cost decrease and on the step.
+    max_iter : int
+        Iteration limit.
+    """
+
+    loss: str
+    f_scale: float
+    ftol: float
+    xtol: float
+    max_iter: int
 
 
 def check_loss(loss, f_scale) -> None:
@@ -186,24 +212,48 @@ def _independent_steps(nm: _Normal, mu, done):
     return dP, -0.5 * np.sum(nm.g * dP0, axis=-1)
 
 
-def _step_tests(joint, S, cost, cost_new, done, t, P, dt, dP, tscale, ftol, xtol):
-    """Acceptance (S,) and "step too small to matter" (S,) of a trial step."""
-    if joint:
-        accept = np.full(S, cost_new.sum() <= cost.sum())
-        dec = np.full(S, cost.sum() - cost_new.sum())
-        ref = np.full(S, cost.sum())
-        step = np.full(S, np.linalg.norm(np.concatenate([dt / tscale, dP.ravel()])))
-        xnorm = np.full(S, np.linalg.norm(np.concatenate([t / tscale, P.ravel()])))
-    else:
-        accept = (cost_new <= cost) & ~done
-        dec, ref = cost - cost_new, cost
-        step = np.linalg.norm(dP, axis=-1)
-        xnorm = np.linalg.norm(P, axis=-1)
-    return accept, (dec <= ftol * ref + 1e-14) | (step <= xtol * (xnorm + xtol))
+@dataclass(frozen=True)
+class _Trial:
+    """A trial step ``(dt, dP)`` from the iterate ``(t, P)`` (3,), (S, k), and the robust costs (S,) before
+    (``cost``) and after it (``cost_new``)."""
+
+    t: np.ndarray
+    P: np.ndarray
+    dt: np.ndarray
+    dP: np.ndarray
+    cost: np.ndarray
+    cost_new: np.ndarray
 
 
-def levenberg_marquardt(prob: Problem, t, P, *, joint: bool, loss: str, f_scale: float, ftol: float,
-                        xtol: float, max_iter: int, mu0: float = 1e-4, mu_max: float = 1e10):
+def _small(dec, ref, step, xnorm, opts: Settings):
+    """Whether a step is too small to matter: a cost decrease ``dec`` within ``ftol`` of ``ref``, or a step
+    length ``step`` within ``xtol`` of ``xnorm``."""
+    return (dec <= opts.ftol * ref + 1e-14) | (step <= opts.xtol * (xnorm + opts.xtol))
+
+
+def _joint_tests(tr: _Trial, opts: Settings):
+    """Acceptance (S,) and "step too small to matter" (S,) of a joint trial step: one test on the summed
+    cost and on the whole step (the transform's lengths in mm), alike for every sample."""
+    S = tr.P.shape[0]
+    accept = np.full(S, tr.cost_new.sum() <= tr.cost.sum())
+    dec = np.full(S, tr.cost.sum() - tr.cost_new.sum())
+    ref = np.full(S, tr.cost.sum())
+    step = np.full(S, np.linalg.norm(np.concatenate([tr.dt / _TSCALE, tr.dP.ravel()])))
+    xnorm = np.full(S, np.linalg.norm(np.concatenate([tr.t / _TSCALE, tr.P.ravel()])))
+    return accept, _small(dec, ref, step, xnorm, opts)
+
+
+def _independent_tests(tr: _Trial, done, opts: Settings):
+    """Acceptance (S,) and "step too small to matter" (S,) of independent trial steps, sample by sample
+    (none accepted for a sample ``done``)."""
+    accept = (tr.cost_new <= tr.cost) & ~done
+    step = np.linalg.norm(tr.dP, axis=-1)
+    xnorm = np.linalg.norm(tr.P, axis=-1)
+    return accept, _small(tr.cost - tr.cost_new, tr.cost, step, xnorm, opts)
+
+
+def levenberg_marquardt(prob: Problem, t, P, opts: Settings, *, joint: bool, mu0: float = 1e-4,
+                        mu_max: float = 1e10):
     """Levenberg–Marquardt on the block-arrow problem (batched over samples).
 
     ``joint``: the transform ``t`` (in m, m, rad) is a shared unknown; the
@@ -222,13 +272,10 @@ def levenberg_marquardt(prob: Problem, t, P, *, joint: bool, loss: str, f_scale:
         Plane transform (t_x [m], t_y [m], φ [rad]).
     P : array_like, shape (S, k)
         Start parameters.
+    opts : Settings
+        The loss, its scale, the tolerances (the transform's lengths measured
+        in mm in the step test) and the iteration limit.
     joint : bool
-    loss, f_scale : str, float
-        Loss and its scale in σ units.
-    ftol, xtol : float
-        Relative tolerances on the cost decrease and on the step (the
-        transform's lengths measured in mm).
-    max_iter : int
     mu0, mu_max : float
         Initial damping, and the damping at which a sample is declared at
         its minimum to precision.
@@ -237,11 +284,11 @@ def levenberg_marquardt(prob: Problem, t, P, *, joint: bool, loss: str, f_scale:
     -------
     t, P, converged (S,), iterations, r, Jp, Jt, plane, theta at the end.
     """
+    loss, ftol = opts.loss, opts.ftol
     D = prob.model.prior_jacobian()
     DtD = D.T @ D
     S = P.shape[0]
-    f2 = f_scale * f_scale
-    tscale = np.array([MM, MM, 1.0])               # step tests with t in mm
+    f2 = opts.f_scale * opts.f_scale
 
     def cost_of(r, P):
         return 0.5 * (f2 * rho(r * r / f2, loss).sum(-1) + ((P @ D.T) ** 2).sum(-1))
@@ -253,7 +300,7 @@ def levenberg_marquardt(prob: Problem, t, P, *, joint: bool, loss: str, f_scale:
     done = np.zeros(S, dtype=bool)
     mu = np.full(S, mu0)
     it = 0
-    for it in range(1, max_iter + 1):
+    for it in range(1, opts.max_iter + 1):
         nm = _Normal.at(r, Jp, Jt, P, loss_weights(r * r / f2, loss), DtD)
         if joint:
             dt, dP, decr = _joint_steps(nm, mu[0])
@@ -267,7 +314,8 @@ def levenberg_marquardt(prob: Problem, t, P, *, joint: bool, loss: str, f_scale:
             break
         t_new, P_new = t + dt, P + dP
         cost_new = cost_of(prob.residuals(t_new, P_new), P_new)
-        accept, small = _step_tests(joint, S, cost, cost_new, done, t, P, dt, dP, tscale, ftol, xtol)
+        trial = _Trial(t, P, dt, dP, cost, cost_new)
+        accept, small = _joint_tests(trial, opts) if joint else _independent_tests(trial, done, opts)
         small &= mu < 1.0                      # a tiny step is meaningful only when barely damped
         if accept.any():
             if joint:
@@ -343,8 +391,9 @@ def schur_cov(Jp, Jt, w_rho, DtD, tol):
     return (np.linalg.inv(Mt) if identifiable else np.full((3, 3), np.inf)), identifiable
 
 
-def scipy_fits(prob: Problem, t, P0, loss, f_scale, ftol, xtol, max_iter):
-    """Reference per-sample fits with ``scipy.optimize.least_squares`` (``trf``, analytic Jacobian).
+def scipy_fits(prob: Problem, t, P0, opts: Settings):
+    """Reference per-sample fits with ``scipy.optimize.least_squares`` (``trf``, analytic Jacobian), with the
+    loss, tolerances and evaluation limit of ``opts``.
 
     Returns
     -------
@@ -380,9 +429,9 @@ def scipy_fits(prob: Problem, t, P0, loss, f_scale, ftol, xtol, max_iter):
                 fun(x)
             return cache["J"]
 
-        res = least_squares(fun, P0[s], jac=jac, method="trf", x_scale="jac", loss=loss,
-                            f_scale=f_scale, ftol=max(ftol, 1e-15), xtol=max(xtol, 1e-15),
-                            gtol=1e-12, max_nfev=max_iter)
+        res = least_squares(fun, P0[s], jac=jac, method="trf", x_scale="jac", loss=opts.loss,
+                            f_scale=opts.f_scale, ftol=max(opts.ftol, 1e-15), xtol=max(opts.xtol, 1e-15),
+                            gtol=1e-12, max_nfev=opts.max_iter)
         P[s] = res.x
         conv.append(res.status > 0)
         msgs.append(str(res.message))
