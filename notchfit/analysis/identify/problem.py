@@ -18,10 +18,13 @@ multi-start least squares from the best of the probe grid
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 
+from ...physics.friction import FrictionParams
+from ...physics.geometry import Geometry
 from ..estimation.observations import angle_residuals, zero_tension_samples
 from ..estimation.problem import Block, Problem, Simulations, measure_registered, predict, whitened, with_values
 from ..estimation.solve import Solution, grid_starts, standard_errors
@@ -130,35 +133,72 @@ def _depth_block(geom, depth_range: float, min_wall: float):
     return lo, hi
 
 
-def _tube_block_rows(obs, t, g, base_t, start_t, *, rest, depth, sim_kw, rest_range, closure_margin, rest_prior,
-                     rest_sigma_geometry, rest_sigma_min, depth_range, depth_sigma, depth_common, min_wall,
-                     rest_step, offset):
-    """One tube's unknowns: start, bounds, prior rows ``(indices, weights, mean, σ)`` and blocks, its first
-    unknown at ``offset`` of ``x``."""
-    n = g.n_joints
-    x0, lo, hi, rows, blocks = [], [], [], [], []
+@dataclass(frozen=True)
+class _Tube:
+    """One tube of a problem: its label, geometry, base model and the model at the specs' starts."""
+
+    name: str
+    geom: Geometry
+    base: FrictionParams
+    start: FrictionParams
+
+
+@dataclass(frozen=True)
+class _TubeRules:
+    """How far each tube's rest angles and cut-depth offsets may move, and their priors
+    (:func:`make_problem`'s keywords of the same names)."""
+
+    rest_range: float
+    closure_margin: float
+    rest_prior: bool
+    rest_sigma_geometry: float
+    rest_sigma_min: float
+    rest_step: float
+    depth_range: float
+    depth_sigma: float | None
+    depth_common: float | None
+    min_wall: float
+
+
+def _rest_unknowns(obs, tube: _Tube, rules: _TubeRules, sim_kw, offset: int):
+    """One tube's rest angles: start, bounds, prior rows ``(indices, weights, mean, σ)`` and block, the first
+    at ``offset`` of ``x``."""
+    g, n = tube.geom, tube.geom.n_joints
+    ref, cap = tube.base.rest_angles(g), rules.closure_margin * g.closure_angles
+    lo, hi = np.maximum(ref - rules.rest_range, -cap), np.minimum(ref + rules.rest_range, cap)
+    rows = []
+    if rules.rest_prior:
+        centre, sig = _rest_prior(obs, tube.name, tube.start, sim_kw, geometry_sigma=rules.rest_sigma_geometry,
+                                  min_sigma=rules.rest_sigma_min)
+        x0 = list(np.clip(centre, lo, hi))
+        rows = [([offset + j], 1.0, float(centre[j]), float(sig[j])) for j in range(n)]
+    else:
+        x0 = list(np.clip(_rest_start(obs, tube.name, tube.start, sim_kw), lo, hi))
+    return x0, list(lo), list(hi), rows, Block("rest_angle", tube.name, n, step=rules.rest_step)
+
+
+def _depth_unknowns(tube: _Tube, rules: _TubeRules, offset: int):
+    """One tube's cut-depth offsets: start (0), bounds, prior rows ``(indices, weights, mean, σ)`` (per notch,
+    and the tube's mean) and block, the first at ``offset`` of ``x``."""
+    g, n = tube.geom, tube.geom.n_joints
+    sigma = rules.depth_sigma if rules.depth_sigma is not None else (g.slot_depth_tolerance or DEPTH_TOLERANCE)
+    lo, hi = _depth_block(g, max(rules.depth_range, 4.0 * sigma), rules.min_wall)
+    rows = [([offset + j], 1.0, 0.0, sigma) for j in range(n)]
+    if rules.depth_common is not None:
+        rows.append((list(range(offset, offset + n)), 1.0 / n, 0.0, rules.depth_common))    # the tube's mean offset
+    return [0.0] * n, list(lo), list(hi), rows, Block("slot_depth_offset", tube.name, n, step=DEPTH_STEP)
+
+
+def _tube_block_rows(obs, tube: _Tube, *, rest: bool, depth: bool, sim_kw, rules: _TubeRules, offset: int):
+    """One tube's unknowns (its rest angles with ``rest``, its cut-depth offsets with ``depth``): start,
+    bounds, prior rows ``(indices, weights, mean, σ)`` and blocks, its first unknown at ``offset`` of ``x``."""
+    parts = []
     if rest:
-        ref, cap = base_t.rest_angles(g), closure_margin * g.closure_angles
-        lo_t, hi_t = np.maximum(ref - rest_range, -cap), np.minimum(ref + rest_range, cap)
-        if rest_prior:
-            centre, sig = _rest_prior(obs, t, start_t, sim_kw, geometry_sigma=rest_sigma_geometry,
-                                      min_sigma=rest_sigma_min)
-            x0 += list(np.clip(centre, lo_t, hi_t))
-            rows += [([offset + j], 1.0, float(centre[j]), float(sig[j])) for j in range(n)]
-        else:
-            x0 += list(np.clip(_rest_start(obs, t, start_t, sim_kw), lo_t, hi_t))
-        lo, hi = list(lo_t), list(hi_t)
-        blocks.append(Block("rest_angle", t, n, step=rest_step))
+        parts.append(_rest_unknowns(obs, tube, rules, sim_kw, offset))
     if depth:
-        sigma = depth_sigma if depth_sigma is not None else (g.slot_depth_tolerance or DEPTH_TOLERANCE)
-        lo_t, hi_t = _depth_block(g, max(depth_range, 4.0 * sigma), min_wall)
-        i = offset + len(x0)
-        x0, lo, hi = x0 + [0.0] * n, lo + list(lo_t), hi + list(hi_t)
-        rows += [([i + j], 1.0, 0.0, sigma) for j in range(n)]
-        if depth_common is not None:
-            rows.append((list(range(i, i + n)), 1.0 / n, 0.0, depth_common))    # the tube's mean offset
-        blocks.append(Block("slot_depth_offset", t, n, step=DEPTH_STEP))
-    return x0, lo, hi, rows, blocks
+        parts.append(_depth_unknowns(tube, rules, offset + sum(len(p[0]) for p in parts)))
+    x0, lo, hi, rows = ([v for p in parts for v in p[i]] for i in range(4))
+    return x0, lo, hi, rows, [p[4] for p in parts]
 
 
 def make_problem(obs, base: dict, specs, *, rest: bool = False, depth: bool = False, excess: float,
@@ -211,13 +251,12 @@ def make_problem(obs, base: dict, specs, *, rest: bool = False, depth: bool = Fa
     rows = []
     start_params = {t: with_values(base[t], {s.name: s.start for s in specs}, excess) for t in tubes}
     blocks = []
+    rules = _TubeRules(rest_range, closure_margin, rest_prior, rest_sigma_geometry, rest_sigma_min, rest_step,
+                       depth_range, depth_sigma, depth_common, min_wall)
     for t in tubes:
         x_t, lo_t, hi_t, rows_t, blocks_t = _tube_block_rows(
-            obs, t, geoms[t], base[t], start_params[t], rest=rest, depth=depth, sim_kw=sim_kw,
-            rest_range=rest_range, closure_margin=closure_margin, rest_prior=rest_prior,
-            rest_sigma_geometry=rest_sigma_geometry, rest_sigma_min=rest_sigma_min, depth_range=depth_range,
-            depth_sigma=depth_sigma, depth_common=depth_common, min_wall=min_wall, rest_step=rest_step,
-            offset=len(x0))
+            obs, _Tube(t, geoms[t], base[t], start_params[t]), rest=rest, depth=depth, sim_kw=sim_kw,
+            rules=rules, offset=len(x0))
         x0, lo, hi, rows, blocks = x0 + x_t, lo + lo_t, hi + hi_t, rows + rows_t, blocks + blocks_t
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     x0 = np.clip(np.asarray(x0, float), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
