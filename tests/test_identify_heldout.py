@@ -38,7 +38,8 @@ def fits():
     first = next(iter(base.values()))
     options = dict(n_starts=2, loss="linear", f_scale=3.0, max_nfev=100, ftol=1e-6, xtol=1e-6, diff_rel=2e-3,
                    rest_step=2e-4, sim_kw=dict(study.FIT_SOLVER))
-    tasks = study._tasks(obs, base, free, None, max(first.mu_s - first.mu_d, 0.0), options, True, True, True)
+    full = study._Task.full(obs, base, free, None, max(first.mu_s - first.mu_d, 0.0), options)
+    tasks = study._tasks(full, heldout=True, by_tube=True, warm_start=True)
     full = study._fit(tasks[0])
     warm = study._warm_start(full, options)
     tasks = [tasks[0]] + [replace(t, warm=warm) if t.part == "warm" else t for t in tasks[1:]]

@@ -245,6 +245,11 @@ class _Task:
     warm: _FitJacobian | None = None
     seed_jacobian: bool = True
 
+    @classmethod
+    def full(cls, obs, base: dict, free: tuple, start: FrictionParams | None, excess: float, options: dict) -> _Task:
+        """The fit on every experiment (the held-out fits are it with another split: :func:`_tasks`)."""
+        return cls("all", obs, tuple(range(len(obs))), (), base, free, start, excess, options)
+
 
 #: The options of :func:`_Task.options` that build the problem (the others solve it).
 _PROBLEM_OPTIONS = ("sim_kw", "rest_range", "depth_range", "depth_sigma", "depth_common", "rest_prior",
@@ -380,17 +385,18 @@ def _base_models(obs, model: FrictionParams | None) -> dict:
     return out
 
 
-def _tasks(obs, base, free, start, excess, options, heldout: bool, by_tube: bool, warm_start: bool) -> list:
-    """The full fit, one fit per left-out experiment, one per left-out tube (:class:`_Task`). With
-    ``warm_start`` the held-out fits start from the fit on every experiment (their ``"warm"`` parts,
-    :func:`_warm_start` fills ``warm`` in); a tube's also from the probe grid (its ``"grid"`` part)."""
-    idx = tuple(range(len(obs)))
-    tasks = [_Task("all", obs, idx, (), base, free, start, excess, options)]
+def _tasks(full: _Task, *, heldout: bool, by_tube: bool, warm_start: bool) -> list:
+    """The fit on every experiment (``full``), one fit per left-out experiment, one per left-out tube
+    (:class:`_Task`: ``full`` with another split). With ``warm_start`` the held-out fits start from the fit
+    on every experiment (their ``"warm"`` parts, :func:`_warm_start` fills ``warm`` in); a tube's also
+    from the probe grid (its ``"grid"`` part)."""
+    obs, idx = full.obs, full.train
+    tasks = [full]
 
     def held_out(kind, key, test, part):
         test = tuple(int(i) for i in test)
-        return _Task(kind, obs, tuple(j for j in idx if j not in test), test, base, free, start, excess, options,
-                     key=key, part=part)
+        return replace(full, kind=kind, train=tuple(j for j in idx if j not in test), test=test, key=key,
+                       part=part)
 
     if heldout and len(obs) > 1:
         for f in folds(len(obs)):
@@ -476,7 +482,8 @@ def identify(exps, *, free=None, model: FrictionParams | None = None, heldout: b
     beside = (jobs != 1 or scheduler is not None)
 
     def plan(free):
-        tasks = _tasks(obs, base, free, model, excess, options, heldout, by_tube, warm_start)
+        tasks = _tasks(_Task.full(obs, base, free, model, excess, options), heldout=heldout, by_tube=by_tube,
+                       warm_start=warm_start)
         return tasks, [t for t in tasks if t.kind == "all" or (beside and t.part != "warm")]
 
     tasks, early = plan(free)
