@@ -47,14 +47,14 @@ def open_run(args, outputs, unit: str) -> io.ResumableRun:
                            force=args.force, outputs=outputs, unit=unit)
 
 
-def run_resumable(run_, func, items: list[dict], keys: list[str], *, option_keys, args, desc: str,
-                  unit: str) -> BatchResult:
+def run_resumable(run_, func, items: list[dict], keys: list[str], *, option_keys, args) -> BatchResult:
     """:func:`~notchfit.batch.run_batch` over the items not kept by an interrupted run; each result
     kept as it arrives.
 
     Parameters
     ----------
     run_ : notchfit.io.ResumableRun
+        The command's run (:func:`open_run`); its ``unit`` names the items in the notes and the progress.
     func : callable
         The batch function (``func(item) -> value``; the value must pickle).
     items : list of dict
@@ -67,7 +67,7 @@ def run_resumable(run_, func, items: list[dict], keys: list[str], *, option_keys
         angle experiment, is not among its options); the other keys are the
         experiment's data (its content hash).
     args : argparse.Namespace
-        ``jobs``, ``scheduler`` and ``resume``.
+        ``command`` (the progress's label), ``jobs``, ``scheduler`` and ``resume``.
 
     Returns
     -------
@@ -81,7 +81,7 @@ def run_resumable(run_, func, items: list[dict], keys: list[str], *, option_keys
     kept = run_.reconcile({k: (c, o) for k, c, o in zip(keys, content, options)})
     todo = [i for i, k in enumerate(keys) if k not in kept]
     if args.resume:
-        print(f"  resuming the interrupted run: {len(kept)} of {len(keys)} {unit} kept, {len(todo)} to run")
+        print(f"  resuming the interrupted run: {len(kept)} of {len(keys)} {run_.unit} kept, {len(todo)} to run")
 
     def keep(i: int, r) -> None:
         if r.ok:                  # failed items are not kept: a resumed run tries them again
@@ -90,7 +90,7 @@ def run_resumable(run_, func, items: list[dict], keys: list[str], *, option_keys
                       own_files={_VALUE: pickle.dumps(r.value, protocol=pickle.HIGHEST_PROTOCOL)})
 
     res = run_batch(func, [items[i] for i in todo], keys=[keys[i] for i in todo], jobs=args.jobs,
-                    scheduler=args.scheduler, desc=desc, unit=unit, on_result=keep)
+                    scheduler=args.scheduler, desc=args.command, unit=run_.unit, on_result=keep)
     failed = {r.key: r for r in res.failures}
     out = [failed[k] if k in failed else
            ItemResult(key=k, ok=True, value=pickle.loads(run_.own_file(k, _VALUE).read_bytes()),

@@ -156,8 +156,7 @@ def run(args) -> int:
     outputs = ["fit_run.json"] + [str(io.experiment_output_dir("", e.name, study) / f) for e in exps
                                   for f in _FILES[e.points is None]]
     with open_run(args, outputs, "experiments") as run_:
-        res = run_resumable(run_, fit_one, items, names, option_keys=("models", "loss"), args=args, desc="fit",
-                            unit="experiments")
+        res = run_resumable(run_, fit_one, items, names, option_keys=("models", "loss"), args=args)
         failed = {r.key: r.error for r in res.failures}
         failed.update(problems)
         bad_samples = _write_outputs(exps, res, run_, study, failed, figures=not args.no_figures)

@@ -220,8 +220,7 @@ def run(args) -> int:
     outputs = ["simulate_run.json"] + [str(io.experiment_output_dir("", n, study) / "simulation.csv")
                                        for n in names]
     with open_run(args, outputs, "experiments") as run_:
-        res = run_resumable(run_, simulate_one, items, names, option_keys=("params", "method"), args=args,
-                            desc="simulate", unit="experiments")
+        res = run_resumable(run_, simulate_one, items, names, option_keys=("params", "method"), args=args)
         failed = {**scan.problems, **{r.key: r.error for r in res.failures}}
         _write_outputs(exps, res, run_, study, failed, figures=not args.no_figures)
         io.write_json_atomic(io.provenance("simulate", args.input,
