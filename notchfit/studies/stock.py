@@ -69,19 +69,36 @@ class StockTruth:
     tension_sigma: float
 
 
-def _trial(name, geom, params, rng, peak, n_up, dt, angle_sigma, tension_sigma, path) -> Experiment:
-    """One loading-only trial: rest, then ``n_up`` steps to ``peak`` [N]; measured angles and tensions."""
-    T = np.r_[0.0, np.linspace(peak / n_up, peak, n_up)]
-    time = dt * np.arange(1, T.size + 1)
+@dataclass(frozen=True)
+class _Loading:
+    """A loading-only trial's protocol: rest, then ``n_up`` steps to ``peak`` [N], a sample every ``dt`` [s]."""
+
+    peak: float
+    n_up: int
+    dt: float
+
+
+@dataclass(frozen=True)
+class _Noise:
+    """The measurement noise: of the angles [rad] and of the load cells [N]."""
+
+    angle_sigma: float
+    tension_sigma: float
+
+
+def _trial(name, geom, params, loading: _Loading, noise: _Noise, rng, path) -> Experiment:
+    """One loading-only trial of the wrist ``geom`` cut as ``params``: measured angles and tensions."""
+    T = np.r_[0.0, np.linspace(loading.peak / loading.n_up, loading.peak, loading.n_up)]
+    time = loading.dt * np.arange(1, T.size + 1)
     theta = simulate_angles(time, None, T, params, geom)
-    angles = theta + rng.normal(0.0, angle_sigma, theta.shape)
-    reading = np.round(T + rng.normal(0.0, tension_sigma, T.shape), 4)
-    reading = np.maximum(reading, -3.0 * tension_sigma)
+    angles = theta + rng.normal(0.0, noise.angle_sigma, theta.shape)
+    reading = np.round(T + rng.normal(0.0, noise.tension_sigma, T.shape), 4)
+    reading = np.maximum(reading, -3.0 * noise.tension_sigma)
     samples = pd.DataFrame({"sample": np.arange(1, T.size + 1), "time_s": time, "tension_right_N": reading})
     return Experiment(name=name, path=Path(path) / name, description="synthetic stock trial", geometry=geom,
-                      mirror=False, calibration_path=None, point_sigma=None, tension_sigma=tension_sigma,
+                      mirror=False, calibration_path=None, point_sigma=None, tension_sigma=noise.tension_sigma,
                       samples=samples, points=None, image_paths=None, ramp_time=0.0, angles=angles,
-                      angle_sigma=angle_sigma)
+                      angle_sigma=noise.angle_sigma)
 
 
 def synthetic_stock(seed: int = 0, *, trials=(5, 4, 4), effect: dict | None = None,
@@ -119,14 +136,15 @@ def synthetic_stock(seed: int = 0, *, trials=(5, 4, 4), effect: dict | None = No
     geoms = stock_geometries() if geometries is None else tuple(geometries)
     effect = dict(effect or {})
     exps, params, errors = [], {}, {}
+    noise = _Noise(angle_sigma, tension_sigma)
     for k, (geom, n_trials, (lo, hi)) in enumerate(zip(geoms, trials, peaks)):
         err = np.clip(rng.normal(0.0, depth_sd, geom.n_joints), -depth_tolerance, depth_tolerance)
         p = default_params(geom).replace(**MATERIAL_TRUTH, **effect, slot_depth_offset=tuple(err))
         params[geom.name], errors[geom.name] = p, err
         letter = "ABCDEFGH"[k]
         for i in range(n_trials):
-            exps.append(_trial(f"{letter}{i + 1}", geom, p, rng, float(rng.uniform(lo, hi)), n_up, dt,
-                               angle_sigma, tension_sigma, f"<synthetic stock {seed}>"))
+            loading = _Loading(float(rng.uniform(lo, hi)), n_up, dt)
+            exps.append(_trial(f"{letter}{i + 1}", geom, p, loading, noise, rng, f"<synthetic stock {seed}>"))
     return exps, StockTruth(params, errors, effect, angle_sigma, tension_sigma)
 
 

@@ -338,6 +338,24 @@ def statics_truth(time, tension_left, tension_right, params: FrictionParams, geo
     return _StaticsTruth(theta, dl, dr, stepwise_regimes(tl, tr, theta.sum(axis=1) * pulled_side(tl, tr)))
 
 
+@dataclass(frozen=True)
+class _Plan:
+    """One experiment as drawn before its truth is simulated: its recipe entry, its own random stream (the
+    noise is drawn from it after the simulation), the peak tension [N], the protocol's times [s] and cable
+    tensions (S,) [N], the plane transform (``tx``, ``ty`` [m], ``phi`` [rad], ``mirror``), and its geometry
+    with the recipe's name for it."""
+
+    spec: ProtocolSpec
+    rng: np.random.Generator
+    peak: float
+    time: np.ndarray
+    tension_left: np.ndarray
+    tension_right: np.ndarray
+    plane: dict
+    geom: Geometry
+    source: str
+
+
 def _simulate_one(args):
     """Truth simulation of one experiment (module level: runs in worker processes)."""
     time, tl, tr, params, geom, method, ramp = args
@@ -401,35 +419,34 @@ def synthesize(recipe: Recipe | str | Path, seed: int | None = None, *, jobs: in
                  "ty": float(rng.uniform(*recipe.plane_ty_mm)) * MM,
                  "phi": math.radians(float(rng.uniform(*recipe.plane_phi_deg))),
                  "mirror": bool(recipe.mirror)}
-        plans.append((spec, rng, peak, np.asarray(time, float), np.asarray(tl, float),
-                      np.asarray(tr, float), plane))
+        plans.append(_Plan(spec, rng, peak, np.asarray(time, float), np.asarray(tl, float), np.asarray(tr, float),
+                           plane, geoms[sources[spec.name]], sources[spec.name]))
     truth_method = "statics" if _frictionless(params) else method
     for spec in recipe.experiments:
         other = "left" if spec.pull == "right" else "right"
         if spec.counter_N != 0 and other not in geoms[sources[spec.name]].tendons:
             raise ValueError(f"recipe {recipe.name!r}: experiment {spec.name}: the geometry has only the "
                              f"{spec.pull} tendon, so counter_N must be 0")
-    items = [(p[3], p[4], p[5], params, geoms[sources[p[0].name]], truth_method, recipe.ramp_time_s)
+    items = [(p.time, p.tension_left, p.tension_right, params, p.geom, truth_method, recipe.ramp_time_s)
              for p in plans]
     if jobs > 1 and len(items) > 1:
-        res = run_batch(_simulate_one, items, jobs=jobs, keys=[p[0].name for p in plans],
+        res = run_batch(_simulate_one, items, jobs=jobs, keys=[p.spec.name for p in plans],
                         desc="truth simulation")
         res.raise_on_failure()
         results = res.values()
     else:
         results = [_simulate_one(it) for it in items]
 
-    exps = []
-    for (spec, rng, peak, time, tl, tr, plane), sim in zip(plans, results):
-        exps.append(_observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geoms[sources[spec.name]], warp,
-                             sources[spec.name]))
+    exps = [_observe(recipe, plan, sim, warp) for plan, sim in zip(plans, results)]
     return SynthStudy(recipe=recipe, seed=seed, geometry=geom, params=params, effect=effect, warp=warp,
                       experiments=tuple(exps), truth_solver=truth_method)
 
 
-def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp, source="default") -> SynthExperiment:
-    """Measurement model: points in the plane frame (+warp, noise, occlusion) and/or joint angles
-    (+noise), noisy tensions."""
+def _observe(recipe, plan: _Plan, sim, warp) -> SynthExperiment:
+    """Measurement model of the experiment ``plan`` whose truth is ``sim``: points in the plane frame
+    (+``warp``, noise, occlusion) and/or joint angles (+noise), noisy tensions."""
+    spec, rng, peak, time, plane, geom = plan.spec, plan.rng, plan.peak, plan.time, plan.plane, plan.geom
+    tl, tr = plan.tension_left, plan.tension_right
     theta = np.asarray(sim.theta, dtype=float)
     true_pts = to_plane(notch_points(theta, geom), plane["tx"], plane["ty"], plane["phi"],
                         plane["mirror"])
@@ -476,7 +493,7 @@ def _observe(recipe, spec, rng, peak, time, tl, tr, plane, sim, geom, warp, sour
                            peak_N=peak, samples=samples, points=pts, true_points=true_pts, theta=theta,
                            tension_left=tl, tension_right=tr, plane=plane,
                            regime=np.asarray(getattr(sim, "regime", np.full(S, ""))), angles=angles,
-                           geometry=source)
+                           geometry=plan.source)
 
 
 def write_study(study: SynthStudy, out_dir, *, force: bool = False, images: bool | None = None,
