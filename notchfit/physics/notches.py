@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -45,7 +46,11 @@ __all__ = [
 
 @functools.lru_cache(maxsize=32)
 def _tables(geom: Geometry):
-    """Link of each point, its link-local (x, z) from the link's pivot, and the chain's steps and heights."""
+    """Link of each point, its link-local (x, z) from the link's pivot, and the chain's steps and heights.
+
+    A plain tuple ``(link, lx, lz, per_joint)``: the compiled kernels take it as one argument, and numba
+    reads an exact tuple of arrays as fast as separate arguments (a named tuple costs microseconds per
+    call from Python, too much for the one-configuration calls)."""
     lay = notch_layout(geom)
     ch = chain(geom)
     lx = lay.local[:, 0] - np.where(lay.link > 0, ch.axis_offset[np.maximum(lay.link - 1, 0)], 0.0)
@@ -118,13 +123,10 @@ def notch_points_and_jacobian(theta, geom: Geometry, model: str = "pivot", *,
         raise ValueError(f"joint angles must have shape (..., {n}), got {np.shape(theta)}")
     if not np.isfinite(th).all():
         raise ValueError("joint angles contain NaN or inf")
-    link, lx, lz, per_joint = _tables(geom)
+    tables = _tables(geom)
     lead = th.shape[:-1]
-    m = link.shape[0]
-    flat = np.ascontiguousarray(th).reshape(-1, n)
-    pts = np.empty((flat.shape[0], m, 2))
-    jac = np.empty((flat.shape[0], m, 2, n))
-    _points_jac_kernel(flat, per_joint, model == "arc", series_below, link, lx, lz, pts, jac)
+    m = tables[0].shape[0]
+    pts, jac = _points_jac_kernel(np.ascontiguousarray(th).reshape(-1, n), tables, model == "arc", series_below)
     return pts.reshape(lead + (m, 2)), jac.reshape(lead + (m, 2, n))
 
 
@@ -144,12 +146,32 @@ def _arc_kernel(t, h, series_below):  # pragma: no cover - compiled
     return h * f * su, h * f * cu, 0.5 * h * (df * su + f * cu), 0.5 * h * (df * cu - f * su)
 
 
+class _Chain(NamedTuple):
+    """Work arrays of one configuration's chain, filled by :func:`_chain_kernel`: the links' ``sin φ_l``,
+    ``cos φ_l`` and origins ``(ox, oz)`` (n + 1) [m], and the arc model's shifts ``dδ/dθ`` in the base frame
+    ``(ddx, ddz)`` (n) [m/rad] (zero for the pivot model). Made in compiled code (:func:`_new_chain`)."""
+
+    s: np.ndarray
+    c: np.ndarray
+    ox: np.ndarray
+    oz: np.ndarray
+    ddx: np.ndarray
+    ddz: np.ndarray
+
+
 @numba.njit(cache=True, nogil=True)
-def _chain_kernel(th, per_joint, arc, series_below, s, c, ox, oz, ddx, ddz):  # pragma: no cover
-    """Link orientations (s, c), origins (ox, oz) and arc shifts (ddx, ddz) of one configuration.
+def _new_chain(n):  # pragma: no cover - compiled
+    """A fresh :class:`_Chain` of ``n`` joints."""
+    return _Chain(np.empty(n + 1), np.empty(n + 1), np.empty(n + 1), np.empty(n + 1), np.zeros(n), np.zeros(n))
+
+
+@numba.njit(cache=True, nogil=True)
+def _chain_kernel(th, per_joint, arc, series_below, ch):  # pragma: no cover
+    """Link orientations, origins and arc shifts of one configuration ``th`` (n,) into ``ch`` (:class:`_Chain`).
 
     ``per_joint`` (3, n): the pivot steps ``a_k - a_{k-1}`` (x, z) and the notch heights.
     """
+    s, c, ox, oz, ddx, ddz = ch
     n = th.shape[0]
     dx, dz, h = per_joint[0], per_joint[1], per_joint[2]
     phi = 0.0
@@ -170,17 +192,18 @@ def _chain_kernel(th, per_joint, arc, series_below, s, c, ox, oz, ddx, ddz):  # 
 
 
 @numba.njit(cache=True, nogil=True)
-def _points_jac_kernel(th, per_joint, arc, series_below, link, lx, lz, pts, jac):  # pragma: no cover
+def _points_jac_kernel(th, tables, arc, series_below):  # pragma: no cover
+    """Points (B, m, 2) [m] and Jacobians (B, m, 2, n) [m/rad] of the configurations ``th`` (B, n), with the
+    :func:`_tables` ``(link, lx, lz, per_joint)``."""
+    link, lx, lz, per_joint = tables
     nb, n = th.shape
     m = link.shape[0]
-    s = np.empty(n + 1)
-    c = np.empty(n + 1)
-    ox = np.empty(n + 1)
-    oz = np.empty(n + 1)
-    ddx = np.zeros(n)
-    ddz = np.zeros(n)
+    pts = np.empty((nb, m, 2))
+    jac = np.empty((nb, m, 2, n))
+    ch = _new_chain(n)
+    s, c, ox, oz, ddx, ddz = ch
     for b in range(nb):
-        _chain_kernel(th[b], per_joint, arc, series_below, s, c, ox, oz, ddx, ddz)
+        _chain_kernel(th[b], per_joint, arc, series_below, ch)
         for i in range(m):
             L = link[i]
             x = ox[L] + c[L] * lx[i] + s[L] * lz[i]
@@ -194,17 +217,20 @@ def _points_jac_kernel(th, per_joint, arc, series_below, link, lx, lz, pts, jac)
                 else:
                     jac[b, i, 0, k] = 0.0
                     jac[b, i, 1, k] = 0.0
+    return pts, jac
 
 
 @numba.njit(cache=True, nogil=True)
-def points_kernel(th, per_joint, link, lx, lz, s, c, ox, oz, dd, pts):  # pragma: no cover - compiled
-    """The notch points of one configuration (pivot model) into ``pts`` (m, 2) [m].
+def points_kernel(th, tables, pts):  # pragma: no cover - compiled
+    """The notch points of one configuration ``th`` (n,) (pivot model) into ``pts`` (m, 2) [m].
 
-    The tables are :class:`PointProjector`'s; ``s, c, ox, oz`` (n + 1) and
-    ``dd`` (n) are work arrays. Callable from other compiled code (the
-    real-time predictor projects inside its step).
+    ``tables``: :attr:`PointProjector.tables` ``(link, lx, lz, per_joint)``. Callable from other compiled
+    code (the real-time predictor projects inside its step).
     """
-    _chain_kernel(th, per_joint, False, 0.0, s, c, ox, oz, dd, dd)
+    link, lx, lz, per_joint = tables
+    ch = _new_chain(th.shape[0])
+    _chain_kernel(th, per_joint, False, 0.0, ch)
+    s, c, ox, oz = ch.s, ch.c, ch.ox, ch.oz
     for i in range(link.shape[0]):
         L = link[i]
         pts[i, 0] = ox[L] + c[L] * lx[i] + s[L] * lz[i]
@@ -234,16 +260,15 @@ class PointProjector:
     lz: np.ndarray
     per_joint: np.ndarray
 
-    def work(self) -> tuple:
-        """Fresh work arrays ``s, c, ox, oz, dd`` for :func:`points_kernel`."""
-        n = self.per_joint.shape[1]
-        return tuple(np.empty(n + 1) for _ in range(4)) + (np.zeros(n),)
+    @property
+    def tables(self) -> tuple:
+        """``(link, lx, lz, per_joint)``, as :func:`points_kernel` takes them."""
+        return self.link, self.lx, self.lz, self.per_joint
 
     def __call__(self, theta) -> np.ndarray:
         """Points (m, 2) [m] of joint angles ``theta`` (n,) [rad]."""
         out = np.empty((self.link.shape[0], 2))
-        points_kernel(np.ascontiguousarray(theta, dtype=float), self.per_joint, self.link, self.lx, self.lz,
-                      *self.work(), out)
+        points_kernel(np.ascontiguousarray(theta, dtype=float), self.tables, out)
         return out
 
 

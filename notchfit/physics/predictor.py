@@ -121,8 +121,7 @@ class Predictor:
                                settle_tol, settle_maxiter, float(bool(land_sticks)), dtheta_max, order], dtype=float)
         self.settle_time = float(settle_time)
         self.tension_sigma = tension_sigma
-        self._proj = point_projector(self.geom)
-        self._work = np.zeros((5, n + 1))
+        self._tables = point_projector(self.geom).tables
         self._points = bool(points)
         self._has = (("left" in self.geom.tendons), ("right" in self.geom.tendons))
         self.reset()
@@ -192,9 +191,8 @@ class Predictor:
                 raise ValueError(f"time must increase: got {t} s after {self._last} s")
             inp[3], inp[4], inp[5], inp[6] = self._last, self._prev[0], self._prev[1], 0.0
         inp[0] = t
-        pr = self._proj
-        theta, tl, tr, pts = _step(inp, self._state, self._links, self._par, self._J, self._opts, pr.per_joint,
-                                   pr.link, pr.lx, pr.lz, self._work, self._points)
+        theta, tl, tr, pts = _step(inp, self._state, self._links, self._par, self._J, self._opts, self._tables,
+                                   self._points)
         self._last = t
         self._prev = (inp[1], inp[2])
         self.n_samples += 1
@@ -202,15 +200,17 @@ class Predictor:
 
 
 @njit(cache=True)
-def _step(inp, state, links, par, J, opts, per_joint, link, lx, lz, work, with_points):  # pragma: no cover
-    """One interval of :func:`notchfit.physics._friction_kernels.fast_intervals` and the points, compiled in one call."""
+def _step(inp, state, links, par, J, opts, tables, with_points):  # pragma: no cover
+    """One interval of :func:`notchfit.physics._friction_kernels.fast_intervals` and, ``with_points``, the
+    points (:func:`notchfit.physics.notches.points_kernel` with the projector's ``tables``), compiled in one
+    call."""
     n = J.shape[1]
     m = links.shape[0] // 2
     th, TL, TR, hS, band = state[:n], state[n:2 * n], state[2 * n:3 * n], state[3 * n:4 * n], state[4 * n:]
     out = _k.fast_intervals(inp[0:1], inp[1:2], inp[2:3], inp[3], inp[4], inp[5], inp[6] != 0.0, th, TL, TR,
                             links[:m], links[m:], band, hS, par, J, opts[0], opts[1], opts[2], opts[3], int(opts[4]),
                             int(opts[5]), opts[6], int(opts[7]), opts[8] != 0.0, opts[9], int(opts[10]))
-    pts = np.empty((link.shape[0], 2))
+    pts = np.empty((tables[0].shape[0], 2))
     if with_points:
-        points_kernel(th, per_joint, link, lx, lz, work[0], work[1], work[2], work[3], work[4, :n], pts)
+        points_kernel(th, tables, pts)
     return th.copy(), out[1][0], out[2][0], pts
