@@ -243,16 +243,42 @@ def test_required_parameters_counts_only_those_without_a_default():
     assert required_parameters(node) == 2
 
 
+def wide_functions(tree: ast.AST, limit: int) -> list[str]:
+    """The functions of ``tree`` with more than ``limit`` parameters without a default (``name: n parameters``)."""
+    return [f"{node.name}: {n} parameters" for node in ast.walk(tree)
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and (n := required_parameters(node)) > limit]
+
+
+def test_wide_functions_finds_those_past_the_limit():
+    tree = ast.parse("def f(a, b, c): pass\ndef g(a, b=1, *, c=2): pass\nclass K:\n    def h(self, a, *, b): pass")
+    assert wide_functions(tree, 2) == ["f: 3 parameters", "h: 3 parameters"]
+
+
+def _wide_in(prefixes, limit) -> list[str]:
+    """:func:`wide_functions` of every module whose name starts with one of ``prefixes``."""
+    return [f"{name}.{w}" for name, path in all_modules().items() if name.startswith(prefixes)
+            for w in wide_functions(ast.parse(path.read_text(encoding="utf-8")), limit)]
+
+
 def test_no_detector_function_with_ten_or_more_parameters():
-    wide = []
-    for name, path in all_modules().items():
-        if not name.startswith("notchfit.vision.detection"):
-            continue
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and \
-                    (n := required_parameters(node)) > MAX_DETECTOR_PARAMETERS:
-                wide.append(f"{name}.{node.name}: {n} parameters")
+    wide = _wide_in(("notchfit.vision.detection",), MAX_DETECTOR_PARAMETERS)
     assert not wide, "detector functions with too many parameters (carry them in a record): " + "; ".join(wide)
+
+
+#: modules whose wide functions were narrowed to records (the numba kernels included: they take named
+#: tuples made in compiled code, or plain tuples of arrays, which numba reads as fast as separate arguments)
+NARROWED_MODULES = ("notchfit.analysis.fitting.lm", "notchfit.analysis.identify.problem",
+                    "notchfit.analysis.identify.study", "notchfit.commands._resumable", "notchfit.physics.predictor",
+                    "notchfit.physics.notches", "notchfit.studies.synth", "notchfit.studies.stock")
+#: the most parameters without a default in those modules
+MAX_NARROWED_PARAMETERS = 8
+
+
+def test_no_narrowed_function_grows_past_eight_parameters():
+    modules = all_modules()
+    wide = [f"{m}.{w}" for m in NARROWED_MODULES
+            for w in wide_functions(ast.parse(modules[m].read_text(encoding="utf-8")), MAX_NARROWED_PARAMETERS)]
+    assert not wide, "functions with too many parameters (name the concept in a record): " + "; ".join(wide)
 
 
 #: how a reference to the contracts folder beside the repository would be spelled (built from
