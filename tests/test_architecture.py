@@ -272,12 +272,16 @@ NARROWED_MODULES = ("notchfit.analysis.fitting.lm", "notchfit.analysis.identify.
                     "notchfit.physics.notches", "notchfit.studies.synth", "notchfit.studies.stock")
 #: the most parameters without a default in those modules
 MAX_NARROWED_PARAMETERS = 8
+#: public signatures kept for their callers: the compiled point kernel of the API reference (its work
+#: arrays are the caller's; notchfit itself calls the narrow one)
+WIDE_PUBLIC_ALLOWED = ("notchfit.physics.notches.points_kernel: 11 parameters",)
 
 
 def test_no_narrowed_function_grows_past_eight_parameters():
     modules = all_modules()
     wide = [f"{m}.{w}" for m in NARROWED_MODULES
             for w in wide_functions(ast.parse(modules[m].read_text(encoding="utf-8")), MAX_NARROWED_PARAMETERS)]
+    wide = [w for w in wide if w not in WIDE_PUBLIC_ALLOWED]
     assert not wide, "functions with too many parameters (name the concept in a record): " + "; ".join(wide)
 
 

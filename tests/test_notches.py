@@ -4,7 +4,8 @@ import pytest
 
 from notchfit.physics import kinematics as K
 from notchfit.physics.geometry import notch_layout
-from notchfit.physics.notches import from_plane, notch_points, notch_points_and_jacobian, plane_params_jacobian, to_plane
+from notchfit.physics.notches import (from_plane, notch_points, notch_points_and_jacobian, plane_params_jacobian,
+                                     point_projector, points_kernel, to_plane)
 
 
 def _poe_points(theta, geom):
@@ -102,3 +103,19 @@ def test_plane_transform_roundtrip_and_jacobian(geom, rng):
 def test_bad_input(geom, bad):
     with pytest.raises(ValueError, match="joint angles"):
         notch_points(bad, geom)
+
+
+def test_public_points_kernel_with_the_callers_work_arrays_equals_the_projector(geom, geom5, rng):
+    """``points_kernel`` (the compiled API, its work arrays the caller's) computes what the projector
+    and :func:`notch_points` compute, and leaves the chain in the work arrays (``s, c`` of the link angles)."""
+    for g in (geom, geom5):
+        proj = point_projector(g)
+        for theta in rng.uniform(-0.15, 0.15, (4, g.n_joints)):
+            s, c, ox, oz, dd = proj.work()
+            out = np.empty((g.n_points, 2))
+            points_kernel(theta, proj.per_joint, proj.link, proj.lx, proj.lz, s, c, ox, oz, dd, out)
+            np.testing.assert_array_equal(out, proj(theta))
+            assert np.abs(out - notch_points(theta, g)).max() <= 1e-15
+            phi = np.r_[0.0, np.cumsum(theta)]
+            np.testing.assert_allclose(s, np.sin(phi), atol=1e-15)
+            np.testing.assert_allclose(c, np.cos(phi), atol=1e-15)

@@ -126,7 +126,10 @@ def notch_points_and_jacobian(theta, geom: Geometry, model: str = "pivot", *,
     tables = _tables(geom)
     lead = th.shape[:-1]
     m = tables[0].shape[0]
-    pts, jac = _points_jac_kernel(np.ascontiguousarray(th).reshape(-1, n), tables, model == "arc", series_below)
+    flat = np.ascontiguousarray(th).reshape(-1, n)
+    pts = np.empty((flat.shape[0], m, 2))
+    jac = np.empty((flat.shape[0], m, 2, n))
+    _points_jac_kernel(flat, tables, model == "arc", series_below, pts, jac)
     return pts.reshape(lead + (m, 2)), jac.reshape(lead + (m, 2, n))
 
 
@@ -192,14 +195,12 @@ def _chain_kernel(th, per_joint, arc, series_below, ch):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def _points_jac_kernel(th, tables, arc, series_below):  # pragma: no cover
-    """Points (B, m, 2) [m] and Jacobians (B, m, 2, n) [m/rad] of the configurations ``th`` (B, n), with the
-    :func:`_tables` ``(link, lx, lz, per_joint)``."""
+def _points_jac_kernel(th, tables, arc, series_below, pts, jac):  # pragma: no cover
+    """Points ``pts`` (B, m, 2) [m] and Jacobians ``jac`` (B, m, 2, n) [m/rad] of the configurations ``th``
+    (B, n), with the :func:`_tables` ``(link, lx, lz, per_joint)``."""
     link, lx, lz, per_joint = tables
     nb, n = th.shape
     m = link.shape[0]
-    pts = np.empty((nb, m, 2))
-    jac = np.empty((nb, m, 2, n))
     ch = _new_chain(n)
     s, c, ox, oz, ddx, ddz = ch
     for b in range(nb):
@@ -217,24 +218,39 @@ def _points_jac_kernel(th, tables, arc, series_below):  # pragma: no cover
                 else:
                     jac[b, i, 0, k] = 0.0
                     jac[b, i, 1, k] = 0.0
-    return pts, jac
 
 
 @numba.njit(cache=True, nogil=True)
-def points_kernel(th, tables, pts):  # pragma: no cover - compiled
-    """The notch points of one configuration ``th`` (n,) (pivot model) into ``pts`` (m, 2) [m].
-
-    ``tables``: :attr:`PointProjector.tables` ``(link, lx, lz, per_joint)``. Callable from other compiled
-    code (the real-time predictor projects inside its step).
-    """
-    link, lx, lz, per_joint = tables
-    ch = _new_chain(th.shape[0])
-    _chain_kernel(th, per_joint, False, 0.0, ch)
+def _chain_points(ch, link, lx, lz, pts):  # pragma: no cover - compiled
+    """The notch points into ``pts`` (m, 2) [m] from the filled chain ``ch`` (:class:`_Chain`)."""
     s, c, ox, oz = ch.s, ch.c, ch.ox, ch.oz
     for i in range(link.shape[0]):
         L = link[i]
         pts[i, 0] = ox[L] + c[L] * lx[i] + s[L] * lz[i]
         pts[i, 1] = oz[L] - s[L] * lx[i] + c[L] * lz[i]
+
+
+@numba.njit(cache=True, nogil=True)
+def points_kernel(th, per_joint, link, lx, lz, s, c, ox, oz, dd, pts):  # pragma: no cover - compiled
+    """The notch points of one configuration (pivot model) into ``pts`` (m, 2) [m].
+
+    The tables are :class:`PointProjector`'s; ``s, c, ox, oz`` (n + 1) and
+    ``dd`` (n) are work arrays (:meth:`PointProjector.work`). Callable from other compiled code; inside
+    notchfit the real-time predictor projects with the projector's ``tables`` and work arrays of its own.
+    """
+    ch = _Chain(s, c, ox, oz, dd, dd)
+    _chain_kernel(th, per_joint, False, 0.0, ch)
+    _chain_points(ch, link, lx, lz, pts)
+
+
+@numba.njit(cache=True, nogil=True)
+def _points_one(th, tables, pts):  # pragma: no cover - compiled
+    """:func:`points_kernel` with the :attr:`PointProjector.tables` ``(link, lx, lz, per_joint)`` and work
+    arrays made in compiled code."""
+    link, lx, lz, per_joint = tables
+    ch = _new_chain(th.shape[0])
+    _chain_kernel(th, per_joint, False, 0.0, ch)
+    _chain_points(ch, link, lx, lz, pts)
 
 
 @dataclass(frozen=True, eq=False)
@@ -262,13 +278,18 @@ class PointProjector:
 
     @property
     def tables(self) -> tuple:
-        """``(link, lx, lz, per_joint)``, as :func:`points_kernel` takes them."""
+        """``(link, lx, lz, per_joint)`` in one plain tuple, as the compiled kernels take them."""
         return self.link, self.lx, self.lz, self.per_joint
+
+    def work(self) -> tuple:
+        """Fresh work arrays ``s, c, ox, oz, dd`` for :func:`points_kernel`."""
+        n = self.per_joint.shape[1]
+        return tuple(np.empty(n + 1) for _ in range(4)) + (np.zeros(n),)
 
     def __call__(self, theta) -> np.ndarray:
         """Points (m, 2) [m] of joint angles ``theta`` (n,) [rad]."""
         out = np.empty((self.link.shape[0], 2))
-        points_kernel(np.ascontiguousarray(theta, dtype=float), self.tables, out)
+        _points_one(np.ascontiguousarray(theta, dtype=float), self.tables, out)
         return out
 
 

@@ -34,7 +34,7 @@ from . import _friction_kernels as _k
 from .friction import FrictionParams, default_params
 from .friction_params import _kernel_inputs, check_fast_laws
 from .geometry import Geometry, default_geometry
-from .notches import point_projector, points_kernel
+from .notches import _points_one, point_projector
 
 __all__ = ["Prediction", "Predictor"]
 
@@ -202,8 +202,8 @@ class Predictor:
 @njit(cache=True)
 def _step(inp, state, links, par, J, opts, tables, with_points):  # pragma: no cover
     """One interval of :func:`notchfit.physics._friction_kernels.fast_intervals` and, ``with_points``, the
-    points (:func:`notchfit.physics.notches.points_kernel` with the projector's ``tables``), compiled in one
-    call."""
+    points (those of :func:`notchfit.physics.notches.points_kernel`, from the projector's ``tables``,
+    :attr:`notchfit.physics.notches.PointProjector.tables`), compiled in one call."""
     n = J.shape[1]
     m = links.shape[0] // 2
     th, TL, TR, hS, band = state[:n], state[n:2 * n], state[2 * n:3 * n], state[3 * n:4 * n], state[4 * n:]
@@ -212,5 +212,5 @@ def _step(inp, state, links, par, J, opts, tables, with_points):  # pragma: no c
                             int(opts[5]), opts[6], int(opts[7]), opts[8] != 0.0, opts[9], int(opts[10]))
     pts = np.empty((tables[0].shape[0], 2))
     if with_points:
-        points_kernel(th, tables, pts)
+        _points_one(th, tables, pts)
     return th.copy(), out[1][0], out[2][0], pts
