@@ -276,10 +276,16 @@ def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
         return refine_and_finish(gray, seg, ctx, setup, extra=extra, stations=stations,
                                  width_mask=masks[k] if _VARIANTS[k] == "colour" or ctx.confirm_width else None)
 
-    # every variant is refined and the corners merged point by point: each numbers each side on its own
+    # the variants are refined and the corners merged point by point: each numbers each side on its own
     # evidence (the threshold one side, the colour distance the other), and a corner two variants place
-    # apart is not used
-    outs = [(k, *refined(k)) for k in order if tried[k].specs or k == order[0]]
+    # apart is not used; a variant that located only corners already ok adds nothing and is not refined
+    outs, done = [(order[0], *refined(order[0]))], set()
+    for k in order[1:]:
+        ref = outs[-1][2]
+        if ref is not None and ref.plane_input is not None:
+            done |= {i for i, st in enumerate(ref.plane_input.status) if st == "ok"}
+        if tried[k].points - done:
+            outs.append((k, *refined(k)))
     refs = [(k, ref) for k, _, ref in outs if ref is not None and ref.plane_input is not None]
     if len(refs) < 2:
         return outs[0][1], outs[0][2]
