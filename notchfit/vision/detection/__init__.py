@@ -217,8 +217,8 @@ _VARIANTS = ("threshold", "streaks", "colour")
 def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
     """Stages 1-6 at a known scale. When the silhouette does not give every slot and the tip, it is located
     again with thin background lines across the tube filled (a specular streak that splits it), then by
-    colour; every variant that located corners is refined and their corners merged point by point
-    (:func:`~.pipeline.merge_plane_inputs`). Returns (Detection, refinement or None: the refinement of the
+    colour; every variant that located a corner not yet ``ok`` on an earlier one is refined, and their
+    corners are merged point by point (:func:`~.pipeline.merge_plane_inputs`). Returns (Detection, refinement or None: the refinement of the
     variant that located the most corners, carrying the merged corners)."""
     geom, opts, f = setup.geom, setup.opts, setup.f
     m = geom.n_points
