@@ -214,18 +214,29 @@ TWO_SIDED = Geometry(n_joints=6, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.6e
                      channel_radius=None)
 
 
-def test_each_side_from_the_silhouette_that_numbers_it_and_no_number_wrong():
+@pytest.mark.parametrize("extra", ["", "wire", "shut"])
+def test_each_side_from_the_silhouette_that_numbers_it_and_no_number_wrong(extra):
     """A neutral two-sided tube on a warm card (rendered gray, tinted by how much card each pixel shows), with
     a soft cast shadow along its right side as dark as the tube and a card-coloured spot as dark as the tube
     on its left edge, mid-link. The gray threshold joins the shadow to the right side's slots (numbers only
     the left side); the colour distance sees the spot as a slot-sized gap on the left side (a spurious
     candidate) and the shadow as card. Merged point by point, corners of both sides and the base are
-    reported, and none carries another corner's number."""
+    reported, and none carries another corner's number; also with a neutral wire from the tip to the image
+    border (``wire``) and with the left side's joint-4 slot painted shut (``shut``: a missing slot), where
+    one silhouette may give both sides."""
     th = np.array([0.1, -0.1, 0.12, -0.08, 0.1, -0.1])
     cam, plane = scene_camera(th, TWO_SIDED, image_size=(640, 600), mm_per_px=1 / 40, angle_deg=90, base_at=0.12)
     r = render_scene(th, TWO_SIDED, cam, plane=plane, scene=Scene(holder="chuck"), rng=np.random.default_rng(4))
     g = r.image.astype(np.float32)
     tube, card = np.percentile(g, 2), np.median(g)
+    if extra == "wire":
+        tip_mid = 0.5 * (r.points_px[8] + r.points_px[9])
+        cv2.line(g, tuple(np.round(tip_mid).astype(int)), (int(tip_mid[0]) + 60, g.shape[0] - 1), float(tube), 3,
+                 cv2.LINE_AA)
+    elif extra == "shut":
+        a, b = r.points_px[12], r.points_px[13]                       # joint 4's mouth (left side)
+        along = (b - a) / np.linalg.norm(b - a)
+        cv2.fillPoly(g, [np.round(_inward(r, a - 2 * along, b + 2 * along, 1.3 * 40)).astype(np.int32)], float(tube))
     t = np.clip((g - tube) / (card - tube), 0, 1)                     # how much card a pixel shows
     vv, uu = np.mgrid[0:g.shape[0], 0:g.shape[1]].astype(np.float32)
     right_u = float(np.mean(r.points_px[[2, 3, 4, 5, 6, 7], 0]))       # the right side's edge (image left)
@@ -244,4 +255,7 @@ def test_each_side_from_the_silhouette_that_numbers_it_and_no_number_wrong():
     assert d[ok, np.nonzero(ok)[0]].max() < 2.0, det.message
     slot = np.isin(lay.kind, ["proximal", "distal"])
     assert (ok & slot & (lay.side > 0)).any() and (ok & slot & (lay.side < 0)).sum() >= 4, det.message
-    assert "from the" in det.message and "silhouette" in det.message
+    if extra == "":                                                   # the right side from the colour silhouette
+        assert "from the colour silhouette" in det.message or "from the threshold silhouette" in det.message
+    if extra == "shut":
+        assert not ok[[12, 13]].any()
