@@ -18,7 +18,8 @@ are replaced by the true corners (+2 px in u and v) before the refinement: what 
 checks make of a perfect silhouette.
 
 The stages are recorded by wrapping the package's ``refine_and_finish`` (the detector itself is not
-changed). Run:  python benchmarks/pbr_losses.py [--pbr-dir tests/data/pbr] [--oracle]
+changed; where several silhouette variants are refined, a corner counts in the furthest stage any of them
+took it to). Run:  python benchmarks/pbr_losses.py [--pbr-dir tests/data/pbr] [--oracle]
 """
 
 from __future__ import annotations
@@ -27,14 +28,17 @@ import argparse
 import collections
 import dataclasses
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
-import notchfit.vision.detection as detection
-from notchfit.io import load_geometry, load_image
-from notchfit.vision.detection.pipeline import link_widths, statuses
-from notchfit.vision.render.pbr import PbrTruth, score_detection
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))   # this checkout's notchfit, not an installed one
+
+import notchfit.vision.detection as detection  # noqa: E402
+from notchfit.io import load_geometry, load_image  # noqa: E402
+from notchfit.vision.detection.pipeline import link_widths, statuses  # noqa: E402
+from notchfit.vision.render.pbr import PbrTruth, score_detection  # noqa: E402
 
 STAGES = ("segmentation / outline / base", "slot mouths / numbering", "refine: no edges", "refine: sigma / shift",
           "width check", "plane checks", "ok, > 3 px", "ok")
@@ -64,8 +68,11 @@ class Recorder:
                      if vis[s.point] and np.all(np.isfinite(pts[s.point])) else s for s in specs]
             ctx = dataclasses.replace(ctx, specs=specs)
         det, ref = self.original(gray, seg, ctx, setup, **kw)
-        self.specs = {s.point for s in specs}
-        self.first = {s.point: s.xy * factor + origin for s in specs}
+        # every silhouette variant that located corners is refined: the union of their corners, each in the
+        # furthest stage any variant took it to, its first estimate from the first variant that located it
+        self.specs = (self.specs or set()) | {s.point for s in specs}
+        for s in specs:
+            self.first.setdefault(s.point, s.xy * factor + origin)
         if ref is not None:
             st = statuses(ref, geom.n_points, list(ctx.status), gray.shape, opts)[0]
             mask = kw.get("width_mask")
@@ -73,13 +80,15 @@ class Recorder:
                                                         geom.outer_radius)
             for q, i in enumerate(ref.pidx):
                 if not ref.ok[q] or st[i] == "occluded":
-                    self.stage[int(i)] = STAGES[2]
+                    stage = STAGES[2]
                 elif st[i] != "ok":
-                    self.stage[int(i)] = STAGES[3]
+                    stage = STAGES[3]
                 elif wid is not None and abs(wid[q] / (2 * geom.outer_radius) - 1) > opts.width_tol:
-                    self.stage[int(i)] = STAGES[4]
+                    stage = STAGES[4]
                 else:
-                    self.stage[int(i)] = STAGES[5]
+                    stage = STAGES[5]
+                old = self.stage.get(int(i), STAGES[2])
+                self.stage[int(i)] = max(old, stage, key=STAGES.index)
         return det, ref
 
 

@@ -206,3 +206,56 @@ def test_a_double_edge_widens_the_corner_uncertainty():
     var = edge_spread(qa, np.ones(len(qa), bool), t, 0.5, edge, 4)
     assert np.all(var[:3] == 0.0)
     assert 4.0 <= np.sqrt(12 * var[3]) <= 5.5                                  # Δ: about the 5 px between the rims
+
+
+TWO_SIDED = Geometry(n_joints=6, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.6e-3, slot_depth=1.2e-3,
+                     slot_sides=(1, -1, 1, -1, 1, -1), mount_half_width=2.5e-3, name="two_sided", inner_radius=0.7e-3,
+                     tendons=("right",), tendon_path="lumen", r_x=None, r_z=None, cable_radius=None,
+                     channel_radius=None)
+
+
+@pytest.mark.parametrize("extra", ["", "wire", "shut"])
+def test_each_side_from_the_silhouette_that_numbers_it_and_no_number_wrong(extra):
+    """A neutral two-sided tube on a warm card (rendered gray, tinted by how much card each pixel shows), with
+    a soft cast shadow along its right side as dark as the tube and a card-coloured spot as dark as the tube
+    on its left edge, mid-link. The gray threshold joins the shadow to the right side's slots (numbers only
+    the left side); the colour distance sees the spot as a slot-sized gap on the left side (a spurious
+    candidate) and the shadow as card. Merged point by point, corners of both sides and the base are
+    reported, and none carries another corner's number; also with a neutral wire from the tip to the image
+    border (``wire``) and with the left side's joint-4 slot painted shut (``shut``: a missing slot), where
+    one silhouette may give both sides."""
+    th = np.array([0.1, -0.1, 0.12, -0.08, 0.1, -0.1])
+    cam, plane = scene_camera(th, TWO_SIDED, image_size=(640, 600), mm_per_px=1 / 40, angle_deg=90, base_at=0.12)
+    r = render_scene(th, TWO_SIDED, cam, plane=plane, scene=Scene(holder="chuck"), rng=np.random.default_rng(4))
+    g = r.image.astype(np.float32)
+    tube, card = np.percentile(g, 2), np.median(g)
+    if extra == "wire":
+        tip_mid = 0.5 * (r.points_px[8] + r.points_px[9])
+        cv2.line(g, tuple(np.round(tip_mid).astype(int)), (int(tip_mid[0]) + 60, g.shape[0] - 1), float(tube), 3,
+                 cv2.LINE_AA)
+    elif extra == "shut":
+        a, b = r.points_px[12], r.points_px[13]                       # joint 4's mouth (left side)
+        along = (b - a) / np.linalg.norm(b - a)
+        cv2.fillPoly(g, [np.round(_inward(r, a - 2 * along, b + 2 * along, 1.3 * 40)).astype(np.int32)], float(tube))
+    t = np.clip((g - tube) / (card - tube), 0, 1)                     # how much card a pixel shows
+    vv, uu = np.mgrid[0:g.shape[0], 0:g.shape[1]].astype(np.float32)
+    right_u = float(np.mean(r.points_px[[2, 3, 4, 5, 6, 7], 0]))       # the right side's edge (image left)
+    shade = 1 - 0.65 * np.exp(-((uu - right_u + 28) / 30) ** 2) * ((vv > 90) & (vv < 470))
+    shade = cv2.GaussianBlur(shade.astype(np.float32), (0, 0), 8)
+    img = np.stack([g * (1 - 0.12 * t), g, g * (1 + 0.09 * t)], 2) * (1 - (1 - shade) * t)[..., None]
+    lay = notch_layout(TWO_SIDED)
+    a, b = r.points_px[11], r.points_px[12]                           # left side: joint 6's and joint 4's slots
+    mid = 0.5 * (a + b)
+    spot = (np.abs(vv - mid[1]) < 6) & (uu >= mid[0] - 12) & (uu < mid[0] + 15) & (g < 0.5 * (tube + card))
+    img[spot] = tube * np.array([0.88, 1.0, 1.09])
+    det = detect_notches(np.clip(img, 0, 255).astype(np.uint8), cam, TWO_SIDED)
+    ok = np.array(det.status) == "ok"
+    d = np.linalg.norm(det.points_px[:, None, :] - r.points_px[None, :, :], axis=2)
+    assert (np.argmin(d[ok], axis=1) == np.nonzero(ok)[0]).all(), "a corner carries another corner's number"
+    assert d[ok, np.nonzero(ok)[0]].max() < 2.0, det.message
+    slot = np.isin(lay.kind, ["proximal", "distal"])
+    assert (ok & slot & (lay.side > 0)).any() and (ok & slot & (lay.side < 0)).sum() >= 4, det.message
+    if extra == "":                                                   # the right side from the colour silhouette
+        assert "from the colour silhouette" in det.message or "from the threshold silhouette" in det.message
+    if extra == "shut":
+        assert not ok[[12, 13]].any()

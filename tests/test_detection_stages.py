@@ -556,3 +556,30 @@ def test_local_edge_model_finds_a_step_of_either_sign_beside_a_bright_strip_unde
     t50 = t[j] + q[r, j] / (q[r, j] - q[r, j + 1]) * 0.5
     e50 = base + t50[:, None] * nrm
     assert abs(np.mean((e50 - np.c_[ue(e50[:, 1]), e50[:, 1]]) @ nrm)) > 0.3
+
+
+def _plane_input(status, pts, cov_px=0.1):
+    from notchfit.vision.detection.plane import PlaneInput
+
+    m = len(status)
+    pts = np.asarray(pts, float)
+    cov = np.where(np.isfinite(pts[:, :1, None]), np.eye(2) * cov_px ** 2, np.nan)
+    return PlaneInput(pts.copy(), pts.copy(), cov, list(status), ["first"], 1.0, np.zeros((0, 2)), "bottom")
+
+
+def test_silhouette_variants_merged_point_by_point_and_a_dispute_is_never_numbered():
+    """Two variants each number one side (known answer: the union), agree on a shared corner (the smaller
+    covariance is kept), and give point 4 to corners a slot width apart: neither is trusted."""
+    from notchfit.vision.detection.pipeline import merge_plane_inputs
+
+    nan = [np.nan, np.nan]
+    a = _plane_input(["ok", "ok", "occluded", "ok", "occluded"], [[10, 0], [20, 0], nan, [40, 0], nan], 0.2)
+    b = _plane_input(["occluded", "ok", "ok", "ok", "ambiguous"], [nan, [20.5, 0], [30, 0], [52, 0], [60, 0]], 0.1)
+    got = merge_plane_inputs([a, b], ["threshold", "colour"], agree_px=3.0)
+    assert got.status == ["ok", "ok", "ok", "ambiguous", "ambiguous"]
+    np.testing.assert_allclose(got.pts_px[:3], [[10, 0], [20.5, 0], [30, 0]])
+    assert np.isnan(got.ideal[3]).all() and np.isnan(got.cov[3]).all()
+    np.testing.assert_allclose(got.pts_px[4], [60, 0])                 # kept for the overlay only
+    assert "points 2, 3 from the colour silhouette" in got.messages
+    assert any("points 4 are placed differently" in s for s in got.messages)
+    assert a.status[3] == "ok" and np.isfinite(a.pts_px[3]).all()      # the inputs are not changed

@@ -41,6 +41,7 @@ No point is ever interpolated from a model. Every tolerance is a field of
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -52,7 +53,7 @@ from ...imaging import to_gray
 from ...units import MM
 from .options import DetectorOptions
 from .overlay import draw_overlay, overlay_with_crop
-from .pipeline import Located, Setup, link_tolerance, locate, refine_and_finish
+from .pipeline import Located, Setup, link_tolerance, locate, merge_plane_inputs, refine_and_finish
 from .plane import finish
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .base import holder_mask
@@ -215,8 +216,10 @@ _VARIANTS = ("threshold", "streaks", "colour")
 
 def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
     """Stages 1-6 at a known scale. When the silhouette does not give every slot and the tip, it is located
-    again with thin background lines across the tube filled (a specular streak that splits it), and the
-    variant that locates more corners is refined. Returns (Detection, refinement or None)."""
+    again with thin background lines across the tube filled (a specular streak that splits it), then by
+    colour; every variant that located a corner not yet ``ok`` on an earlier one is refined, and their
+    corners are merged point by point (:func:`~.pipeline.merge_plane_inputs`). Returns (Detection, refinement or None: the refinement of the
+    variant that located the most corners, carrying the merged corners)."""
     geom, opts, f = setup.geom, setup.opts, setup.f
     m = geom.n_points
     cache = {} if cache is None else cache
@@ -273,13 +276,24 @@ def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
         return refine_and_finish(gray, seg, ctx, setup, extra=extra, stations=stations,
                                  width_mask=masks[k] if _VARIANTS[k] == "colour" or ctx.confirm_width else None)
 
-    out = refined(order[0])
-    # the most corners numbered without the tip can confirm fewer than a variant that found it
-    alt = [k for k in order[1:] if not tried[k].confirm_width]
-    if tried[order[0]].confirm_width and alt:
-        other = refined(alt[0])
-        out = other if other[0].n_ok > out[0].n_ok else out
-    return out
+    # the variants are refined and the corners merged point by point: each numbers each side on its own
+    # evidence (the threshold one side, the colour distance the other), and a corner two variants place
+    # apart is not used; a variant that located only corners already ok adds nothing and is not refined
+    outs, done = [(order[0], *refined(order[0]))], set()
+    for k in order[1:]:
+        ref = outs[-1][2]
+        if ref is not None and ref.plane_input is not None:
+            done |= {i for i, st in enumerate(ref.plane_input.status) if st == "ok"}
+        if tried[k].points - done:
+            outs.append((k, *refined(k)))
+    refs = [(k, ref) for k, _, ref in outs if ref is not None and ref.plane_input is not None]
+    if len(refs) < 2:
+        return outs[0][1], outs[0][2]
+    merged = merge_plane_inputs([ref.plane_input for _, ref in refs], [_VARIANTS[k] for k, _ in refs],
+                                agree_px=opts.variant_agree_w * float(slot_widths(geom).min()) * setup.px_per_m)
+    det = finish(setup.camera, geom, merged, scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol,
+                 link_tol=link_tolerance(geom, opts), **extra)
+    return det, dataclasses.replace(refs[0][1], plane_input=merged)
 
 
 def _stations(ref, n_per_edge, sgn):

@@ -87,6 +87,12 @@ class DetectorOptions:
     colour_close_px : int
         The colour silhouette is closed by a disk of this radius [working
         px] (gaps of a pixel or two where a highlight mirrors the card).
+    variant_agree_w : float
+        A corner found ``ok`` on two silhouette variants (threshold, streaks
+        filled, colour) is kept only where they put it within this fraction
+        of the narrowest slot's width; else it is ambiguous (two variants gave
+        its number to different corners; the nearest other corner is a slot
+        width away).
     width_tol : float
         Corners found on the colour silhouette: the tube's width beside a
         slot corner, across its outer edge, must be ``2R`` within this
@@ -154,6 +160,7 @@ class DetectorOptions:
     max_shift_px: float = 10.0
     max_sigma_px: float = 0.3
     width_tol: float = 0.06
+    variant_agree_w: float = 0.25
     colour_close_px: int = 1
     min_edge_points: int = 5
     profile_step_px: float = 0.5
