@@ -8,7 +8,7 @@ import pytest
 
 from notchfit.vision.detection import DetectorOptions, detect_notches
 from notchfit.vision.detection.base import find_base, holder_mask, image_side
-from notchfit.vision.detection.edges import fit_steps
+from notchfit.vision.detection.edges import consensus_lines, fit_steps
 from notchfit.vision.detection.lines import intersect, robust_group_lines
 from notchfit.vision.detection.outline import bridge_slots, crop_region, slot_mouths
 from notchfit.vision.detection.refine import CornerLines, CornerSpecs, ProfileLayout, refine_pass
@@ -556,3 +556,26 @@ def test_local_edge_model_finds_a_step_of_either_sign_beside_a_bright_strip_unde
     t50 = t[j] + q[r, j] / (q[r, j] - q[r, j + 1]) * 0.5
     e50 = base + t50[:, None] * nrm
     assert abs(np.mean((e50 - np.c_[ue(e50[:, 1]), e50[:, 1]]) @ nrm)) > 0.3
+
+
+def test_consensus_line_keeps_one_edge_and_drops_two():
+    """The local edges' consensus (edges.consensus_lines, blur 1 px): an edge whose crossings scatter 0.3 px
+    about one line (more than a single profile's fit claims on a JPEG's correlated noise) with a few profiles
+    on other steps keeps exactly its line's crossings; an edge whose profiles took two steps 4 px apart (the
+    limb and a highlight's boundary: 36 and 24 of them) and one of random steps are dropped whole."""
+    rng = np.random.default_rng(5)
+    s = np.arange(60.0)
+    d, n = np.array([0.6, 0.8]), np.array([-0.8, 0.6])
+    line = lambda off, k: np.array([10.0, 20.0]) + s[:k, None] * d + off[:, None] * n
+    one = line(rng.normal(0, 0.3, 60), 60)
+    out = rng.choice(60, 6, replace=False)
+    one[out] += rng.choice([-1, 1], 6)[:, None] * rng.uniform(3, 6, 6)[:, None] * n
+    two = np.concatenate([line(rng.normal(0, 0.2, 36), 36), line(4 + rng.normal(0, 0.2, 24), 24)])
+    rand = line(rng.uniform(-4, 4, 12), 12)
+    pts = np.concatenate([one, two, rand])
+    edge = np.repeat([0, 1, 2], [60, 60, 12])
+    keep = consensus_lines(pts, edge, blur=1.0)
+    expect = np.ones(60, bool)
+    expect[out] = False
+    assert np.array_equal(keep[:60], expect)
+    assert not keep[60:].any()

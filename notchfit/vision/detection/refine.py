@@ -633,18 +633,24 @@ def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
     return new[0], new[1]
 
 
-def _drop_scattered(ch, edge, valid, und, rises, lines, min_points, s2_floor):
-    """A local edge whose crossings scatter about their line beyond their own σ (:meth:`.edges.EdgeChoice.
-    consistent`) is not one edge: its crossings are dropped and the lines fitted again. Returns the valid
-    profiles (Np,), their undistorted crossings and rises, and :func:`corner_lines`' outputs."""
-    keep = ch.consistent(edge, lines.s2)[edge[valid]]
-    if keep.all():
-        return valid, und, rises, lines
-    valid = valid.copy()
-    valid[np.nonzero(valid)[0][~keep]] = False
-    und, rises = und[keep], rises[keep]
-    return valid, und, rises, corner_lines(und, edge[valid], len(lines.X), min_points=min_points,
-                                           s2_floor=s2_floor)
+def _keep_consensus(ch, edge, valid, und, rises, lines, face, fit_args, blur):
+    """Local edges: an outer edge keeps the crossings that agree with one straight edge (:meth:`.edges.
+    EdgeChoice.consensus`); a slot face whose crossings scatter about their line beyond their own σ (:meth:`.edges.
+    EdgeChoice.consistent`: beside a nearly closed mouth the nearest step is now its own, now the partner face's)
+    loses them all. Lines are fitted again after each (``fit_args``: :func:`corner_lines`' ``min_points`` and
+    ``s2_floor``). Returns the valid profiles (Np,), their undistorted crossings and rises, and the lines."""
+    for step in ("limbs", "faces"):
+        if step == "limbs":
+            keep = ch.consensus(und, edge, ~face, blur=blur, min_points=fit_args["min_points"])[valid]
+        else:
+            keep = (ch.consistent(edge, lines.s2) | ~face)[edge[valid]]
+        if keep.all():
+            continue
+        valid = valid.copy()
+        valid[np.nonzero(valid)[0][~keep]] = False
+        und, rises = und[keep], rises[keep]
+        lines = corner_lines(und, edge[valid], len(lines.X), **fit_args)
+    return valid, und, rises, lines
 
 
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *, lim, min_points, contrast,
@@ -712,7 +718,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
         s2_floor = (sq * math.sqrt(2 * math.pi) * blur_prior) ** 2
     lines = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor)
     if local_edges and ch.local.any():
-        valid, und, rises, lines = _drop_scattered(ch, pr.edge, valid, und, rises, lines, min_points, s2_floor)
+        valid, und, rises, lines = _keep_consensus(ch, pr.edge, valid, und, rises, lines, sp.face,
+                                                    {"min_points": min_points, "s2_floor": s2_floor},
+                                                    blur_prior if np.isfinite(blur_prior) else blur)
     X, cov, okc, c, dd, good_e, s2_line = lines.X, lines.cov, lines.ok, lines.c, lines.dd, lines.good_e, lines.s2
     # the offsets that an edge's own profiles show (two rims, a shadow's edge) add to the reported
     # uncertainty, not to the fit's (which decides whether the corner is found)
