@@ -8,7 +8,7 @@ import pytest
 
 from notchfit.vision.detection import DetectorOptions, detect_notches
 from notchfit.vision.detection.base import find_base, holder_mask, image_side
-from notchfit.vision.detection.edges import consensus_lines, fit_steps
+from notchfit.vision.detection.edges import Crossings, Profiles, choose_edges, consensus_lines, fit_steps
 from notchfit.vision.detection.lines import intersect, robust_group_lines
 from notchfit.vision.detection.outline import bridge_slots, crop_region, slot_mouths
 from notchfit.vision.detection.refine import CornerLines, CornerSpecs, ProfileLayout, refine_pass
@@ -579,3 +579,27 @@ def test_consensus_line_keeps_one_edge_and_drops_two():
     expect[out] = False
     assert np.array_equal(keep[:60], expect)
     assert not keep[60:].any()
+
+
+def test_a_face_keeps_only_its_own_step_a_limb_either():
+    """The local model on a slot face (edges.choose_edges with ``face`` and the image's contrast, a dark tube
+    60 on a backdrop 200): a face profile runs along the tube's axis, tube -> slot, so its own step goes from
+    the tube's level at its object end to the backdrop's. Beside a nearly closed mouth the nearest step is
+    the partner face's, seen from the slot (backdrop -> tube, the other sign): rejected on a face, while a
+    limb (which mirrors the backdrop, either sign) keeps both. Profiles blurred 1 px, noise 1 DN; the image-wide
+    model is taken to have failed on every profile."""
+    rng = np.random.default_rng(2)
+    t = np.arange(-12, 13) * 0.5
+    step = lambda lo, hi, t0: lo + (hi - lo) * 0.5 * (1 + np.vectorize(math.erf)((t - t0) / math.sqrt(2)))
+    own = [step(60.0, 200.0, rng.uniform(-0.5, 0.5)) for _ in range(10)]
+    partner = [step(200.0, 60.0, rng.uniform(-0.5, 0.5)) for _ in range(10)]
+    P = np.array(own + partner + own + partner) + rng.normal(0, 1.0, (40, len(t)))
+    Np, n_t = len(P), len(t) // 2
+    pr = Profiles(P.ravel().astype(np.float32), np.zeros((Np, 2)), np.tile([1.0, 0.0], (Np, 1)),
+                  np.repeat([0, 1, 2, 3], 10), t, np.full(Np, n_t), n_t, np.arange(Np) * len(t))
+    none = Crossings(np.full(Np, np.nan), np.zeros(Np, bool), np.full(Np, np.nan), np.full(Np, np.nan))
+    ch = choose_edges(pr, 4, none, face=np.array([True, True, False, False]), contrast=60.0 - 200.0)
+    assert ch.local.all()
+    assert ch.valid[:10].all() and not ch.valid[10:20].any()        # the face: its own step only
+    assert ch.valid[20:].all()                                       # the limb: either sign
+    assert np.all(np.abs(ch.tc[:10]) < 0.6)
