@@ -8,7 +8,7 @@ import pytest
 
 from notchfit.vision.detection import DetectorOptions, detect_notches
 from notchfit.vision.detection.base import find_base, holder_mask, image_side
-from notchfit.vision.detection.edges import fit_steps
+from notchfit.vision.detection.edges import Crossings, Profiles, choose_edges, consensus_lines, fit_steps
 from notchfit.vision.detection.lines import intersect, robust_group_lines
 from notchfit.vision.detection.outline import bridge_slots, crop_region, slot_mouths
 from notchfit.vision.detection.refine import CornerLines, CornerSpecs, ProfileLayout, refine_pass
@@ -583,3 +583,49 @@ def test_silhouette_variants_merged_point_by_point_and_a_dispute_is_never_number
     assert "points 2, 3 from the colour silhouette" in got.messages
     assert any("points 4 are placed differently" in s for s in got.messages)
     assert a.status[3] == "ok" and np.isfinite(a.pts_px[3]).all()      # the inputs are not changed
+
+def test_consensus_line_keeps_one_edge_and_drops_two():
+    """The local edges' consensus (edges.consensus_lines, blur 1 px): an edge whose crossings scatter 0.3 px
+    about one line (more than a single profile's fit claims on a JPEG's correlated noise) with a few profiles
+    on other steps keeps exactly its line's crossings; an edge whose profiles took two steps 4 px apart (the
+    limb and a highlight's boundary: 36 and 24 of them) and one of random steps are dropped whole."""
+    rng = np.random.default_rng(5)
+    s = np.arange(60.0)
+    d, n = np.array([0.6, 0.8]), np.array([-0.8, 0.6])
+    line = lambda off, k: np.array([10.0, 20.0]) + s[:k, None] * d + off[:, None] * n
+    one = line(rng.normal(0, 0.3, 60), 60)
+    out = rng.choice(60, 6, replace=False)
+    one[out] += rng.choice([-1, 1], 6)[:, None] * rng.uniform(3, 6, 6)[:, None] * n
+    two = np.concatenate([line(rng.normal(0, 0.2, 36), 36), line(4 + rng.normal(0, 0.2, 24), 24)])
+    rand = line(rng.uniform(-4, 4, 12), 12)
+    pts = np.concatenate([one, two, rand])
+    edge = np.repeat([0, 1, 2], [60, 60, 12])
+    keep = consensus_lines(pts, edge, blur=1.0)
+    expect = np.ones(60, bool)
+    expect[out] = False
+    assert np.array_equal(keep[:60], expect)
+    assert not keep[60:].any()
+
+
+def test_a_face_keeps_only_its_own_step_a_limb_either():
+    """The local model on a slot face (edges.choose_edges with ``face`` and the image's contrast, a dark tube
+    60 on a backdrop 200): a face profile runs along the tube's axis, tube -> slot, so its own step goes from
+    the tube's level at its object end to the backdrop's. Beside a nearly closed mouth the nearest step is
+    the partner face's, seen from the slot (backdrop -> tube, the other sign): rejected on a face, while a
+    limb (which mirrors the backdrop, either sign) keeps both. Profiles blurred 1 px, noise 1 DN; the image-wide
+    model is taken to have failed on every profile."""
+    rng = np.random.default_rng(2)
+    t = np.arange(-12, 13) * 0.5
+    step = lambda lo, hi, t0: lo + (hi - lo) * 0.5 * (1 + np.vectorize(math.erf)((t - t0) / math.sqrt(2)))
+    own = [step(60.0, 200.0, rng.uniform(-0.5, 0.5)) for _ in range(10)]
+    partner = [step(200.0, 60.0, rng.uniform(-0.5, 0.5)) for _ in range(10)]
+    P = np.array(own + partner + own + partner) + rng.normal(0, 1.0, (40, len(t)))
+    Np, n_t = len(P), len(t) // 2
+    pr = Profiles(P.ravel().astype(np.float32), np.zeros((Np, 2)), np.tile([1.0, 0.0], (Np, 1)),
+                  np.repeat([0, 1, 2, 3], 10), t, np.full(Np, n_t), n_t, np.arange(Np) * len(t))
+    none = Crossings(np.full(Np, np.nan), np.zeros(Np, bool), np.full(Np, np.nan), np.full(Np, np.nan))
+    ch = choose_edges(pr, 4, none, face=np.array([True, True, False, False]), contrast=60.0 - 200.0)
+    assert ch.local.all()
+    assert ch.valid[:10].all() and not ch.valid[10:20].any()        # the face: its own step only
+    assert ch.valid[20:].all()                                       # the limb: either sign
+    assert np.all(np.abs(ch.tc[:10]) < 0.6)

@@ -28,8 +28,9 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy.special import ndtr
+from skimage.measure import LineModelND, ransac
 
-__all__ = ["Crossings", "EdgeChoice", "EdgeFits", "Profiles", "choose_edges", "dense_profiles", "fit_steps", "profile_steps"]
+__all__ = ["Crossings", "EdgeChoice", "EdgeFits", "Profiles", "choose_edges", "consensus_lines", "dense_profiles", "fit_steps", "profile_steps"]
 
 _SQRT2PI = math.sqrt(2.0 * math.pi)
 
@@ -326,32 +327,86 @@ class EdgeChoice(Crossings):
     local: np.ndarray
     sigma_t: np.ndarray
 
-    def consistent(self, edge, s2_line, *, gate: float = 4.0) -> np.ndarray:
-        """(n_edges,) bool: False for a local edge whose crossings scatter about their line (residual
-        variance ``s2_line`` (n_edges,) [px²]) more than ``gate`` times their own median variance: its
-        profiles took different steps (a highlight's boundary here, the limb there), so no one edge."""
-        n = len(self.local)
-        s2_own = np.full(n, np.nan)
-        rows = self.valid & np.isfinite(self.sigma_t)
-        if rows.any():
-            e = edge[rows]
-            order = np.argsort(e, kind="stable")
-            es, v = e[order], (self.sigma_t[rows] ** 2)[order]
-            first = np.searchsorted(es, np.arange(n + 1))
-            for k in np.nonzero(np.diff(first) > 0)[0]:
-                s2_own[k] = float(np.median(v[first[k]:first[k + 1]]))
-        with np.errstate(invalid="ignore"):
-            bad = self.local & ~(s2_line <= gate * s2_own)
-        return ~bad
+    def consensus(self, pts, edge, *, blur: float, min_fraction: float = 0.6, min_points: int = 5,
+                  seed: int = 0) -> np.ndarray:
+        """(Np,) bool: the valid crossings kept after a consensus line of every local edge (:func:`consensus_lines`);
+        the image-wide model's crossings are all kept. ``pts`` (n_valid, 2): the valid crossings' positions [px],
+        in the order of the valid profiles."""
+        keep = self.valid.copy()
+        e_valid = edge[self.valid]
+        on_local = self.local[e_valid]
+        if on_local.any():
+            inl = consensus_lines(pts[on_local], e_valid[on_local], blur=blur, min_fraction=min_fraction,
+                                  min_points=min_points, seed=seed)
+            rows = np.nonzero(self.valid)[0][on_local]
+            keep[rows] = inl
+        return keep
 
     def summary(self) -> str:
         return (f"EdgeChoice: {int(self.valid.sum())} of {len(self.valid)} profiles valid, "
                 f"{int(self.local.sum())} of {len(self.local)} edges on the local model")
 
 
-def choose_edges(pr: Profiles, n_edges: int, crossings: Crossings, *,
+def consensus_lines(pts, edge, *, blur: float, min_fraction: float = 0.6, second: float = 0.2,
+                    min_points: int = 5, seed: int = 0, max_trials: int = 100) -> np.ndarray:
+    """The crossings (n,) bool that agree with one straight edge, per edge: RANSAC consensus lines.
+
+    The local model takes, on every profile, the step nearest the predicted
+    edge; along a polished limb that is the limb on some profiles and a
+    highlight's boundary, a few pixels inside, on others. Two steps the
+    profiles resolve as separate gradient peaks lie at least about two blur
+    widths apart, while the crossings of one step scatter by their noise
+    (spatially correlated noise, such as a JPEG's or a path tracer's, makes
+    that scatter larger than a single profile's fit residuals say). So each
+    edge's crossings are split by a RANSAC line (scikit-image
+    ``measure.ransac`` with ``LineModelND``) whose inliers lie within one blur
+    σ (at least 0.5 px) of it: the edge is one step where the consensus holds
+    at least ``min_fraction`` of its crossings (and ``min_points``); its
+    outliers are dropped. Where no line holds that many, the profiles took
+    different steps at random; where the outliers hold a second line of
+    ``second`` of the crossings (and ``min_points``), the profiles saw two
+    edges and which one is the tube's is not known: the whole edge is dropped.
+
+    Parameters
+    ----------
+    pts : ndarray (n, 2)
+        Crossings [px].
+    edge : ndarray (n,) int
+        Each crossing's edge.
+    blur : float
+        Gaussian σ of the edges [px] (NaN: 1 px).
+    seed : int
+        Seed of the RANSAC samples (reproducible results).
+    """
+    thr = max(0.5, float(blur) if np.isfinite(blur) else 1.0)
+    keep = np.zeros(len(pts), bool)
+    rng = np.random.default_rng(seed)
+    for e in np.unique(edge):
+        rows = np.nonzero(edge == e)[0]
+        if len(rows) < max(min_points, 3):
+            continue
+        P = pts[rows].astype(float)
+        model, inl = ransac(P, LineModelND, min_samples=2, residual_threshold=thr, max_trials=max_trials,
+                            stop_probability=0.999, rng=rng)
+        if model is None or inl is None:
+            continue
+        inl = model.residuals(P) < thr                   # about the line fitted to the consensus (not its sample)
+        if inl.sum() < max(min_points, min_fraction * len(rows)):
+            continue
+        # a second line among the rest: the profiles saw two edges (the limb and a highlight's boundary)
+        rest = P[~inl]
+        if len(rest) >= max(min_points, second * len(rows)):
+            m2, inl2 = ransac(rest, LineModelND, min_samples=2, residual_threshold=thr, max_trials=max_trials,
+                              stop_probability=0.999, rng=rng)
+            if m2 is not None and inl2 is not None and inl2.sum() >= max(min_points, second * len(rows)):
+                continue
+        keep[rows[inl]] = True
+    return keep
+
+
+def choose_edges(pr: Profiles, n_edges: int, crossings: Crossings, *, face=None, contrast: float = 0.0,
                  min_valid: float = 0.5, min_count: int = 10, blur0: float = 1.0, max_noise: float = 0.35,
-                 max_sigma_t: float = 0.5) -> EdgeChoice:
+                 max_sigma_t: float = 0.5, face_level_tol: float = 0.5) -> EdgeChoice:
     """Keep the image-wide model's crossings on the edges it describes, the local fit on the others.
 
     An edge whose profiles are valid under the image-wide levels (their
@@ -368,6 +423,15 @@ def choose_edges(pr: Profiles, n_edges: int, crossings: Crossings, *,
     pr : Profiles
         The ragged profile windows (:func:`dense_profiles`), their axis [px] and each profile's edge
         0 .. n_edges - 1.
+    face : ndarray (n_edges,) bool, optional
+        Slot faces. A face's profile runs along the tube's axis, and the tube's shading and highlights
+        change around it, not along it: the object side of the face's own step is at the level of the
+        profile's object end (within ``face_level_tol`` of the step). A step whose object side is not
+        (beside a nearly closed mouth, the partner face's step seen from the slot) is not the face's.
+    contrast : float
+        The image's object level minus its background's: a face's step goes from the tube to the
+        background seen through the slot, so it keeps that sign (a limb, which mirrors the backdrop, may
+        take either). 0: either sign.
     """
     edge, valid = pr.edge, crossings.valid
     n_all = np.bincount(edge, minlength=n_edges).astype(float)
@@ -379,6 +443,16 @@ def choose_edges(pr: Profiles, n_edges: int, crossings: Crossings, *,
     if len(rows):
         fits = profile_steps(pr.values, pr.start[rows], pr.half[rows], pr.n_t, pr.t, blur0=blur0, max_noise=max_noise,
                              max_sigma_t=max_sigma_t)
-        tc[rows], valid[rows], noise[rows], rise[rows] = fits.t0, fits.valid, fits.noise, 1.349 * fits.blur
+        ok = fits.valid
+        if face is not None:
+            # the object end of each face profile (its first 3 samples) against the step's object side
+            f_rows = face[edge[rows]]
+            end = np.mean([pr.values[pr.start[rows] + i].astype(float) for i in range(3)], axis=0)
+            with np.errstate(invalid="ignore"):
+                off = np.abs(fits.level_obj - end) > face_level_tol * np.abs(fits.level_bg - fits.level_obj)
+                wrong_sign = np.sign(fits.level_obj - fits.level_bg) != np.sign(contrast)
+            ok = ok & ~(f_rows & (off | (wrong_sign & (contrast != 0))))
+        tc[rows], valid[rows], noise[rows], rise[rows] = np.where(ok, fits.t0, np.nan), ok, fits.noise, \
+            1.349 * fits.blur
         sigma_t[rows] = fits.sigma_t
     return EdgeChoice(tc, valid, noise, rise, local, sigma_t)

@@ -633,18 +633,17 @@ def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
     return new[0], new[1]
 
 
-def _drop_scattered(ch, edge, valid, und, rises, lines, min_points, s2_floor):
-    """A local edge whose crossings scatter about their line beyond their own σ (:meth:`.edges.EdgeChoice.
-    consistent`) is not one edge: its crossings are dropped and the lines fitted again. Returns the valid
-    profiles (Np,), their undistorted crossings and rises, and :func:`corner_lines`' outputs."""
-    keep = ch.consistent(edge, lines.s2)[edge[valid]]
+def _keep_consensus(ch, edge, valid, und, rises, lines, fit_args, blur):
+    """The local edges keep the crossings that agree with one straight edge (:meth:`.edges.EdgeChoice.consensus`);
+    the lines are fitted again (``fit_args``: :func:`corner_lines`' ``min_points`` and ``s2_floor``). Returns the
+    valid profiles (Np,), their undistorted crossings and rises, and the lines."""
+    keep = ch.consensus(und, edge, blur=blur, min_points=fit_args["min_points"])[valid]
     if keep.all():
         return valid, und, rises, lines
     valid = valid.copy()
     valid[np.nonzero(valid)[0][~keep]] = False
     und, rises = und[keep], rises[keep]
-    return valid, und, rises, corner_lines(und, edge[valid], len(lines.X), min_points=min_points,
-                                           s2_floor=s2_floor)
+    return valid, und, rises, corner_lines(und, edge[valid], len(lines.X), **fit_args)
 
 
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *, lim, min_points, contrast,
@@ -696,7 +695,7 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
                         holder_face=sp.holder_face, extrapolate=bool(np.isfinite(blur_prior)))
     if local_edges:
         # the edge model's hook: edges the image-wide levels do not describe take each profile's own step
-        cr = ch = choose_edges(pr, 2 * K, cr, blur0=blur_prior if np.isfinite(blur_prior) else 1.0)
+        cr = ch = choose_edges(pr, 2 * K, cr, face=sp.face, contrast=contrast, blur0=blur_prior if np.isfinite(blur_prior) else 1.0)
     tc, valid, q_lo, rises = cr.tc, cr.valid, cr.noise, cr.rise
     fp = sp.face[pr.edge]
     rises = rises[valid]
@@ -712,7 +711,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
         s2_floor = (sq * math.sqrt(2 * math.pi) * blur_prior) ** 2
     lines = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor)
     if local_edges and ch.local.any():
-        valid, und, rises, lines = _drop_scattered(ch, pr.edge, valid, und, rises, lines, min_points, s2_floor)
+        valid, und, rises, lines = _keep_consensus(ch, pr.edge, valid, und, rises, lines,
+                                                    {"min_points": min_points, "s2_floor": s2_floor},
+                                                    blur_prior if np.isfinite(blur_prior) else blur)
     X, cov, okc, c, dd, good_e, s2_line = lines.X, lines.cov, lines.ok, lines.c, lines.dd, lines.good_e, lines.s2
     # the offsets that an edge's own profiles show (two rims, a shadow's edge) add to the reported
     # uncertainty, not to the fit's (which decides whether the corner is found)
