@@ -11,14 +11,17 @@ import argparse
 import math
 import resource
 import shutil
+import sys
 import tempfile
 import time
 from pathlib import Path
 
-from notchfit.analysis.diagnosis import diagnose
-from notchfit.io import read_study
-from notchfit.studies.synth import generate_study, load_recipe
-from notchfit.units import DEG, MM
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))            # this checkout's notchfit, not an installed one
+from notchfit.analysis.diagnosis import diagnose  # noqa: E402
+from notchfit.io import read_study  # noqa: E402
+from notchfit.studies.synth import generate_study, load_recipe  # noqa: E402
+from notchfit.units import DEG, MM  # noqa: E402
 
 #: (recipe, observe, recipe changes): point noise for a recipe measured without it, angle noise for one
 #: whose angles the recipe does not set

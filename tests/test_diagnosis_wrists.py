@@ -125,24 +125,17 @@ def test_summary_says_what_was_skipped_and_the_lack_of_fit():
     assert out["skipped"]["experiments"] == {"joint_hysteresis": "unload one trial to test joint hysteresis"}
 
 
-#: known false alarms of the named-cause path: a candidate beats a held-out baseline that is within the trials'
-#: scatter (the lack-of-fit rule reaches ``unexplained`` only)
-_NAMED_ON_NULL = {
-    ("wrist_asymmetric", "points", 2): "stiffness_gradient is named on the frictionless wrist (held-out 0.119 -> "
-                                       "0.034 mm, z = 3.7, floor 0.033 mm; baseline lack of fit p = 0.77)",
-    ("wrist_tip_first", "points", 3): "joint_hysteresis is named (held-out 0.092 -> 0.055 mm, floor 0.007 mm; "
-                                      "baseline lack of fit p = 0.29)",
-}
-NULL_CASES = [pytest.param(name, observe, changes, seed, id=f"{name}-{observe}-{seed}",
-                           marks=pytest.mark.xfail(strict=True, reason=_NAMED_ON_NULL[name, observe, seed])
-                           if (name, observe, seed) in _NAMED_ON_NULL else ())
+NULL_CASES = [pytest.param(name, observe, changes, seed, id=f"{name}-{observe}-{seed}")
               for name, observe, changes in NULL_WRISTS for seed in (1, 2, 3)]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name,observe,changes,seed", NULL_CASES)
 def test_null_wrist_recipes_give_none(tmp_path, name, observe, changes, seed):
-    """Every shipped wrist recipe without a hidden effect, full size, every candidate: ``none``."""
+    """Every shipped wrist recipe without a hidden effect, full size, every candidate: ``none``. Two were named
+    causes while a baseline fold had stopped at its evaluation limit far from its optimum (wrist_asymmetric
+    points seed 2, wrist_tip_first points seed 3; docs/history.md): such a fold is now restarted from the
+    other folds' optima."""
     _check_none(_diagnose(tmp_path, _null(name, observe, changes), seed))
 
 
@@ -169,3 +162,33 @@ def test_the_baseline_rest_angles_keep_their_zero_force_prior(tmp_path):
     cal = calibrate(preps, None, {}, base=base_model(preps), errors=False)
     (fitted,) = [t["rest_angle"] for t in cal.tubes.values()]
     np.testing.assert_allclose(fitted, truth, atol=0.3 * DEG)
+
+
+def test_an_unconverged_baseline_fold_is_restarted_from_the_other_folds_optima():
+    """A fold whose fit stopped at its evaluation limit is refitted from each converged fold's optimum and keeps
+    the lower training cost, with that fit's held-out predictions; converged folds are never refitted."""
+    from notchfit.analysis.diagnosis import Calibration
+    from notchfit.analysis.diagnosis.crossval import HeldOut
+    from notchfit.analysis.diagnosis.study import restart_unconverged
+
+    def cal(cost, ok, e):
+        return Calibration((), {"E_lin": e}, {}, 0.0, cost, 10, ok, "", 1)
+
+    folds = [np.array([0]), np.array([1]), np.array([2])]
+    held = HeldOut((), {i: np.full((2, 1), i) for i in range(3)}, {i: np.zeros((2, 1)) for i in range(3)},
+                   {i: np.ones(2) for i in range(3)}, (cal(5.0, True, 1.0), cal(900.0, False, 9.0), cal(6.0, True, 2.0)))
+    calls = []
+
+    def run(fs, causes, starts):
+        calls.append(([int(f[0]) for f in fs], causes, [s["E_lin"] for s in starts]))
+        e = starts[0]["E_lin"]       # the fit from fold 1's optimum reaches a lower cost than from fold 3's
+        return {"baseline": HeldOut((), {1: np.full((2, 1), 10 * e)}, {1: np.zeros((2, 1))}, {1: np.ones(2)},
+                                    (cal(7.0 if e == 1.0 else 8.0, True, e),))}
+
+    out = restart_unconverged(held, folds, run)
+    assert calls == [([1], [None], [1.0]), ([1], [None], [2.0])]
+    assert [c.cost for c in out.calibrations] == [5.0, 7.0, 6.0] and out.calibrations[1].values == {"E_lin": 1.0}
+    np.testing.assert_array_equal(out.predicted[1], np.full((2, 1), 10.0))
+    np.testing.assert_array_equal(out.predicted[0], held.predicted[0])
+    done = HeldOut((), held.predicted, held.theta, held.floor, (cal(5.0, True, 1.0),) * 3)
+    assert restart_unconverged(done, folds, run) is done and len(calls) == 2
