@@ -45,12 +45,14 @@ from notchfit.io import datasets_dir, load_geometry
 from notchfit.physics.protocols import bend_unbend
 
 
-def best_time(fn, repeat):
+def best_time(fn, repeat, clock=time.perf_counter):
+    """Best of ``repeat`` calls in seconds of ``clock`` (``time.process_time``: CPU time, which a shared
+    machine disturbs less than wall time)."""
     best = np.inf
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = clock()
         fn()
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, clock() - t0)
     return best
 
 
@@ -67,16 +69,6 @@ def speed(repeat):
     print(f"ratio reference / fast: {tr_ / tf:.0f}x   (targets: fast < 5 ms, ratio >= 50)")
 
 
-def _cpu_time(fn, repeat):
-    """Best CPU seconds of ``repeat`` calls (a shared machine disturbs CPU time less than wall time)."""
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fn()
-        best = min(best, time.process_time() - t0)
-    return best
-
-
 def steps(repeat):
     print("\n== step budget: fast solver on the 38-sample test, paper values and a proximal band, "
           "best CPU of runs")
@@ -87,7 +79,7 @@ def steps(repeat):
         for opts in ({}, {"dtheta_max": 1e-3}, {"dtheta_max": 2e-3}, {"h_max": 0.1}, {"h_min": 1e-2},
                      {"land_sticks": False}):
             res = simulate(t, tl, tr, params, **opts)
-            cpu = _cpu_time(lambda: simulate(t, tl, tr, params, **opts), repeat)
+            cpu = best_time(lambda: simulate(t, tl, tr, params, **opts), repeat, time.process_time)
             label = ", ".join(f"{k} = {v:g}" for k, v in opts.items()) or "defaults"
             print(f"  {label:20s} {res.n_steps:6d} steps  {cpu * 1e3:7.3f} ms  {cpu / res.n_steps * 1e6:5.2f} us/step"
                   f"  max |dtheta| from the defaults {np.abs(res.theta - ref.theta).max():.1e} rad")
