@@ -21,11 +21,16 @@ In one run:
    and section) with the channel and the capstan law, time per 38-sample test
    beside the seed tube's; fast vs reference on it with damping as a time
    constant, and with the seed's absolute ``b`` (the issue-14 failure).
+6. **Step budget** (``--steps``): the fast solver's steps per test and CPU per step with the
+   default step controls, and with a larger ``dtheta_max``, ``h_max`` or ``h_min`` or without
+   landing on the sticking events (``land_sticks``): how much time each saves
+   and how far the joint angles move from the defaults' (what a diagnosis would trade for speed,
+   issue 28).
 
 Usage::
 
     python benchmarks/bench_friction.py [--repeat 20] [--ref-dt 2.5e-5] [--convergence] [--fine] [--protocols]
-                                        [--real-tubes] [--no-agreement]
+                                        [--real-tubes] [--no-agreement] [--steps]
 """
 
 from __future__ import annotations
@@ -40,12 +45,14 @@ from notchfit.io import datasets_dir, load_geometry
 from notchfit.physics.protocols import bend_unbend
 
 
-def best_time(fn, repeat):
+def best_time(fn, repeat, clock=time.perf_counter):
+    """Best of ``repeat`` calls in seconds of ``clock`` (``time.process_time``: CPU time, which a shared
+    machine disturbs less than wall time)."""
     best = np.inf
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = clock()
         fn()
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, clock() - t0)
     return best
 
 
@@ -60,6 +67,22 @@ def speed(repeat):
     print(f"reference (explicit Euler, dt = {DEFAULT_DT:g} s): {tr_ * 1e3:9.1f} ms per test")
     print(f"fast (exact relaxation + events):          {tf * 1e3:9.3f} ms per test  ({nf} steps)")
     print(f"ratio reference / fast: {tr_ / tf:.0f}x   (targets: fast < 5 ms, ratio >= 50)")
+
+
+def steps(repeat):
+    print("\n== step budget: fast solver on the 38-sample test, paper values and a proximal band, "
+          "best CPU of runs")
+    t, tl, tr, _ = bend_unbend(25.0, 0.45)
+    for name, params in (("paper values", FrictionParams()), ("proximal_beta = 0.3", FrictionParams(proximal_beta=0.3))):
+        ref = simulate(t, tl, tr, params)
+        print(f"{name}:")
+        for opts in ({}, {"dtheta_max": 1e-3}, {"dtheta_max": 2e-3}, {"h_max": 0.1}, {"h_min": 1e-2},
+                     {"land_sticks": False}):
+            res = simulate(t, tl, tr, params, **opts)
+            cpu = best_time(lambda: simulate(t, tl, tr, params, **opts), repeat, time.process_time)
+            label = ", ".join(f"{k} = {v:g}" for k, v in opts.items()) or "defaults"
+            print(f"  {label:20s} {res.n_steps:6d} steps  {cpu * 1e3:7.3f} ms  {cpu / res.n_steps * 1e6:5.2f} us/step"
+                  f"  max |dtheta| from the defaults {np.abs(res.theta - ref.theta).max():.1e} rad")
 
 
 def agreement(ref_dt):
@@ -157,6 +180,7 @@ def main():
     ap.add_argument("--protocols", action="store_true")
     ap.add_argument("--real-tubes", action="store_true", help="one-tendon 5-joint wrist, channel and capstan law")
     ap.add_argument("--no-agreement", action="store_true", help="skip the agreement table (~1 min)")
+    ap.add_argument("--steps", action="store_true", help="steps per test and CPU per step, larger step controls")
     ap.add_argument("--ref-dt", type=float, default=DEFAULT_DT,
                     help="reference step for the agreement table (2.5e-5: converged to ~4e-5 rad, ~3 s per test)")
     args = ap.parse_args()
@@ -169,6 +193,8 @@ def main():
         convergence(args.fine)
     if args.protocols:
         protocols()
+    if args.steps:
+        steps(args.repeat)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from notchfit.analysis.estimation import Block, Observations, ParamSpec, Problem, folds, grid_starts, solve, tension_sigma, tube_folds, whitened
-from notchfit.physics.friction import LOAD_CELL_SIGMA
+from notchfit.analysis.estimation.problem import Simulations
+from notchfit.physics.friction import LOAD_CELL_SIGMA, FrictionParams, simulate_angles
 from notchfit.physics.geometry import default_geometry
 
 
@@ -102,3 +103,17 @@ def test_leave_one_out_splits():
 @pytest.fixture
 def rng():
     return np.random.default_rng(24)
+
+
+def test_simulations_count_their_work():
+    """The cache counts the histories it simulated and served, and its result equals the simulator's."""
+    o = _obs("a", "t", np.zeros((3, 27)))
+    sims, p = Simulations(), FrictionParams()
+    th = sims.theta(o, p)
+    assert np.array_equal(th, simulate_angles(o.time, o.tension_left, o.tension_right, p, o.geom))
+    assert sims.theta(o, p) is th and sims.theta(o, p.replace(mu_d=0.3)) is not th
+    assert (sims.runs, sims.hits) == (2, 1) and sims.run_seconds > 0.0
+    sims.reset()
+    assert (sims.runs, sims.hits, sims.run_seconds) == (0, 0, 0.0)
+    sims.theta(o, p)
+    assert sims.runs == 1

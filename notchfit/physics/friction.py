@@ -99,7 +99,7 @@ the lumped stretch uses the measured tension).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import pandas as pd
@@ -116,6 +116,7 @@ from ..validation import readonly
 __all__ = [
     "DEFAULT_DAMPING_TIME",
     "DEFAULT_DT",
+    "FastOptions",
     "FRICTION_LAWS",
     "PARAM_KEYS",
     "PER_JOINT_FIELDS",
@@ -421,24 +422,79 @@ def _check_protocol(t, ramp_time, settle_time) -> float:
     return settle_time
 
 
-def _fast(t, tl, tr, par, J, ramp_time, settle_time, *, n, h_min, h_max, growth, dtheta_max, order,
-          land_sticks, max_events, max_micro, settle_tol, settle_maxiter):
-    """Check the fast solver's options and run it (:func:`simulate` documents them)."""
-    for name, v in (("h_min", h_min), ("h_max", h_max)):
-        if not (math.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be > 0 s, got {v}")
-    if not (math.isfinite(growth) and growth >= 1):
-        raise ValueError(f"growth must be >= 1, got {growth}")
-    if order not in (1, 2):
-        raise ValueError(f"order must be 1 or 2, got {order}")
-    me = max(64, 4 * n) if max_events is None else int(max_events)
-    mm = max(1000, 40 * n) if max_micro is None else int(max_micro)
-    if me < 0 or mm < 0:
-        raise ValueError("max_events and max_micro must be >= 0")
-    return _k.fast_kernel(t, tl, tr, par, J, ramp_time, settle_time,
-                          float(h_min), float(h_max), float(growth), me, mm,
-                          float(settle_tol), int(settle_maxiter), bool(land_sticks), float(dtheta_max),
-                          int(order))
+@dataclass(frozen=True)
+class FastOptions:
+    """The fast solver's options (:func:`simulate` documents each; its defaults are these)."""
+
+    h_min: float = 3e-3
+    h_max: float = 0.05
+    growth: float = 1.5
+    dtheta_max: float = 5e-4
+    order: int | None = None
+    land_sticks: bool = True
+    max_events: int | None = None
+    max_micro: int | None = None
+    settle_tol: float = 1e-13
+    settle_maxiter: int = 200
+
+    def kernel_args(self, n: int, tip_load: bool) -> tuple:
+        """The checked options in :func:`notchfit.physics._friction_kernels.fast_kernel`'s order, from
+        ``h_min`` to ``order``, for ``n`` joints (the order defaults to 2 with a tip load, else 1).
+
+        Raises
+        ------
+        ValueError
+            An option out of range.
+        """
+        for name, v in (("h_min", self.h_min), ("h_max", self.h_max)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be > 0 s, got {v}")
+        if not (math.isfinite(self.growth) and self.growth >= 1):
+            raise ValueError(f"growth must be >= 1, got {self.growth}")
+        order = (2 if tip_load else 1) if self.order is None else self.order
+        if order not in (1, 2):
+            raise ValueError(f"order must be 1 or 2, got {order}")
+        me = max(64, 4 * n) if self.max_events is None else int(self.max_events)
+        mm = max(1000, 40 * n) if self.max_micro is None else int(self.max_micro)
+        if me < 0 or mm < 0:
+            raise ValueError("max_events and max_micro must be >= 0")
+        return (float(self.h_min), float(self.h_max), float(self.growth), me, mm, float(self.settle_tol),
+                int(self.settle_maxiter), bool(self.land_sticks), float(self.dtheta_max), int(order))
+
+
+@dataclass(frozen=True)
+class _Solver:
+    """Which solver runs a history: ``method``, the reference's largest step ``dt`` [s] (None: the
+    default), the fast solver's options."""
+
+    method: str = "fast"
+    dt: float | None = None
+    fast: FastOptions = FastOptions()
+
+
+@dataclass(frozen=True)
+class _Protocol:
+    """How the measured tensions drive the model between samples (:func:`simulate`): ramp and settle
+    times [s], and the load cells' ``σ_T`` for clipping (None: every reading must be >= 0)."""
+
+    ramp_time: float = 0.0
+    settle_time: float | None = None
+    tension_sigma: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class _Run:
+    """A solver's output with what it was driven by: the kernel's tuple, the checked sample times and
+    tensions, the model, the solver's name and the clipped load-cell readings."""
+
+    out: tuple
+    t: np.ndarray
+    tl: np.ndarray
+    tr: np.ndarray
+    params: FrictionParams
+    geom: Geometry
+    method: str
+    n_clipped: int
 
 
 def simulate(time, tension_left, tension_right, params: FrictionParams | None = None,
@@ -511,17 +567,12 @@ def simulate(time, tension_left, tension_right, params: FrictionParams | None = 
         Bad input (shapes, NaN, negative tension, a tension on a missing
         tendon, time not increasing) or options.
     """
-    fast = dict(h_min=h_min, h_max=h_max, growth=growth, dtheta_max=dtheta_max, order=order,
-                land_sticks=land_sticks, max_events=max_events, max_micro=max_micro, settle_tol=settle_tol,
-                settle_maxiter=settle_maxiter)
-    run = _solve(time, tension_left, tension_right, params, geom, method=method, dt=dt, ramp_time=ramp_time,
-                 settle_time=settle_time, tension_sigma=tension_sigma, fast=fast)
-    return _result(*run, tension_tol, hold_fraction)
-
-
-#: The fast solver's defaults (those of :func:`simulate`'s signature), for :func:`simulate_angles`.
-_FAST_DEFAULTS = dict(h_min=3e-3, h_max=0.05, growth=1.5, dtheta_max=5e-4, order=None, land_sticks=True,
-                      max_events=None, max_micro=None, settle_tol=1e-13, settle_maxiter=200)
+    fast = FastOptions(h_min=h_min, h_max=h_max, growth=growth, dtheta_max=dtheta_max, order=order,
+                       land_sticks=land_sticks, max_events=max_events, max_micro=max_micro, settle_tol=settle_tol,
+                       settle_maxiter=settle_maxiter)
+    run = _solve(time, tension_left, tension_right, params, geom, _Solver(method, dt, fast),
+                 _Protocol(ramp_time, settle_time, tension_sigma))
+    return _result(run, tension_tol, hold_fraction)
 
 
 def simulate_angles(time, tension_left, tension_right, params: FrictionParams | None = None,
@@ -535,44 +586,48 @@ def simulate_angles(time, tension_left, tension_right, params: FrictionParams | 
     loop of an identification (:mod:`notchfit.analysis.identify`). ``fast``: the fast
     solver's options of :func:`simulate` (``h_min``, ``dtheta_max``, ...).
     """
-    bad = set(fast) - set(_FAST_DEFAULTS)
+    bad = set(fast) - set(_FAST_FIELDS)
     if bad:
         raise TypeError(f"simulate_angles got unknown option(s) {', '.join(sorted(bad))}")
-    run = _solve(time, tension_left, tension_right, params, geom, method=method, dt=dt, ramp_time=ramp_time,
-                 settle_time=settle_time, tension_sigma=tension_sigma, fast={**_FAST_DEFAULTS, **fast})
-    return run[0][0]
+    run = _solve(time, tension_left, tension_right, params, geom, _Solver(method, dt, FastOptions(**fast)),
+                 _Protocol(ramp_time, settle_time, tension_sigma))
+    return run.out[0]
 
 
-def _solve(time, tension_left, tension_right, params, geom, *, method, dt, ramp_time, settle_time, tension_sigma,
-           fast: dict):
-    """Check the inputs and run a solver: ``(kernel output, t, T_L, T_R, params, geom, method, n_clipped)``."""
+#: The fast solver's option names (:class:`FastOptions`), the keywords :func:`simulate_angles` accepts.
+_FAST_FIELDS = tuple(f.name for f in fields(FastOptions))
+
+
+def _solve(time, tension_left, tension_right, params, geom, solver: _Solver, protocol: _Protocol) -> _Run:
+    """Check the inputs and run a solver."""
     geom = default_geometry() if geom is None else geom
     params = default_params(geom) if params is None else params
     if not isinstance(params, FrictionParams):
         raise ValueError(f"params must be a FrictionParams, got {type(params).__name__}")
     t, tl, tr, n_clipped = _check_inputs(time, _tendon_tension(tension_left, geom, "left", time),
-                                         _tendon_tension(tension_right, geom, "right", time), tension_sigma)
-    settle_time = _check_protocol(t, ramp_time, settle_time)
+                                         _tendon_tension(tension_right, geom, "right", time), protocol.tension_sigma)
+    settle_time = float(_check_protocol(t, protocol.ramp_time, protocol.settle_time))
+    ramp_time = float(protocol.ramp_time)
     J, par = _kernel_inputs(params, geom)
-    if method == "reference":
-        dt = DEFAULT_DT if dt is None else float(dt)
+    if solver.method == "reference":
+        dt = DEFAULT_DT if solver.dt is None else float(solver.dt)
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be > 0 s, got {dt}")
-        out = _k.reference_kernel(t, tl, tr, par, J, dt, float(ramp_time), float(settle_time))
-    elif method == "fast":
+        out = _k.reference_kernel(t, tl, tr, par, J, dt, ramp_time, settle_time)
+    elif solver.method == "fast":
         check_fast_laws(params)
-        fast = dict(fast)
-        if fast["order"] is None:
-            fast["order"] = 2 if (params.tip_force_x != 0.0 or params.tip_force_z != 0.0) else 1
-        out = _fast(t, tl, tr, par, J, float(ramp_time), float(settle_time), n=geom.n_joints, **fast)
+        tip = params.tip_force_x != 0.0 or params.tip_force_z != 0.0
+        out = _k.fast_kernel(t, tl, tr, par, J, ramp_time, settle_time, *solver.fast.kernel_args(geom.n_joints, tip))
     else:
-        raise ValueError(f"method must be 'fast' or 'reference', got {method!r}")
-    return out, t, tl, tr, params, geom, method, n_clipped
+        raise ValueError(f"method must be 'fast' or 'reference', got {solver.method!r}")
+    return _Run(out, t, tl, tr, params, geom, solver.method, n_clipped)
 
 
-def _result(out, t, tl, tr, params, geom, method, n_clipped, tension_tol, hold_fraction) -> SimulationResult:
-    """The :class:`SimulationResult` of a kernel's output."""
-    theta, TL, TR, bL, bR, sL, sR, nsteps = out
+def _result(run: _Run, tension_tol: float, hold_fraction: float) -> SimulationResult:
+    """The :class:`SimulationResult` of a solver's run (regimes with ``tension_tol``, ``hold_fraction``)."""
+    theta, TL, TR, bL, bR, sL, sR, nsteps = run.out
+    t, tl, tr, params, geom, method, n_clipped = (run.t, run.tl, run.tr, run.params, run.geom, run.method,
+                                                  run.n_clipped)
     dl, dr = cable_displacement(theta, tl, tr, geom)
     a, b = line_fit(theta)
     regime = stepwise_regimes(tl, tr, theta.sum(axis=1) * pulled_side(tl, tr),
