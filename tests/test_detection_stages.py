@@ -629,3 +629,34 @@ def test_a_face_keeps_only_its_own_step_a_limb_either():
     assert ch.valid[:10].all() and not ch.valid[10:20].any()        # the face: its own step only
     assert ch.valid[20:].all()                                       # the limb: either sign
     assert np.all(np.abs(ch.tc[:10]) < 0.6)
+
+
+def test_a_ramp_many_blur_widths_wide_is_not_an_edge_and_its_corner_is_withheld():
+    """refine.wide_edges on known rises (25 % -> 75 %, blur σ 0.74 px: rise 1.0 px): sharp edges (1.0 px), a
+    face seen from the side whose two rims 3 px apart widen its rise to 3.2 px (edge_spread's business: a
+    wider σ, not a lost corner), and a polished limb shaded into the backdrop it mirrors (rise 16 px, the
+    chuck_full render's): only the ramp is flagged, also where ramps are most of the edges (the sharp
+    edges are the lower quartile, not the median). pipeline.statuses then withholds the ramp's corner."""
+    from types import SimpleNamespace
+
+    from notchfit.vision.detection.pipeline import statuses
+    from notchfit.vision.detection.refine import wide_edges
+
+    rng = np.random.default_rng(8)
+    rise = {0: 1.0, 1: 1.0, 2: 1.05, 3: 0.95, 4: 3.2, 5: 16.0}
+    edge = np.repeat(list(rise), 30)
+    widths = np.array([rise[e] for e in edge]) * rng.uniform(0.9, 1.1, len(edge))
+    widths[::17] = np.nan                                              # profiles that do not rise
+    assert np.array_equal(wide_edges(widths, edge, 7), [False] * 5 + [True, False])   # edge 6: no profiles
+    # ramps on five of eight edges: still the ramps only
+    edge8 = np.repeat(np.arange(8), 20)
+    w8 = np.where(edge8 < 3, 1.0, 16.0) * rng.uniform(0.9, 1.1, len(edge8))
+    assert np.array_equal(wide_edges(w8, edge8, 8), edge8[::20] >= 3)
+    assert not wide_edges(w8[:40], edge8[:40], 8).any()               # too few edges to tell: nothing
+    # the corner of a wide edge is ambiguous, the others ok
+    K = 3
+    ref = SimpleNamespace(pidx=np.array([0, 1, 2]), C=np.full((K, 2), 10.0), Xi=np.full((K, 2), 10.0),
+                          cov=np.tile(np.eye(2) * 0.01, (K, 1, 1)), ok=np.ones(K, bool), shift=np.zeros(K), kf=1.0,
+                          sig_px=np.full(K, 0.1), wide=np.array([False, True, False]))
+    status = statuses(ref, 3, ["occluded"] * 3, (100, 100), DetectorOptions())[0]
+    assert status == ["ok", "ambiguous", "ok"]

@@ -191,6 +191,8 @@ class Refinement:
         Profile length factor.
     plane_input : PlaneInput or None
         Set by :func:`refine_and_finish`.
+    wide : ndarray (K,) bool or None
+        Corners with an edge too wide for one step (:func:`.refine.wide_edges`): ambiguous.
     """
 
     pidx: np.ndarray
@@ -206,6 +208,7 @@ class Refinement:
     off: np.ndarray
     kf: float
     plane_input: PlaneInput | None = None
+    wide: np.ndarray | None = None
 
 
 def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
@@ -462,7 +465,7 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None):
     sig_px = np.sqrt(np.maximum(np.trace(res.cov, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
     # the reported covariance adds what the edges' own profiles show (two rims of a face seen from the side)
     return Refinement(pidx, sp.C, res.X, res.cov + res.cov_sys / opts.sigma_inflation ** 2, res.ok, shift, bl,
-                      sig_px, sp, img, off, kf)
+                      sig_px, sp, img, off, kf, wide=res.wide)
 
 
 def statuses(ref: Refinement, m, status, shape, opts):
@@ -476,7 +479,8 @@ def statuses(ref: Refinement, m, status, shape, opts):
     for q, i in enumerate(ref.pidx):
         if not ref.ok[q] or not inimg[q]:
             status[i] = "occluded"
-        elif ref.shift[q] > opts.max_shift_px * ref.kf or not ref.sig_px[q] <= opts.max_sigma_px:
+        elif ref.shift[q] > opts.max_shift_px * ref.kf or not ref.sig_px[q] <= opts.max_sigma_px \
+                or (ref.wide is not None and ref.wide[q]):
             status[i] = "ambiguous"
             pts_px[i] = C[q]
         else:

@@ -24,7 +24,8 @@ from .edges import Crossings, Profiles, choose_edges
 from .lines import group_median, robust_group_lines, unit
 
 __all__ = ["CornerLines", "CornerSpecs", "PassResult", "ProfileLayout", "Profiles", "corner_lines",
-           "curved_face_corners", "edge_crossings", "face_view_cov", "refine_pass", "sample_profiles"]
+           "curved_face_corners", "edge_crossings", "edge_spread", "face_view_cov", "refine_pass", "sample_profiles",
+           "wide_edges"]
 
 
 @dataclass
@@ -135,6 +136,9 @@ class PassResult:
     cov_sys : ndarray (K, 2, 2)
         The covariance of the edges' own offsets (:func:`edge_spread`, :func:`face_view_cov`) to add to the
         reported one [px²].
+    wide : ndarray (K,) bool, optional
+        Corners with an edge whose profiles rise too much wider than the image's clean edges for one step
+        (:func:`wide_edges`): where on that rise the edge lies is not measured.
     """
 
     C: np.ndarray
@@ -145,6 +149,7 @@ class PassResult:
     Din: np.ndarray
     Dout: np.ndarray
     cov_sys: np.ndarray
+    wide: np.ndarray | None = None
 
 
 _MAP_WIDTH = 4096           # samples per row of the remap maps (OpenCV wants sides below 32767)
@@ -295,6 +300,37 @@ def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1
     ref = float(np.median(fin))
     excess2 = np.where(per_edge > min_excess * ref, per_edge ** 2 - ref ** 2, 0.0)
     return np.nan_to_num(excess2, nan=0.0) / 12.0
+
+
+def wide_edges(widths, edge, n_edges: int, *, max_spread: float = 12.0, quantile: float = 0.25,
+               min_edges: int = 4) -> np.ndarray:
+    """(n_edges,) bool: edges whose profiles rise over a ramp, not a step: their median 25 % -> 75 % rise
+    exceeds the image's sharp edges' by more than ``max_spread`` blur σ.
+
+    A silhouette's edge (a limb, a face's rim) is as sharp as the optics
+    make it; :func:`edge_spread` takes a rise a little wider than that as two
+    steps (the rims of a face seen from the side) and widens the corner's σ.
+    A rise many blur widths wider is shading, not an edge (a polished limb
+    that mirrors the backdrop it stands against, the tube's dark body 15 px
+    inside it): the 50 % crossing lies only where the levels put it, and the
+    corner is not measured. The image's sharp edges are the ``quantile`` of
+    the edges' median rises (ramps may be most of a silhouette's edges, not a
+    quarter of them), σ = rise / 1.349; the excess is ``sqrt(rise² -
+    rise_sharp²)``.
+
+    Parameters
+    ----------
+    widths : ndarray (P,)
+        The valid profiles' rises [px] (NaN where they do not rise); ``edge`` (P,) their edge.
+    """
+    per_edge = group_median(np.asarray(widths, float), edge, n_edges)
+    fin = per_edge[np.isfinite(per_edge)]
+    if len(fin) < min_edges:
+        return np.zeros(n_edges, bool)
+    sharp = float(np.quantile(fin, quantile))
+    with np.errstate(invalid="ignore"):
+        excess = np.sqrt(np.maximum(per_edge ** 2 - sharp ** 2, 0.0))
+        return np.nan_to_num(excess, nan=0.0) > max_spread * sharp / 1.349
 
 
 def edge_blur(qa, valid, t, step, widths=None) -> float:
@@ -646,9 +682,23 @@ def _keep_consensus(ch, edge, valid, und, rises, lines, fit_args, blur):
     return valid, und, rises, corner_lines(und, edge[valid], len(lines.X), **fit_args)
 
 
+def _edge_offsets(und, edge, rises, lines: CornerLines, *, min_points, s2_floor, max_spread):
+    """The covariance (K, 2, 2) [px²] of the offsets an edge's own profiles show (two rims, a shadow's edge:
+    :func:`edge_spread`), to add to the reported uncertainty, not to the fit's (which decides whether the
+    corner is found); and the corners (K,) bool with an edge too wide for one step (:func:`wide_edges`).
+    ``und``, ``edge``, ``rises``: the valid crossings [px], their edges and their profiles' rises [px]."""
+    K = len(lines.X)
+    cov_sys = np.zeros((K, 2, 2))
+    s2_edge = edge_spread(None, np.ones(len(edge), bool), None, None, edge, 2 * K, widths=rises)
+    w_e = wide_edges(rises, edge, 2 * K, max_spread=max_spread)
+    if s2_edge.any():
+        cov_sys = corner_lines(und, edge, K, min_points=min_points, s2_floor=s2_floor, s2_edge=s2_edge).cov - lines.cov
+    return cov_sys, w_e[:K] | w_e[K:]
+
+
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *, lim, min_points, contrast,
                 blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12,
-                arc_gate: float = 2.0, view_bias: float = 0.5, local_edges: bool = True):
+                arc_gate: float = 2.0, view_bias: float = 0.5, local_edges: bool = True, max_spread: float = 12.0):
     """One pass of edge-profile line fits for all corners at once.
 
     Parameters
@@ -678,6 +728,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
         covariance when the camera knows the plane's pose.
     local_edges : bool
         Edges the image-wide levels do not describe take each profile's own step (:func:`.edges.choose_edges`).
+    max_spread : float
+        On the last pass (``radius_px`` given), a corner with an edge whose rise exceeds the clean edges' by
+        more than ``max_spread`` blur σ is flagged ``wide`` (:func:`wide_edges`).
 
     Returns
     -------
@@ -715,14 +768,10 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
                                                     {"min_points": min_points, "s2_floor": s2_floor},
                                                     blur_prior if np.isfinite(blur_prior) else blur)
     X, cov, okc, c, dd, good_e, s2_line = lines.X, lines.cov, lines.ok, lines.c, lines.dd, lines.good_e, lines.s2
-    # the offsets that an edge's own profiles show (two rims, a shadow's edge) add to the reported
-    # uncertainty, not to the fit's (which decides whether the corner is found)
-    cov_sys = np.zeros((K, 2, 2))
-    s2_edge = edge_spread(None, valid, pr.t, step, pr.edge, 2 * K, widths=rises) if np.isfinite(radius_px) \
-        else np.zeros(2 * K)                 # the last pass's (the one whose corners are reported)
-    if s2_edge.any():
-        cov_sys = corner_lines(und, pr.edge[valid], K, min_points=min_points, s2_floor=s2_floor,
-                               s2_edge=s2_edge).cov - cov
+    # the last pass's (the one whose corners are reported): what the edges' own profiles show
+    cov_sys, wide = _edge_offsets(und, pr.edge[valid], rises, lines, min_points=min_points, s2_floor=s2_floor,
+                                  max_spread=max_spread) if np.isfinite(radius_px) else (np.zeros((K, 2, 2)),
+                                                                                         np.zeros(K, bool))
     # an arc shows as a face line's residuals well above the straight edges' (the noise): faces that are
     # straight lines within the noise are not fitted again
     straight = good_e & ~sp.curved if sp.curved is not None else good_e
@@ -743,4 +792,4 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])
     Din, Dout = _next_directions(camera, sp, c, dd, good_e, okc, Cn)
-    return PassResult(Cn, X, cov, okc, blur, Din, Dout, np.nan_to_num(cov_sys))
+    return PassResult(Cn, X, cov, okc, blur, Din, Dout, np.nan_to_num(cov_sys), wide)
