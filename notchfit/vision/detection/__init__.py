@@ -170,7 +170,8 @@ def _segmented(gray, f, opts, cache: dict):
         raise ValueError(f"image too small: {W}x{H} px")
     if f not in cache:
         small = downsample(gray, f)
-        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f, level=opts.segment_level)
+        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f, level=opts.segment_level,
+                       full=gray if f > 1 else None)
         cache[f] = (small.shape, seg)
     return cache[f]
 
@@ -413,7 +414,10 @@ def _scale_extra(widths, R):
     if len(widths) < 3:
         return None
     wpx = float(np.mean(widths))
-    sw = float(np.std(widths, ddof=1) / math.sqrt(len(widths)))
+    # the spread of the profiles, not its standard error: what moves a profile's width (shading, the
+    # perspective along the tube, a tilt, a profile near a slot) varies slowly along the tube and does
+    # not average out over neighbouring profiles
+    sw = float(np.std(widths, ddof=1))
     mm_px = 2 * R / MM / wpx
     text = (f"no calibration: fronto-parallel view assumed; scale {mm_px:.6f} mm/px from the tube's outer "
             f"diameter {2 * R / MM:.3f} mm (geometry) measured as {wpx:.2f} ± {sw:.2f} px over {len(widths)} "
@@ -438,9 +442,19 @@ def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
     if scale is not None:
         px_per_m, extra = scale
         cam = DiameterScale(1 / px_per_m, (W, H))
-        return _detect_at(gray, Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base),
-                          cache=cache, extra=extra)[0]
-    return _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
+        det = _detect_at(gray, Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base),
+                         cache=cache, extra=extra)[0]
+    else:
+        det = _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
+    return _unconfirmed_scale(det)
+
+
+def _unconfirmed_scale(det: Detection) -> Detection:
+    """No corner ``ok``: nothing confirms that the band measured was the tube (a holder's bar or half a tube
+    split by a streak is as straight), so the scale's σ is not stated (NaN)."""
+    if det.n_ok or not np.isfinite(det.scale_sigma):
+        return det
+    return dataclasses.replace(det, scale_sigma=math.nan)
 
 
 def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
