@@ -444,6 +444,11 @@ def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
         cam = DiameterScale(1 / px_per_m, (W, H))
         det = _detect_at(gray, Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base),
                          cache=cache, extra=extra)[0]
+        if det.n_ok == 0:
+            # nothing confirms the band's width (shaded limbs pull its crossings inside, a profile across a
+            # slot measures less): the widths next to the corners of a detection at the rough scale
+            alt = _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
+            det = alt if alt.n_ok else det
     else:
         det = _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
     return _unconfirmed_scale(det)
