@@ -220,7 +220,11 @@ def _noise(small, step: int, bg) -> float:
     keep = xx + 1 < small.shape[1]
     if not keep.any():
         return 1e-6
-    d = small[yy[keep], xx[keep] + 1] - small[yy[keep], xx[keep]]
+    return _difference_noise(small[yy[keep], xx[keep] + 1] - small[yy[keep], xx[keep]])
+
+
+def _difference_noise(d) -> float:
+    """The noise σ of one pixel from differences ``d`` of neighbouring pixels: 1.4826 MAD / √2 [DN]."""
     return 1.4826 * float(np.median(np.abs(d))) / np.sqrt(2) + 1e-6
 
 
@@ -266,8 +270,7 @@ def full_noise(full, small, coef, factor: int, near: float, *, max_samples: int 
     if sel.sum() < 50:
         return np.inf
     y, x = y[sel], x[sel]
-    d = np.asarray(full[y, x + 1], float) - np.asarray(full[y, x], float)
-    return 1.4826 * float(np.median(np.abs(d))) / np.sqrt(2) + 1e-6
+    return _difference_noise(np.asarray(full[y, x + 1], float) - np.asarray(full[y, x], float))
 
 
 def largest_region(mask) -> tuple[np.ndarray, tuple]:
