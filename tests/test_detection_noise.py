@@ -91,12 +91,13 @@ def test_printed_tube_scale_next_to_the_corners_where_the_band_confirms_nothing(
 
 def test_band_search_on_the_trimmed_silhouette_is_the_same_to_the_bit():
     """The rough band search runs its closings' distance transforms on the silhouette's box plus one empty
-    row and column (``width._trim_box``: about half the pixels on the seed image's coarse copy). Inside the box the
+    row and column (``width.trim_box``: about half the pixels on the seed image's coarse copy). Inside the box the
     closings and distances are those of the untrimmed silhouette, so the band radii and slot counts are
     the same for any empty margin around it."""
     import cv2
 
-    from notchfit.vision.detection.width import _close_disk, _distance_to, _trim_box, radius_candidates
+    from notchfit.vision.detection.segment import band_directions, fill_thin_lines
+    from notchfit.vision.detection.width import _close_disk, _distance_to, radius_candidates, trim_box
 
     rng = np.random.default_rng(7)
     region = np.zeros((90, 160), np.uint8)
@@ -106,10 +107,17 @@ def test_band_search_on_the_trimmed_silhouette_is_the_same_to_the_bit():
     for margin in (0, 5, 40):
         big = cv2.copyMakeBorder(region, margin, margin + 3, margin + 1, margin, cv2.BORDER_CONSTANT, value=0)
         assert radius_candidates(big, max_close_px=20) == radius_candidates(region, max_close_px=20)
-        box = _trim_box(big)
+        box = trim_box(big)
         for r in (2, 5, 11):
             full, p = _close_disk(big, r, near=_distance_to(big, 22))
             trim, q = _close_disk(big[box], r, near=_distance_to(big[box], 22))
             a = cv2.distanceTransform(full, cv2.DIST_L2, 5)[p:-p, p:-p][box]
             b = cv2.distanceTransform(trim, cv2.DIST_L2, 5)[q:-q, q:-q]
             assert np.array_equal(a, b)
+        # the streak fill's line closings add pixels only between the mask's: the same in the box
+        across = band_directions(big, 5.0, 8.5)
+        whole = fill_thin_lines(big, 7.0, across=across)
+        assert np.array_equal(whole[box], fill_thin_lines(np.ascontiguousarray(big[box]), 7.0, across=across[box]))
+        outside = whole.copy()
+        outside[box] = 0
+        assert not outside.any()

@@ -62,7 +62,7 @@ from .segment import (Segmentation, band_directions, chroma_distance, close_disk
                       fill_thin_lines, largest_region, remove_thin)
 from .segment import segment as _segment
 from .view import DiameterScale, mirror_without_camera, view_orientation
-from .width import band_centreline, band_width, measure_diameter, tube_radius
+from .width import band_centreline, band_width, measure_diameter, trim_box, tube_radius
 
 __all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detections_table", "draw_overlay",
            "mirror_without_camera", "overlay_with_crop", "work_factor"]
@@ -378,7 +378,12 @@ def _rough_scale(gray, geom, opts, cache):
         # a streak splits the tube into two bands of half its width, each with the slots beside it: the
         # filled silhouette's band is the tube when it holds as many slots and is wider
         across = band_directions(mask, opts.close_slot_factor * float(slot_widths(geom).max()) / R * R_lo + 1, R_lo)
-        R2, n2, reg2 = radius(fill_thin_lines(mask, _streak_length(geom, opts) / R * R_lo, across=across))
+        # a closing adds pixels only between the mask's: computed in its box (the same pixels, fewer to close)
+        box = trim_box(mask)
+        filled = mask.copy()
+        filled[box] = fill_thin_lines(np.ascontiguousarray(mask[box]), _streak_length(geom, opts) / R * R_lo,
+                                      across=across[box])
+        R2, n2, reg2 = radius(filled)
         if np.isfinite(R2) and (n2 > n_slots or (n2 == n_slots and R2 > R_lo)):
             R_lo, reg = R2, reg2
     if not np.isfinite(R_lo):

@@ -20,7 +20,7 @@ import numpy as np
 
 from ._kernels import nearest_crossings
 
-__all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along",
+__all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along", "trim_box",
            "tube_radius"]
 
 
@@ -110,7 +110,7 @@ def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5) -> f
     return best
 
 
-def _trim_box(region):
+def trim_box(region):
     """The slices that keep ``region``'s box and one empty row or column on each side. A closing's or a
     distance transform's values inside are the same on the trimmed region (a chamfer path between two
     pixels of the box stays in it, and one to the background beyond crosses the empty margin first), on
@@ -123,8 +123,8 @@ def _trim_box(region):
 
 
 def _trim(region):
-    """``region`` cut to :func:`_trim_box`."""
-    return region[_trim_box(region)]
+    """``region`` cut to :func:`trim_box`."""
+    return region[trim_box(region)]
 
 
 def _closing_series(region, max_close_px, fn):
@@ -236,7 +236,7 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
     """
     filled = region if filled is None else filled
     max_radius_px = 0.25 * min(region.shape) if max_radius_px is None else max_radius_px
-    box = _trim_box(filled)                    # the filled silhouette holds the region: the same box
+    box = trim_box(filled)                    # the filled silhouette holds the region: the same box
     region, filled = region[box], filled[box]
     R = geom.outer_radius
     w, d = float(np.median(geom.slot_widths)), float(np.median(geom.slot_depths))
