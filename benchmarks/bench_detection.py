@@ -422,7 +422,7 @@ def pbr(folder, repeat=1, render=False):
         folder = tempfile.mkdtemp(prefix="pbr_gallery_")
         make_pbr_gallery.main(["--out", folder])
     scenes = _pbr_gallery(folder)
-    rows, own = [], {}
+    rows, own, scales = [], {}, []
     for rec, scene, truth, geom, img in scenes:
         for cal in (True, False):
             best = np.inf
@@ -435,6 +435,9 @@ def pbr(folder, repeat=1, render=False):
                 det = detect_notches(img, truth.camera if cal else None, geom, mirror=mirror)
                 best = min(best, time.perf_counter() - t0)
             rows.append((scene.kind, cal, score_detection(det, truth, scene.px_per_mm), best, scene.px_per_mm))
+            if not cal:
+                scales.append((rec["image"], det.n_ok, det.scale_mm_per_px * scene.px_per_mm - 1,
+                               det.scale_sigma * scene.px_per_mm))
         # the same tube, camera and pose drawn by notchfit's own renderer (a solid, flat shading, blur 1 px):
         # what the view's geometry alone allows, apart from the physically based appearance
         r = render_scene(np.asarray(scene.theta), geom, truth.camera, plane=truth.pose.plane,
@@ -456,6 +459,10 @@ def pbr(folder, repeat=1, render=False):
         for cal in (True, False):
             sel = [r for r in rows if (kind == "all" or r[0] == kind) and r[1] == cal]
             print(_pbr_row(kind, cal, sel), flush=True)
+    print("Without the camera file, the scale's error / its stated sigma (the scene's nominal px/mm as truth; "
+          "no sigma is stated where no corner is ok): " + ", ".join(
+              f"{n.split('.')[0]} {100 * e:+.1f} % / {sg * 100:.1f} % ({n_ok} ok)" for n, n_ok, e, sg in scales
+              if np.isfinite(e)))
     print("Same tubes, cameras and poses drawn by notchfit's own renderer (solid, blur 1 px), with the camera: "
           + ", ".join(f"{k} {v[0]}/{v[1]}" for k, v in sorted(own.items())))
 

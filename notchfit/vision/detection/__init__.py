@@ -62,7 +62,7 @@ from .segment import (Segmentation, band_directions, chroma_distance, close_disk
                       fill_thin_lines, largest_region, remove_thin)
 from .segment import segment as _segment
 from .view import DiameterScale, mirror_without_camera, view_orientation
-from .width import band_centreline, band_width, measure_diameter, tube_radius
+from .width import band_centreline, band_width, measure_diameter, trim_box, tube_radius
 
 __all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detections_table", "draw_overlay",
            "mirror_without_camera", "overlay_with_crop", "work_factor"]
@@ -170,7 +170,8 @@ def _segmented(gray, f, opts, cache: dict):
         raise ValueError(f"image too small: {W}x{H} px")
     if f not in cache:
         small = downsample(gray, f)
-        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f, level=opts.segment_level)
+        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f, level=opts.segment_level,
+                       full=gray if f > 1 else None)
         cache[f] = (small.shape, seg)
     return cache[f]
 
@@ -377,7 +378,12 @@ def _rough_scale(gray, geom, opts, cache):
         # a streak splits the tube into two bands of half its width, each with the slots beside it: the
         # filled silhouette's band is the tube when it holds as many slots and is wider
         across = band_directions(mask, opts.close_slot_factor * float(slot_widths(geom).max()) / R * R_lo + 1, R_lo)
-        R2, n2, reg2 = radius(fill_thin_lines(mask, _streak_length(geom, opts) / R * R_lo, across=across))
+        # a closing adds pixels only between the mask's: computed in its box (the same pixels, fewer to close)
+        box = trim_box(mask)
+        filled = mask.copy()
+        filled[box] = fill_thin_lines(np.ascontiguousarray(mask[box]), _streak_length(geom, opts) / R * R_lo,
+                                      across=across[box])
+        R2, n2, reg2 = radius(filled)
         if np.isfinite(R2) and (n2 > n_slots or (n2 == n_slots and R2 > R_lo)):
             R_lo, reg = R2, reg2
     if not np.isfinite(R_lo):
@@ -413,7 +419,10 @@ def _scale_extra(widths, R):
     if len(widths) < 3:
         return None
     wpx = float(np.mean(widths))
-    sw = float(np.std(widths, ddof=1) / math.sqrt(len(widths)))
+    # the spread of the profiles, not its standard error: what moves a profile's width (shading, the
+    # perspective along the tube, a tilt, a profile near a slot) varies slowly along the tube and does
+    # not average out over neighbouring profiles
+    sw = float(np.std(widths, ddof=1))
     mm_px = 2 * R / MM / wpx
     text = (f"no calibration: fronto-parallel view assumed; scale {mm_px:.6f} mm/px from the tube's outer "
             f"diameter {2 * R / MM:.3f} mm (geometry) measured as {wpx:.2f} ± {sw:.2f} px over {len(widths)} "
@@ -438,9 +447,24 @@ def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
     if scale is not None:
         px_per_m, extra = scale
         cam = DiameterScale(1 / px_per_m, (W, H))
-        return _detect_at(gray, Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base),
-                          cache=cache, extra=extra)[0]
-    return _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
+        det = _detect_at(gray, Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base),
+                         cache=cache, extra=extra)[0]
+        if det.n_ok == 0:
+            # nothing confirms the band's width (shaded limbs pull its crossings inside, a profile across a
+            # slot measures less): the widths next to the corners of a detection at the rough scale
+            alt = _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
+            det = alt if alt.n_ok else det
+    else:
+        det = _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
+    return _unconfirmed_scale(det)
+
+
+def _unconfirmed_scale(det: Detection) -> Detection:
+    """No corner ``ok``: nothing confirms that the band measured was the tube (a holder's bar or half a tube
+    split by a streak is as straight), so the scale's σ is not stated (NaN)."""
+    if det.n_ok or not np.isfinite(det.scale_sigma):
+        return det
+    return dataclasses.replace(det, scale_sigma=math.nan)
 
 
 def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):

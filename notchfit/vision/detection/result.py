@@ -48,7 +48,8 @@ class Detection:
     scale_sigma : float
         Standard uncertainty of ``scale_mm_per_px`` [mm/px]: 0 for a
         calibrated camera (its own uncertainty is the calibration's), the
-        spread of the diameter measurements otherwise.
+        spread of the diameter measurements otherwise; NaN without a camera
+        file when no corner is ``ok`` (nothing confirms the band measured).
     assumption : str
         How the scale was obtained, in words (empty for a calibrated camera).
     base_side : str

@@ -89,7 +89,7 @@ def chroma_distance(small_bgr, *, dark: float = 8.0) -> np.ndarray:
 
 def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_points: int = 6000,
             level: float = 0.5, rounds: int = 3, clear_snr: float = 5.0, opposite: float = 0.25,
-            opposite_snr: float = 6.0) -> Segmentation:
+            opposite_snr: float = 6.0, full=None) -> Segmentation:
     """Object mask of a downsampled image.
 
     Parameters
@@ -107,6 +107,12 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
         (1): below 0.5, thin dark parts whose blurred or shaded level does not
         reach halfway (a backbone left by deep slots, limbs shaded toward the
         background) stay in the object.
+    full : ndarray (H, W), optional
+        The full-resolution image ``small`` was block-averaged from by the factor ``noise_scale``. Its
+        own noise, measured at the background samples, is used for the ``min_snr`` test where it is
+        smaller than the downsampled copy's times ``noise_scale``: a texture of the backdrop (grid
+        paper, a chuck's knurl) does not average down as noise does, and on the copy it would pass for
+        noise ``noise_scale`` times its amplitude there.
     rounds : int
         Refits of the background surface, each to the samples within a
         quarter of the contrast of the last one (vignetting darkens the image
@@ -141,10 +147,13 @@ def segment(small, *, min_snr: float = 4.0, noise_scale: float = 1.0, max_fit_po
     if not fits:
         return Segmentation(None, 0.0, 0.0, "no manipulator found: no background visible")
     coef, contrast, noise = max(fits, key=lambda f: abs(f[1]) / f[2])   # the clearer object
-    if not abs(contrast) >= min_snr * noise * noise_scale:
+    gate = noise * noise_scale
+    if not abs(contrast) >= min_snr * gate and full is not None:
+        gate = min(gate, full_noise(full, small, coef, int(noise_scale), 0.25 * abs(contrast)))
+    if not abs(contrast) >= min_snr * gate:
         return Segmentation(None, contrast, noise,
                             f"no manipulator found: contrast {abs(contrast):.1f} is below {min_snr:g} x the "
-                            f"background noise {noise * noise_scale:.1f}")
+                            f"background noise {gate:.1f}")
     X = np.arange(ws, dtype=np.float32) / ws - 0.5
     Y = np.arange(hs, dtype=np.float32) / hs - 0.5
     c_ = coef.astype(np.float32)
@@ -211,8 +220,57 @@ def _noise(small, step: int, bg) -> float:
     keep = xx + 1 < small.shape[1]
     if not keep.any():
         return 1e-6
-    d = small[yy[keep], xx[keep] + 1] - small[yy[keep], xx[keep]]
+    return _difference_noise(small[yy[keep], xx[keep] + 1] - small[yy[keep], xx[keep]])
+
+
+def _difference_noise(d) -> float:
+    """The noise σ of one pixel from differences ``d`` of neighbouring pixels: 1.4826 MAD / √2 [DN]."""
     return 1.4826 * float(np.median(np.abs(d))) / np.sqrt(2) + 1e-6
+
+
+def full_noise(full, small, coef, factor: int, near: float, *, max_samples: int = 20000,
+               seed: int = 0) -> float:
+    """Noise of the background at full resolution [DN]: the median absolute difference of horizontally
+    neighbouring pixels (times 1.4826 / sqrt 2) in the blocks of the downsampled copy whose level lies
+    within ``near`` of the background surface ``coef`` (:func:`segment`'s quadratic in the copy's
+    normalised coordinates). A texture of the backdrop (grid lines, a knurl) covers a minority of the
+    pixels at full resolution, so the median sees the noise between them; on the downsampled copy the
+    same texture is in every block.
+
+    Parameters
+    ----------
+    full : ndarray (H, W)
+        The full-resolution image.
+    small : ndarray (h, w)
+        Its block average by ``factor``.
+    coef : ndarray (6,)
+        The background surface of the copy (``poly2`` coefficients).
+    factor : int
+        The block-averaging factor.
+    near : float
+        Largest deviation of a block from the surface for it to count as background [DN].
+    max_samples : int
+        Blocks sampled (seeded, reproducible).
+    seed : int
+        Seed of the sample.
+    """
+    hs, ws = small.shape
+    rng = np.random.default_rng(seed)
+    n = min(max_samples, hs * ws)
+    idx = rng.choice(hs * ws, n, replace=False)
+    by, bx = idx // ws, idx % ws
+    oy = rng.integers(0, factor, n)
+    ox = rng.integers(0, max(factor - 1, 1), n)
+    y, x = by * factor + oy, bx * factor + ox
+    H, W = full.shape[:2]
+    keep = (x + 1 < W) & (y < H)
+    y, x, by, bx = y[keep], x[keep], by[keep], bx[keep]
+    bg = poly2(bx / ws - 0.5, by / hs - 0.5) @ np.asarray(coef, float)
+    sel = np.abs(np.asarray(small[by, bx], float) - bg) <= near
+    if sel.sum() < 50:
+        return np.inf
+    y, x = y[sel], x[sel]
+    return _difference_noise(np.asarray(full[y, x + 1], float) - np.asarray(full[y, x], float))
 
 
 def largest_region(mask) -> tuple[np.ndarray, tuple]:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ._kernels import nearest_crossings
 
-__all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along",
+__all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along", "trim_box",
            "tube_radius"]
 
 
@@ -110,10 +110,29 @@ def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5) -> f
     return best
 
 
+def trim_box(region):
+    """The slices that keep ``region``'s box and one empty row or column on each side. A closing's or a
+    distance transform's values inside are the same on the trimmed region (a chamfer path between two
+    pixels of the box stays in it, and one to the background beyond crosses the empty margin first), on
+    fewer pixels; the connected parts and their order are the same."""
+    rows, cols = np.flatnonzero(region.any(1)), np.flatnonzero(region.any(0))
+    if not len(rows):
+        return slice(None), slice(None)
+    h, w = region.shape
+    return slice(max(rows[0] - 1, 0), min(rows[-1] + 2, h)), slice(max(cols[0] - 1, 0), min(cols[-1] + 2, w))
+
+
+def _trim(region):
+    """``region`` cut to :func:`trim_box`."""
+    return region[trim_box(region)]
+
+
 def _closing_series(region, max_close_px, fn):
     """(closing radius, estimate) for every estimate of ``fn(region, r, near)`` over r = 2, 3, 4, 6, ...; the
-    closings share the distance to the region (``near``, :func:`_distance_to`)."""
+    closings share the distance to the region (``near``, :func:`_distance_to`), computed on the region
+    :func:`_trim` leaves (the estimates are histograms of distances inside it)."""
     r = 2.0
+    region = _trim(region)
     near = _distance_to(region, int(math.ceil(max_close_px)) + 2) if max_close_px >= 2 else None
     while r <= max_close_px:
         for est in fn(region, int(round(r)), near):
@@ -216,13 +235,15 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
     radius [px] (NaN: none), slots found along it (at most the number of joints)
     """
     filled = region if filled is None else filled
+    max_radius_px = 0.25 * min(region.shape) if max_radius_px is None else max_radius_px
+    box = trim_box(filled)                    # the filled silhouette holds the region: the same box
+    region, filled = region[box], filled[box]
     R = geom.outer_radius
     w, d = float(np.median(geom.slot_widths)), float(np.median(geom.slot_depths))
     best = None
     w_min = float(np.min(geom.slot_widths))
     for rc in radius_candidates(filled, max_close_px=max_close_px):
-        if w_min * rc / R < min_slot_px or rc > (0.25 * min(region.shape) if max_radius_px is None
-                                                  else max_radius_px):
+        if w_min * rc / R < min_slot_px or rc > max_radius_px:
             continue                     # slots too narrow to be seen at this scale, or a band too wide
         n = slots_along(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
                         area_range=area_range, pitch=(float(np.min(geom.pitches)), float(np.max(geom.pitches))),
