@@ -13,6 +13,7 @@ estimation core (:mod:`notchfit.analysis.estimation.solve`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from functools import partial
@@ -20,9 +21,10 @@ from functools import partial
 import numpy as np
 
 from ..causes import REGISTRY
-from ..estimation.observations import Observations as Prepared
+from ..estimation.bands import gauss_newton_covariance, linear_band
+from ..estimation.observations import Observations as Prepared, sample_mse
 from ..estimation.problem import Block, Problem, Simulations, measure_registered
-from ..estimation.solve import best_probe_starts, grid_starts, se_values, solve
+from ..estimation.solve import best_probe_starts, forward_jacobian, grid_starts, se_values, solve
 from ..fitting import fit_experiment
 from ...physics.friction import FrictionParams
 from ...vision.warp import apply_camera_plane_warp, unwarp_camera_plane
@@ -30,7 +32,7 @@ from .specs import (BASELINE_MU_EXCESS, REGISTRATION_BOUNDS, WARP_CENTER_RANGE, 
                     WARP_RADIUS, StudyScales, as_model, baseline_specs, model_params, specs_for)
 from .tubes import TUBES, has_tube_unknowns, mean_tubes, tube_blocks, tube_params
 
-__all__ = ["Calibration", "SimulationCache", "calibrate", "predict_points", "reregister"]
+__all__ = ["Calibration", "SimulationCache", "calibrate", "fold_band", "predict_points", "reregister"]
 
 #: The simulations of a calibration, cached (the estimation core's :class:`~notchfit.analysis.estimation.problem.Simulations`).
 SimulationCache = Simulations
@@ -317,3 +319,62 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
 def _bases(x0, paper, paper_start: bool) -> tuple:
     """The starts probed around: ``x0`` and, when asked and different, the base model's values."""
     return (x0, paper) if paper_start and not np.array_equal(x0, paper) else (x0,)
+
+
+def fold_band(train, cal: Calibration, test, *, cache: Simulations | None = None,
+              scales: StudyScales | None = None, base: FrictionParams | None = None,
+              diff_step: float = 2e-3, bound_prior: bool = True) -> list[np.ndarray]:
+    """The prediction variance of a baseline fold's held-out experiments, per sample [m² or rad²].
+
+    The fold's fit knows its parameters ``x`` up to ``C = (JᵀJ)⁻¹``, ``J`` the whitened training
+    residuals' Jacobian at the optimum (the known noise and the per-tube priors only: a model that
+    misfits does not widen its own band, :func:`~notchfit.analysis.estimation.bands.gauss_newton_covariance`);
+    a held-out prediction moves with ``x`` by ``J_h``, so its variance is ``diag(J_h C J_hᵀ)``
+    (:func:`~notchfit.analysis.estimation.bands.linear_band`). Both Jacobians are the estimation core's
+    forward differences (:func:`~notchfit.analysis.estimation.solve.forward_jacobian`) with its steps
+    (:meth:`~notchfit.analysis.estimation.problem.Problem.steps`): ``p + 1`` runs of the training
+    experiments and of the held-out ones. A held-out trial the training trials must extrapolate to (the
+    heaviest) gets a wide band where the training trials pin its parameters poorly.
+
+    Parameters
+    ----------
+    train, test : sequence of Observations
+        The fold's training and held-out experiments.
+    cal : Calibration
+        The baseline fitted on ``train`` (``cal.cause == ()``).
+    cache, scales, base :
+        As :func:`calibrate`'s.
+    diff_step : float
+        Relative step of the shared parameters (:func:`calibrate`'s ``diff_step``).
+    bound_prior : bool
+        Each parameter also known to lie within its fit bounds (a uniform prior's σ, ``(hi − lo)/√12``): a
+        parameter the training trials do not move at all (``wrist_tip_first``'s E_se and strain_lower, whose
+        plateau its lighter trials never reach) gets that spread instead of none (False: the data's own
+        information only, the pseudo-inverse's zero for such a direction).
+
+    Returns
+    -------
+    list of ndarray (S_i,)
+        Per held-out experiment, the mean over its measured points (the squared distance's
+        variance, both coordinates) or angles of the prediction variance, as
+        :func:`~notchfit.analysis.estimation.observations.sample_mse` averages a squared error.
+    """
+    if cal.cause:
+        raise ValueError("fold_band bands the baseline only")
+    base = base or FrictionParams()
+    pb = _problem(tuple(train), (), cal.start(), cache or Simulations(), scales or StudyScales.of(train, base), base)
+    x = pb.x0                                        # the fold's optimum, as the fit's start
+    h = pb.steps(x, diff_step)
+    prior_sd = (pb.hi - pb.lo) / math.sqrt(12.0) if bound_prior else None
+    C = gauss_newton_covariance(forward_jacobian(pb, x, h), prior_sd)
+    # the held-out experiments under the same unknowns (a tube not trained on keeps its drawing's values)
+    held = dataclasses.replace(pb, obs=tuple(test), prior=np.zeros((0, x.size)), prior_offset=None)
+    Jh = forward_jacobian(held, x, h)
+    out, row = [], 0
+    for i, o in enumerate(test):
+        k = o.measured.size
+        pred = held.predicted(i, x)[0]
+        band = linear_band(pred, Jh[row:row + k] * o.sigma, C)          # un-whitened: [m or rad] per x
+        row += k
+        out.append(sample_mse(o, o.measured + band.sd))                  # the mean variance per sample
+    return out

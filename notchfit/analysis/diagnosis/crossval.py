@@ -18,7 +18,7 @@ from ...batch import run_batch
 from ..causes import REGISTRY
 from ..estimation.noise import noise_floor
 from ..estimation.solve import folds
-from .calibration import Calibration, SimulationCache, calibrate, mean_start, predict_points, reregister
+from .calibration import Calibration, SimulationCache, calibrate, fold_band, mean_start, predict_points, reregister
 from ..estimation.observations import sample_mse
 from .specs import PAPER_START, StudyScales, as_model, model_key
 
@@ -54,6 +54,9 @@ class FoldTask:
         The whole study's scales (every fold fits in the same units).
     base : FrictionParams or None
         The base model (default: the paper's).
+    band : bool
+        Also the held-out predictions' variance from the fold's parameter uncertainty (the baseline
+        only, :func:`~notchfit.analysis.diagnosis.calibration.fold_band`).
     """
 
     preps: tuple
@@ -65,16 +68,19 @@ class FoldTask:
     seed: int = 0
     scales: StudyScales = field(default_factory=StudyScales)
     base: object = None
+    band: bool = False
 
 
 @dataclass(frozen=True)
 class FoldResult:
-    """Calibration of one fold and its held-out predictions ``{index: (predicted, theta, floor)}``."""
+    """Calibration of one fold and its held-out predictions ``{index: (predicted, theta, floor)}``, with
+    their prediction variance ``{index: (S,) [m² or rad²]}`` when asked (:attr:`FoldTask.band`)."""
 
     cause: tuple
     test: tuple
     calibration: Calibration
     predictions: dict
+    band: dict = field(default_factory=dict)
 
 
 def run_fold(task: FoldTask) -> FoldResult:
@@ -94,7 +100,12 @@ def run_fold(task: FoldTask) -> FoldResult:
             P, theta = predict_points(prep, cal.values, transform=T, cache=cache, base=task.base, tubes=cal.tubes)
             floor = noise_floor(prep, cal.params(task.base, prep.tube), cache, seed=task.seed)
             preds[int(i)] = (P, theta, floor)
-    return FoldResult(task.cause, tuple(task.test), cal, preds)
+        band = {}
+        if task.band and not task.cause:
+            var = fold_band(train, cal, [task.preps[i] for i in task.test], cache=cache, scales=task.scales,
+                            base=task.base, diff_step=task.calibrate_kw.get("diff_step", 2e-3))
+            band = {int(i): v for i, v in zip(task.test, var)}
+    return FoldResult(task.cause, tuple(task.test), cal, preds, band)
 
 
 @dataclass(frozen=True)
@@ -114,6 +125,9 @@ class HeldOut:
         Experiment index -> noise floor (S,) [m² or rad²].
     calibrations : tuple of Calibration
         One per fold, in fold order.
+    band : dict
+        Experiment index -> the prediction variance of its fold's parameter uncertainty (S,)
+        [m² or rad²] (the baseline's, when asked: :func:`~notchfit.analysis.diagnosis.calibration.fold_band`).
     """
 
     cause: tuple
@@ -121,19 +135,28 @@ class HeldOut:
     theta: dict = field(default_factory=dict)
     floor: dict = field(default_factory=dict)
     calibrations: tuple = ()
+    band: dict = field(default_factory=dict)
 
     @classmethod
     def from_folds(cls, cause, results) -> HeldOut:
         """Collect the :class:`FoldResult` of one model (in fold order)."""
-        predicted, theta, floor = {}, {}, {}
+        predicted, theta, floor, band = {}, {}, {}, {}
         for r in results:
             for i, (P, th, fl) in r.predictions.items():
                 predicted[i], theta[i], floor[i] = P, th, fl
-        return cls(as_model(cause), predicted, theta, floor, tuple(r.calibration for r in results))
+            band.update(r.band)
+        return cls(as_model(cause), predicted, theta, floor, tuple(r.calibration for r in results), band)
 
     def mean_floor(self) -> float:
         """Mean noise floor over every held-out sample [m²] (:func:`notchfit.analysis.estimation.noise.noise_floor`)."""
         return float(np.nanmean(np.concatenate([self.floor[i] for i in sorted(self.floor)])))
+
+    def mean_band(self) -> float:
+        """Mean prediction variance of the folds' parameter uncertainty over every held-out sample [m² or rad²]
+        (0 when not computed)."""
+        if not self.band:
+            return 0.0
+        return float(np.nanmean(np.concatenate([self.band[i] for i in sorted(self.band)])))
 
     def mean_values(self) -> dict:
         """The mean of the fold optima by parameter name [SI] (a start for a fit on every experiment; a real
@@ -147,7 +170,8 @@ class HeldOut:
 
 
 def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = None, seed: int = 0,
-              jobs: int = 1, scheduler=None, scales: StudyScales | None = None, base=None) -> dict:
+              jobs: int = 1, scheduler=None, scales: StudyScales | None = None, base=None,
+              fold_band: bool = False) -> dict:
     """Calibrate every model of ``causes`` on every fold and collect the held-out predictions.
 
     Parameters
@@ -172,6 +196,9 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
         Default: the scales of ``preps``.
     base : FrictionParams, optional
         The base model (default: the paper's).
+    fold_band : bool
+        Also the baseline's held-out prediction variance (:attr:`HeldOut.band`; ``p + 1`` more runs of
+        each fold's experiments).
 
     Returns
     -------
@@ -194,7 +221,8 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
         st = st if st is not None else [None] * len(folds)
         for k, f in enumerate(folds):
             train = tuple(int(i) for i in np.setdiff1d(all_idx, f))
-            tasks.append(FoldTask(preps, train, tuple(int(i) for i in f), model, st[k], kw, seed, scales, base))
+            tasks.append(FoldTask(preps, train, tuple(int(i) for i in f), model, st[k], kw, seed, scales, base,
+                                  fold_band and not model))
             keys.append(f"{model_key(model)}/fold{k + 1}")
     # the platform's default start method (fork on Linux), whatever threads this process
     # runs: spawn would re-import notchfit in every worker (seconds per pool) and re-run

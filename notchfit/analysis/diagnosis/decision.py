@@ -167,7 +167,8 @@ def _stall_hint(sigs, stall_hint: float) -> str:
 
 def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_tol: float,
             z_crit: float, min_removed: float, stall_hint: float = 0.05, metric: str = "points",
-            baseline: str = "the paper's friction model with k_lin, k_mid and μ_d fitted", lack_of_fit=None) -> str:
+            baseline: str = "the paper's friction model with k_lin, k_mid and μ_d fitted", lack_of_fit=None,
+            band_rms: float = 0.0) -> str:
     """The diagnosis in words: the baseline against the noise, the signatures, the verdict and its physics.
 
     Parameters
@@ -189,10 +190,17 @@ def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_
     lack_of_fit : LackOfFit, optional
         The held-out baseline's pure error and lack of fit (:mod:`notchfit.analysis.diagnosis.replicates`):
         its verdict follows the lead when trials repeat.
+    band_rms : float
+        Root of the mean prediction variance of the baseline's folds [m or rad]: the baseline's floor is
+        ``√(noise_rms² + band_rms²)`` (:func:`~notchfit.analysis.diagnosis.calibration.fold_band`).
     """
     what = "notch points" if metric == "points" else "joint angles"
+    floor = math.hypot(noise_rms, band_rms)
+    against = (f"a floor of {fmt_err(floor, metric)} (noise {fmt_err(noise_rms, metric)}, the folds' prediction "
+               f"uncertainty {fmt_err(band_rms, metric)})" if band_rms > 0 else
+               f"a noise floor of {fmt_err(noise_rms, metric)}")
     lead = (f"The calibrated baseline ({baseline}) predicts held-out {what} with {fmt_err(base_rms, metric)} "
-            f"rms against a noise floor of {fmt_err(noise_rms, metric)}.")
+            f"rms against {against}.")
     top = [f"{c} ({why})" for c, sc, why in rank_candidates(sigs, noise_rms) if sc > 0][:3]
     hint = (" The discrepancy signatures point first to " + "; then ".join(top) + ".") if top else ""
     ranked = sorted(cands, key=lambda c: c.heldout_rms)
@@ -200,19 +208,19 @@ def explain(cause: str, sigs, cands, base_rms: float, noise_rms: float, *, none_
     lof = lack_of_fit if lack_of_fit is not None and lack_of_fit.has_replicates else None
     if lof is not None:
         lead += f" Against the repeated trials: {lof.verdict()}."
-    if cause == "none" and lof is not None and base_rms > noise_rms * math.sqrt(1 + none_tol):
+    if cause == "none" and lof is not None and base_rms > floor * math.sqrt(1 + none_tol):
         if lof.overall.significant(lof.alpha):
             why = (f" The lack of fit beyond the trials' scatter is significant but small: "
                    f"{fmt_err(math.sqrt(lack_of_fit_mse(lof, point_factor(metric))), metric)} "
-                   f"rms, within the {fmt_err(math.sqrt(none_tol) * noise_rms, metric)} over the noise that the "
+                   f"rms, within the {fmt_err(math.sqrt(none_tol) * floor, metric)} over the floor that the "
                    "noise rule tolerates; the rest of the excess is the trials' scatter or lies in samples no "
                    "other trial repeats (on a steep part of the curve the load-cell noise and the parameters' "
                    "error move the shape alike): no extension is justified.")
         else:
-            why = " The error exceeds the noise floor but not the trials' own scatter: no extension is justified."
+            why = " The error exceeds the floor but not the trials' own scatter: no extension is justified."
         return lead + why + hint + (f" Held-out rms of the candidates: {table}." if table else "")
     if cause == "none":
-        return (lead + f" That is within {math.sqrt(1 + none_tol):.2f}× the noise: the baseline explains "
+        return (lead + f" That is within {math.sqrt(1 + none_tol):.2f}× the floor: the baseline explains "
                 "the data within the measurement uncertainty, so no extension is justified." + hint
                 + (f" Held-out rms of the candidates: {table}." if table else ""))
     if cause == "unexplained":

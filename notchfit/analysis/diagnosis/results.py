@@ -8,6 +8,7 @@ paper's metric, Sec. IV-A), ``*_deg`` for measured joint angles.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from ...physics.friction import FrictionParams
@@ -231,6 +232,9 @@ class Diagnosis:
         :mod:`notchfit.analysis.diagnosis.replicates`).
     extended_lack_of_fit : LackOfFit or None
         The same for the extended model (None without a named cause).
+    band_rms : float
+        Root of the mean prediction variance of the baseline's folds from their parameter uncertainty [m or
+        rad] (:func:`notchfit.analysis.diagnosis.calibration.fold_band`; 0 when not computed).
     """
 
     experiments: tuple
@@ -256,6 +260,12 @@ class Diagnosis:
     base: FrictionParams | None = None
     lack_of_fit: LackOfFit | None = field(default=None, repr=False)
     extended_lack_of_fit: LackOfFit | None = field(default=None, repr=False)
+    band_rms: float = 0.0
+
+    @property
+    def floor_rms(self) -> float:
+        """The baseline's floor [m or rad]: ``√(noise_rms² + band_rms²)``, what its ``none`` rule compares with."""
+        return math.hypot(self.noise_rms, self.band_rms)
 
     @property
     def extended_key(self) -> str:
@@ -270,7 +280,9 @@ class Diagnosis:
         causes = f" (causes: {', '.join(self.causes)})" if len(self.causes) > 1 else ""
         lines = [f"cause: {self.cause}{causes}",
                  f"held-out rms: baseline {g.baseline / f:.3f} {u}, extended {g.extended / f:.3f} {u} "
-                 f"({g.reduction_pct:.1f}% lower); noise floor {self.noise_rms / f:.3f} {u}"]
+                 f"({g.reduction_pct:.1f}% lower); noise floor {self.noise_rms / f:.3f} {u}"
+                 + (f", with the baseline folds' prediction uncertainty {self.band_rms / f:.3f} {u}: floor "
+                    f"{self.floor_rms / f:.3f} {u}" if self.band_rms > 0 else "")]
         if self.lack_of_fit is not None:
             lines.append(f"lack of fit (held-out baseline): {self.lack_of_fit.verdict()}")
         if self.extended_lack_of_fit is not None and self.extended_lack_of_fit.has_replicates:
@@ -309,6 +321,8 @@ class Diagnosis:
                          f"train_rms_{u}": self.baseline.train_rms / f,
                          "tubes": _tubes_dict(self.baseline.tubes)},
             f"noise_rms_{u}": self.noise_rms / f,
+            f"fold_band_rms_{u}": self.band_rms / f,
+            f"floor_rms_{u}": self.floor_rms / f,
             "protocol": dict(self.protocol),
             "discrepancies": [s.to_dict() for s in self.discrepancies],
             "candidates": [c.to_dict(self.metric) for c in self.candidates],

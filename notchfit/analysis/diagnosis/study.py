@@ -97,7 +97,8 @@ class _First:
 
     ``cause`` the decision (a candidate, ``none`` or ``unexplained``), the discrepancy signatures, the scored
     candidates, the baseline's held-out per-sample errors (list of (S,) [m² or rad²]), the noise floor
-    [m² or rad²] and the baseline's held-out lack of fit.
+    [m² or rad²], the baseline's held-out lack of fit and the mean prediction variance of its folds'
+    parameter uncertainty [m² or rad²] (its floor is ``noise + band``).
     """
 
     cause: str
@@ -106,6 +107,7 @@ class _First:
     base_mse: list
     noise: float
     lack_of_fit: object
+    band: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -167,7 +169,7 @@ def restart_unconverged(held: HeldOut, folds, run) -> HeldOut:
     good = [c.start() for c in cals if c.success]
     if not bad or not good:
         return held
-    predicted, theta, floor = dict(held.predicted), dict(held.theta), dict(held.floor)
+    predicted, theta, floor, band = dict(held.predicted), dict(held.theta), dict(held.floor), dict(held.band)
     for start in good:              # one run per start: the folds restarted in it hold out distinct trials
         again = run([folds[k] for k in bad], [None], [start] * len(bad))["baseline"]
         for k, cal in zip(bad, again.calibrations):
@@ -175,7 +177,9 @@ def restart_unconverged(held: HeldOut, folds, run) -> HeldOut:
                 cals[k] = cal
                 for i in (int(i) for i in folds[k]):
                     predicted[i], theta[i], floor[i] = again.predicted[i], again.theta[i], again.floor[i]
-    return HeldOut(held.cause, predicted, theta, floor, tuple(cals))
+                    if i in again.band:
+                        band[i] = again.band[i]
+    return HeldOut(held.cause, predicted, theta, floor, tuple(cals), band)
 
 
 def _masked_first(st: _Study, opts: _Options, cands, held):
@@ -246,7 +250,7 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
              causes=CAUSES, none_tol: float = 0.5, z_crit: float = 3.0, min_excess_removed: float = 0.3,
              calibrate_kw: dict | None = None, progress=None, metric: str = "auto", second_cause: bool = True,
              max_second: int = 4, estimate_protocol: bool = True, lof_alpha: float = 0.01,
-             replicate_tol_sigma: float = 3.0) -> Diagnosis:
+             replicate_tol_sigma: float = 3.0, fold_band: bool = True) -> Diagnosis:
     """Diagnose a study against the friction model (Sec. IV-B; docs/diagnosis.md).
 
     The baseline is calibrated on the training experiments of each fold and
@@ -299,6 +303,8 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     lof_alpha, replicate_tol_sigma : float
         Where trials repeat, ``unexplained`` needs a material held-out lack of fit, significant at ``lof_alpha``
         (replicate tensions within ``replicate_tol_sigma`` load-cell σ; :func:`_lack_of_fit_first`).
+    fold_band : bool
+        Judge the baseline against the noise floor plus its folds' prediction variance (:func:`~.calibration.fold_band`).
 
     Returns
     -------
@@ -313,13 +319,12 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     say, kw, st = opts.say, opts.calibrate_kw, _setup(experiments, opts)
     preps, folds = st.preps, folds_by_experiment(len(st.preps), max_folds)
     run_on = partial(run_folds, preps, calibrate_kw=kw, seed=seed, jobs=jobs, scheduler=scheduler,
-                     scales=st.scales, base=st.base)
+                     scales=st.scales, base=st.base, fold_band=fold_band)
     run = partial(run_on, folds)
 
     say(f"calibrating the baseline on {len(folds)} folds")
-    held = {"baseline": restart_unconverged(run([None])["baseline"], folds, run_on)}
-    base = held["baseline"]
-    base_start = [cal.start() for cal in base.calibrations]
+    base = restart_unconverged(run([None])["baseline"], folds, run_on)
+    held, base_start = {"baseline": base}, [cal.start() for cal in base.calibrations]
     sigs = signatures(preps, base, base.mean_floor())
     order = [c for c, _, _ in rank_candidates(sigs, math.sqrt(base.mean_floor())) if c in st.order]
     say(f"fitting {len(order)} candidate extensions")
@@ -327,14 +332,13 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     held.update(singles)
     base_mse = base.sample_mse(preps)
     base_ms = pooled_mse(base_mse)
-    noise = _noise(base, singles, preps)
+    noise, lof_kw = _noise(base, singles, preps), dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
     say("fitting the baseline on all experiments")
     full_base = st.protocol_fit or calibrate(preps, None, base_start[0], scales=st.scales, base=st.base, **kw)
     cands = [score_candidate(c, held[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
                              min_excess_removed=min_excess_removed) for c in order]
-    lof_kw = dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
-    cause, lof = _lack_of_fit_first(cands, base_ms, preps, base, lof_kw, noise, none_tol)
-    first = _First(cause, sigs, cands, base_mse, noise, lof)
+    cause, lof = _lack_of_fit_first(cands, base_ms, preps, base, lof_kw, noise + base.mean_band(), none_tol)
+    first = _First(cause, sigs, cands, base_mse, noise, lof, base.mean_band())
     second = _second(st, opts, held, first, run)
     named = second.causes
     say(f"fitting the extended model ({model_key(named)}) on all experiments")
@@ -345,7 +349,8 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
 
 
 def _lack_of_fit_first(cands, base_ms: float, preps, base, lof_kw: dict, noise: float, none_tol: float):
-    """The verdict (:func:`~.decision.decide`) and the held-out baseline's lack of fit against the trials' scatter;
+    """The verdict (:func:`~.decision.decide`) and the held-out baseline's lack of fit against the trials' scatter
+    (``noise``: the baseline's floor [m² or rad²], its folds' prediction variance included);
     ``unexplained`` becomes ``none`` where trials repeat and the lack of fit is not material
     (:func:`~.replicates.lack_of_fit_first`)."""
     cause = decide(base_ms <= noise * (1.0 + none_tol), cands)
@@ -363,7 +368,7 @@ def _result(st: _Study, opts: _Options, held, first: _First, second: SecondStep,
     causes = tuple(c.cause for c in contribs)
     text = explain(cause, sigs, first.cands, base_rms, noise_rms, none_tol=rule.none_tol, z_crit=rule.z_crit,
                    min_removed=rule.min_excess_removed, metric=metric, baseline=_baseline_words(st.base, preps),
-                   lack_of_fit=first.lack_of_fit)
+                   lack_of_fit=first.lack_of_fit, band_rms=math.sqrt(first.band))
     if named:
         text += pair_sentence(second, contribs, rule, metric=metric, alone=cause == second.first)
         if "joint_hysteresis" in named:
@@ -381,4 +386,4 @@ def _result(st: _Study, opts: _Options, held, first: _First, second: SecondStep,
                      seed=opts.seed, heldout=held, prepared=preps, causes=causes, contributions=contribs,
                      pair_candidates=tuple(second.results), metric=metric, protocol=st.protocol,
                      skipped=st.skipped, base=st.base, lack_of_fit=first.lack_of_fit,
-                     extended_lack_of_fit=fits.ext_lack_of_fit)
+                     extended_lack_of_fit=fits.ext_lack_of_fit, band_rms=math.sqrt(first.band))

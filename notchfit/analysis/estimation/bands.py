@@ -38,7 +38,8 @@ from scipy import stats
 from ...physics.friction import simulate_angles
 from ...physics.predictor import Predictor
 
-__all__ = ["BandPredictor", "NewTubePrior", "PredictionBand", "band_table", "prediction_band", "sigma_points", "tube_band"]
+__all__ = ["BandPredictor", "NewTubePrior", "PredictionBand", "band_table", "gauss_newton_covariance", "linear_band",
+           "prediction_band", "sigma_points", "tube_band"]
 
 
 #: the divided-difference step: √3, the Gaussian's kurtosis (Nørgaard et al. 2000)
@@ -156,6 +157,59 @@ def prediction_band(predict: Callable[[np.ndarray], np.ndarray], mean, cov, *, n
     """
     points, weights = sigma_points(mean, cov)
     return _band([predict(x) for x in points], weights, noise_sd, level)
+
+
+def gauss_newton_covariance(jacobian, prior_sd=None) -> np.ndarray:
+    """The parameters' covariance ``(JᵀJ + diag(1/prior_sd²))⁻¹`` of a fit from its whitened Jacobian (p, p).
+
+    The known noise only: the residuals are whitened by their measurement σ (and a prior's rows by
+    its σ), so this is what the noise leaves of the parameters whatever the fit's residual variance
+    (the Gauss–Newton covariance without its ``s²`` factor). A direction the data do not determine
+    (a Jacobian column of zeros: a modulus of a range the trials never reach) has no finite variance
+    from the data: ``prior_sd`` bounds it (e.g. a uniform prior over the parameter's bounds,
+    ``(hi − lo)/√12``); without one the pseudo-inverse gives it none.
+
+    Parameters
+    ----------
+    jacobian : array_like (r, p)
+        Of the whitened residuals at the optimum (priors' rows included).
+    prior_sd : array_like (p,), optional
+        Each parameter's prior standard deviation (``inf``: none) [parameter unit].
+    """
+    J = np.asarray(jacobian, dtype=float)
+    info = J.T @ J
+    if prior_sd is not None:
+        info = info + np.diag(1.0 / np.asarray(prior_sd, dtype=float) ** 2)
+    return np.linalg.pinv(info, hermitian=True)
+
+
+def linear_band(prediction, jacobian, cov, *, noise_sd=0.0, level: float = 0.95) -> PredictionBand:
+    """The first-order band of a prediction: ``var = diag(J C Jᵀ)`` (linear error propagation).
+
+    :func:`prediction_band`'s variance keeps its first-order term (for a linear model the same
+    number) and drops the second-order one; it needs the ``p`` derivatives a fit's Jacobian
+    already has (forward differences: ``p + 1`` runs where the sigma points take ``2p + 1``).
+
+    Parameters
+    ----------
+    prediction : array_like (...)
+        The prediction at the parameters' mean [its unit].
+    jacobian : array_like (prediction.size, p)
+        Its derivatives by the parameters, rows in the order of ``prediction.ravel()`` [unit per parameter].
+    cov : array_like (p, p)
+        The parameters' covariance.
+    noise_sd, level :
+        As :func:`prediction_band`'s.
+
+    Returns
+    -------
+    PredictionBand
+    """
+    y = np.asarray(prediction, dtype=float)
+    J = np.asarray(jacobian, dtype=float).reshape(y.size, -1)
+    var = np.einsum("ij,jk,ik->i", J, np.asarray(cov, dtype=float), J).reshape(y.shape)
+    var = np.clip(var, 0.0, None) + np.asarray(noise_sd, dtype=float) ** 2
+    return PredictionBand(y, np.sqrt(var), float(level))
 
 
 @dataclass(frozen=True)
