@@ -700,3 +700,25 @@ def test_plausible_radii_leave_out_lines_too_thin_for_slots_and_blocks_too_wide(
     m[140:143, 260:480] = 1
     r = plausible_radii(m, g, max_close_px=30, min_slot_px=2.0, max_radius_px=40.0)
     assert len(r) >= 1 and all(abs(x - 10.0) <= 1.5 for x in r)
+
+
+def test_scale_sigma_at_least_the_links_disagreement():
+    """Corners found on a straight tube at a scale 5 % too large: each link's corners are 1.05 times their
+    straight-configuration distance apart (geometry.md: the links are rigid), so the scale's σ becomes 5 %
+    of the scale; at the right scale the σ stated (0.1 %) is kept."""
+    import dataclasses
+
+    from notchfit.physics.geometry import Geometry, notch_layout
+    from notchfit.vision.detection import _links_agree
+    from notchfit.vision.detection.result import empty_detection
+
+    g = Geometry(n_joints=5, p=1.6e-3, outer_radius=1e-3, slot_width=0.8e-3, slot_depth=1.6e-3, slot_sides=(1,) * 5,
+                 mount_half_width=None, mount_bottom_z=None, name="t", inner_radius=0.7e-3, tendons=("right",),
+                 tendon_path="lumen", r_x=None, r_z=None, cable_radius=None, channel_radius=None)
+    lay = notch_layout(g)
+    m = lay.n_points
+    base = dataclasses.replace(empty_detection(m, "ok", ""), status=("ok",) * m, scale_mm_per_px=0.01,
+                               scale_sigma=1e-5)
+    off = _links_agree(dataclasses.replace(base, points=1.05 * np.asarray(lay.straight, float)), g)
+    assert abs(off.scale_sigma - 0.05 * 0.01) < 1e-9
+    assert _links_agree(dataclasses.replace(base, points=np.asarray(lay.straight, float)), g).scale_sigma == 1e-5

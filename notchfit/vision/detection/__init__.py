@@ -451,7 +451,28 @@ def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
         return empty_detection(m, "no_manipulator", why)
     dets = [_at_rough_scale(gray, geom, opts, dataclasses.replace(rough, radius_px=float(rc)), sgn=sgn, base=base,
                             cache=cache) for rc in (rough.radius_px, *rough.others)]
-    return _unconfirmed_scale(_most_confirmed(dets))
+    return _unconfirmed_scale(_links_agree(_most_confirmed(dets), geom))
+
+
+def _links_agree(det: Detection, geom: Geometry) -> Detection:
+    """The scale's σ at least its disagreement with the ok corners' own links: the corners on one link keep
+    their straight-configuration distances (geometry.md), so the median of measured over expected distance,
+    over every pair of ok corners on a link, is the scale the links give (a band measured too wide by a
+    polished tube's halo gives widths that agree with each other, and corners that pass the rigid-link
+    check's tolerance, 15 %, at a scale several % off)."""
+    ok = np.array([s == "ok" for s in det.status])
+    lay = notch_layout(geom)
+    ratios = [float(np.linalg.norm(det.points[i] - det.points[j]) / np.linalg.norm(lay.straight[i] - lay.straight[j]))
+              for link in np.unique(lay.link) for i, j in _pairs(np.nonzero((lay.link == link) & ok)[0])]
+    if not ratios:
+        return det
+    off = det.scale_mm_per_px * abs(float(np.median(ratios)) - 1)
+    return dataclasses.replace(det, scale_sigma=off) if off > det.scale_sigma else det
+
+
+def _pairs(idx):
+    """Every unordered pair of ``idx``."""
+    return [(int(a), int(b)) for k, a in enumerate(idx) for b in idx[k + 1:]]
 
 
 def _most_confirmed(dets: list) -> Detection:
