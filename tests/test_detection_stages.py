@@ -660,3 +660,65 @@ def test_a_ramp_many_blur_widths_wide_is_not_an_edge_and_its_corner_is_withheld(
                           sig_px=np.full(K, 0.1), wide=np.array([False, True, False]))
     status = statuses(ref, 3, ["occluded"] * 3, (100, 100), DetectorOptions())[0]
     assert status == ["ok", "ambiguous", "ok"]
+
+
+def test_the_detection_with_most_corners_ok_and_a_sigma_covering_the_other_bands():
+    """Detections at the scales of three bands (no band held a slot): the one with the most corners ok is
+    kept (5 ok at 0.0100 mm/px, σ 0.0001), and its σ is at least the difference to the other band whose
+    corners are ok at its own scale (0.0105: σ 0.0005); a band with no corner ok confirms nothing."""
+    import dataclasses
+
+    from notchfit.vision.detection import _most_confirmed
+    from notchfit.vision.detection.result import empty_detection
+
+    def det(n_ok, scale, sigma):
+        d = empty_detection(12, "partial", "")
+        return dataclasses.replace(d, status=("ok",) * n_ok + ("occluded",) * (12 - n_ok), scale_mm_per_px=scale,
+                                   scale_sigma=sigma)
+
+    best = _most_confirmed([det(0, 0.02, 0.001), det(5, 0.0100, 0.0001), det(3, 0.0105, 0.0001)])
+    assert best.n_ok == 5 and best.scale_mm_per_px == 0.0100 and abs(best.scale_sigma - 0.0005) < 1e-12
+    alone = _most_confirmed([det(5, 0.0100, 0.0001), det(0, 0.0300, 0.001)])
+    assert alone.scale_sigma == 0.0001
+    assert _most_confirmed([det(0, 0.02, 0.001), det(0, 0.03, 0.001)]).scale_mm_per_px == 0.02
+
+
+def test_plausible_radii_leave_out_lines_too_thin_for_slots_and_blocks_too_wide():
+    """A grid line 3 px wide, a tube R = 10 px and a block R = 60 px in one silhouette: at slots 0.8 R wide
+    the line's band would have slots of about 1 px (fewer than 2 px cannot be seen), the block is wider
+    than the largest radius allowed (40 px); the tube's band is the one left."""
+    from notchfit.physics.geometry import Geometry
+    from notchfit.vision.detection.width import plausible_radii
+
+    g = Geometry(n_joints=5, p=1.6e-3, outer_radius=1e-3, slot_width=0.8e-3, slot_depth=1.6e-3, slot_sides=(1,) * 5,
+                 mount_half_width=None, mount_bottom_z=None, name="t", inner_radius=0.7e-3, tendons=("right",),
+                 tendon_path="lumen", r_x=None, r_z=None, cable_radius=None, channel_radius=None)
+    m = np.zeros((400, 500), np.uint8)
+    m[20:140, 20:480] = 1                  # the block, 120 px tall
+    m[140:380, 240:260] = 1                # the tube, 20 px wide
+    m[140:143, 20:240] = 1                 # a grid line along the block, 3 px wide
+    m[140:143, 260:480] = 1
+    r = plausible_radii(m, g, max_close_px=30, min_slot_px=2.0, max_radius_px=40.0)
+    assert len(r) >= 1 and all(abs(x - 10.0) <= 1.5 for x in r)
+
+
+def test_scale_sigma_at_least_the_links_disagreement():
+    """Corners found on a straight tube at a scale 5 % too large: each link's corners are 1.05 times their
+    straight-configuration distance apart (geometry.md: the links are rigid), so the scale's σ becomes 5 %
+    of the scale; at the right scale the σ stated (0.1 %) is kept."""
+    import dataclasses
+
+    from notchfit.physics.geometry import Geometry, notch_layout
+    from notchfit.vision.detection import _links_agree
+    from notchfit.vision.detection.result import empty_detection
+
+    g = Geometry(n_joints=5, p=1.6e-3, outer_radius=1e-3, slot_width=0.8e-3, slot_depth=1.6e-3, slot_sides=(1,) * 5,
+                 mount_half_width=None, mount_bottom_z=None, name="t", inner_radius=0.7e-3, tendons=("right",),
+                 tendon_path="lumen", r_x=None, r_z=None, cable_radius=None, channel_radius=None)
+    lay = notch_layout(g)
+    m = lay.n_points
+    base = dataclasses.replace(empty_detection(m, "ok", ""), status=("ok",) * m, scale_mm_per_px=0.01,
+                               scale_sigma=1e-5)
+    off = _links_agree(dataclasses.replace(base, points=1.05 * np.asarray(lay.straight, float)), g)
+    assert abs(off.scale_sigma - 0.05 * 0.01) < 1e-9
+    assert _links_agree(dataclasses.replace(base, points=np.asarray(lay.straight, float)), g).scale_sigma == 1e-5

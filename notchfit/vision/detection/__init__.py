@@ -62,7 +62,7 @@ from .segment import (Segmentation, band_directions, chroma_distance, close_disk
                       fill_thin_lines, largest_region, remove_thin)
 from .segment import segment as _segment
 from .view import DiameterScale, mirror_without_camera, view_orientation
-from .width import band_centreline, band_width, measure_diameter, trim_box, tube_radius
+from .width import band_centreline, band_width, measure_diameter, plausible_radii, trim_box, tube_radius
 
 __all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detections_table", "draw_overlay",
            "mirror_without_camera", "overlay_with_crop", "work_factor"]
@@ -331,6 +331,9 @@ class RoughScale:
         The crop's (x0, y0) in the coarse copy [coarse px].
     seg : Segmentation
         The coarse copy's segmentation.
+    others : tuple of float
+        Where no band holds a slot: the silhouette's other bands the tube could be [coarse px] (a
+        polished tube's reflections and a shadow break its slots up; a detection at each scale decides).
     """
 
     radius_px: float
@@ -338,6 +341,7 @@ class RoughScale:
     region: np.ndarray
     offset: tuple
     seg: Segmentation
+    others: tuple = ()
 
     @property
     def px_per_m(self) -> float:
@@ -388,7 +392,10 @@ def _rough_scale(gray, geom, opts, cache):
             R_lo, reg = R2, reg2
     if not np.isfinite(R_lo):
         return None, "no tube found: no band of constant width in the silhouette"
-    return RoughScale(float(R_lo), fc, reg, (x0, y0), seg_c), ""
+    others = () if n_slots else tuple(
+        rc for rc in plausible_radii(fill_holes(reg), geom, max_close_px=max_close, min_slot_px=2.0,
+                                     max_radius_px=0.25 * min(shape_c)) if rc != R_lo)
+    return RoughScale(float(R_lo), fc, reg, (x0, y0), seg_c, others), ""
 
 
 def _band_widths(gray, geom, opts, rough: RoughScale):
@@ -437,12 +444,56 @@ def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
     widths next to its corners where the centreline gives too few)."""
     m = geom.n_points
     H, W = gray.shape
-    R = geom.outer_radius
     sgn = view_orientation(DiameterScale(1.0, (W, H)), (H, W), mirror)[1]
     cache = {"colour": colour}
     rough, why = _rough_scale(gray, geom, opts, cache)
     if rough is None:
         return empty_detection(m, "no_manipulator", why)
+    dets = [_at_rough_scale(gray, geom, opts, dataclasses.replace(rough, radius_px=float(rc)), sgn=sgn, base=base,
+                            cache=cache) for rc in (rough.radius_px, *rough.others)]
+    return _unconfirmed_scale(_links_agree(_most_confirmed(dets), geom))
+
+
+def _links_agree(det: Detection, geom: Geometry) -> Detection:
+    """The scale's σ at least its disagreement with the ok corners' own links: the corners on one link keep
+    their straight-configuration distances (geometry.md), so the median of measured over expected distance,
+    over every pair of ok corners on a link, is the scale the links give (a band measured too wide by a
+    polished tube's halo gives widths that agree with each other, and corners that pass the rigid-link
+    check's tolerance, 15 %, at a scale several % off)."""
+    ok = np.array([s == "ok" for s in det.status])
+    lay = notch_layout(geom)
+    ratios = [float(np.linalg.norm(det.points[i] - det.points[j]) / np.linalg.norm(lay.straight[i] - lay.straight[j]))
+              for link in np.unique(lay.link) for i, j in _pairs(np.nonzero((lay.link == link) & ok)[0])]
+    if not ratios:
+        return det
+    off = det.scale_mm_per_px * abs(float(np.median(ratios)) - 1)
+    return dataclasses.replace(det, scale_sigma=off) if off > det.scale_sigma else det
+
+
+def _pairs(idx):
+    """Every unordered pair of ``idx``."""
+    return [(int(a), int(b)) for k, a in enumerate(idx) for b in idx[k + 1:]]
+
+
+def _most_confirmed(dets: list) -> Detection:
+    """Of detections at the scales of different bands, the one with the most corners ``ok`` (the first on a
+    tie). A corner is ok where its link's lengths agree within their tolerance, so another band's
+    detection with corners ok at a scale that differs is as well confirmed: the scale's σ is at least
+    that difference."""
+    best = max(dets, key=lambda d: d.n_ok)                # max keeps the first of equals
+    if not best.n_ok:
+        return best
+    other = [abs(d.scale_mm_per_px - best.scale_mm_per_px) for d in dets if d.n_ok and d is not best]
+    if not other or max(other) <= best.scale_sigma:
+        return best
+    return dataclasses.replace(best, scale_sigma=float(max(other)))
+
+
+def _at_rough_scale(gray, geom, opts, rough, *, sgn, base, cache):
+    """One detection from the band ``rough`` found: its width measured along the centreline, or next to
+    the corners of a detection at the rough scale."""
+    H, W = gray.shape
+    R = geom.outer_radius
     scale = _scale_extra(_band_widths(gray, geom, opts, rough), R)
     if scale is not None:
         px_per_m, extra = scale
@@ -456,7 +507,7 @@ def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
             det = alt if alt.n_ok else det
     else:
         det = _scale_via_corners(gray, geom, opts, rough, sgn=sgn, base=base, cache=cache)
-    return _unconfirmed_scale(det)
+    return det
 
 
 def _unconfirmed_scale(det: Detection) -> Detection:

@@ -220,6 +220,15 @@ def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: floa
     return int(np.sum((nn >= 0.5 * pitch[0] * s) & (nn <= 2.2 * pitch[1] * s)))
 
 
+def plausible_radii(filled, geom, *, max_close_px: int, min_slot_px: float, max_radius_px: float) -> list:
+    """The band radii [px] of ``filled`` (:func:`radius_candidates`) the tube could have: its slots at
+    least ``min_slot_px`` wide at that scale (narrower ones cannot be seen) and the band at most
+    ``max_radius_px``."""
+    w_min, R = float(np.min(geom.slot_widths)), geom.outer_radius
+    return [rc for rc in radius_candidates(filled, max_close_px=max_close_px)
+            if w_min * rc / R >= min_slot_px and rc <= max_radius_px]
+
+
 def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_range, filled=None,
                 min_slot_px: float = 2.0, max_radius_px: float | None = None):
     """Tube radius of a silhouette [px] without knowing the scale: of the bands it shows
@@ -241,10 +250,8 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
     R = geom.outer_radius
     w, d = float(np.median(geom.slot_widths)), float(np.median(geom.slot_depths))
     best = None
-    w_min = float(np.min(geom.slot_widths))
-    for rc in radius_candidates(filled, max_close_px=max_close_px):
-        if w_min * rc / R < min_slot_px or rc > max_radius_px:
-            continue                     # slots too narrow to be seen at this scale, or a band too wide
+    for rc in plausible_radii(filled, geom, max_close_px=max_close_px, min_slot_px=min_slot_px,
+                              max_radius_px=max_radius_px):
         n = slots_along(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
                         area_range=area_range, pitch=(float(np.min(geom.pitches)), float(np.max(geom.pitches))),
                         length=geom.tip_z - geom.base_edge_z)
