@@ -4,7 +4,8 @@ The detector does **not** assume the kinematics (a detector that does looks
 perfect on images made by the same model and degrades on real geometry). It
 uses the silhouette of geometry.md ("What a camera sees") and the
 geometry's dimensions (outer radius ``R``, slot widths and depths, slot
-sides, where along a side the joints are). Stages, one module each:
+sides, where along a side the joints are). :mod:`.pipeline` runs the stages
+in order (they hand each other the records of :mod:`.records`), one module each:
 
 1. :mod:`.segment` — segment a downsampled copy: polarity (dark on light
    or light on dark) from the image border, a quadratic background surface,
@@ -16,8 +17,8 @@ sides, where along a side the joints are). Stages, one module each:
    them, found in any in-plane orientation (or stated: ``base=``); the free
    end is the tip.
 4. :mod:`.numbering`, :mod:`.corners` — number the slots from the base,
-   find the tip, first corner estimates.
-5. :mod:`.refine` — sub-pixel corners from edge profiles and line fits at
+   find the tip, first corner estimates (stages 2-4: :mod:`.locate`).
+5. :mod:`.subpixel`, :mod:`.refine` — sub-pixel corners from edge profiles and line fits at
    full resolution, only near the corners; a face seen a little from the
    side (tilt, perspective) as an ellipse arc tangent to the outer edge.
 6. :mod:`.plane` — map to the plane; check rigid-link widths, the base edge
