@@ -21,15 +21,15 @@ from .base import holder_mask
 from .dims import slot_depths, slot_widths
 from .locate import locate
 from .plane import PlaneInput, finish, link_tolerance, merge_plane_inputs
-from .records import Located, Refined, Setup
+from .records import Located, Refined, Setup, Variant
 from .result import Detection, empty_detection
 from .segment import (Segmentation, band_directions, chroma_distance, close_disk, downsample, fill_thin_lines,
                       largest_region, remove_thin)
 from .segment import segment as _segment
 from .subpixel import link_widths, refine_corners, statuses
 
-__all__ = ["VARIANTS", "colour_segmentation", "detect_at", "fill_streaks", "refine_and_finish", "segmented",
-           "streak_length"]
+__all__ = ["VARIANTS", "colour_segmentation", "detect_at", "fill_streaks", "locate_variants", "refine_and_finish",
+           "segmented", "streak_length", "variant_mask"]
 
 
 def segmented(gray, f, opts, cache: dict):
@@ -84,6 +84,53 @@ def fill_streaks(mask, length_px, *, holder_radius, bridge_px, radius_px):
 VARIANTS = ("threshold", "streaks", "colour")
 
 
+def variant_mask(name: str, seg: Segmentation, setup: Setup, cache: dict):
+    """The working-copy silhouette of one variant (:data:`VARIANTS`), or None (no colour image, or no
+    region by colour)."""
+    geom, opts, f, low_m = setup.geom, setup.opts, setup.f, setup.low_m
+    R = geom.outer_radius
+    if name == "threshold":
+        return seg.mask
+    if name == "streaks":
+        return fill_streaks(seg.mask, streak_length(geom, opts) / low_m,
+                            holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
+                            bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
+    seg_c = colour_segmentation(cache, f, opts)
+    if seg_c is None or seg_c.mask is None:
+        return None
+    # a wire or a tendon is as neutral as the tube, and a grid line as coloured: thin lines go
+    thin = min(2 * R - float(slot_depths(geom).max()), R) / low_m
+    mask = remove_thin(seg_c.mask, thin_px=thin, max_length_px=1.5 * float(slot_widths(geom).max()) / low_m)
+    # and gaps of a pixel or two closed (a backbone whose highlight mirrors the card)
+    return close_disk(mask, opts.colour_close_px) if opts.colour_close_px > 0 else mask
+
+
+def locate_variants(seg: Segmentation, shape, setup: Setup, cache: dict, *, wanted: set) -> list[Variant]:
+    """Stages 2-4 on each silhouette variant in turn (:data:`VARIANTS`), until one locates every point in
+    ``wanted``; a largest region far smaller than the tube's silhouette (option ``area_range``) is a
+    failed variant."""
+    geom, opts, low_m = setup.geom, setup.opts, setup.low_m
+    m = geom.n_points
+    exp_area = (2 * geom.outer_radius * (geom.tip_z - geom.base_edge_z)
+                - float(np.sum(slot_widths(geom) * slot_depths(geom)))) / low_m ** 2
+    tried = []
+    for name in VARIANTS:
+        mask = variant_mask(name, seg, setup, cache)
+        if mask is None:
+            break
+        region, box = largest_region(mask)
+        ratio = float(region.sum()) / exp_area
+        if ratio < opts.area_range[0] or region.mean() > 0.95:
+            got = empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is "
+                                  f"{ratio:.2f} x the tube's silhouette area (wrong geometry or camera file?)")
+        else:
+            got = locate(region, box, shape, setup, small=seg.image, dark=seg.contrast < 0)
+        tried.append(Variant(name, mask, got))
+        if isinstance(got, Located) and wanted <= got.points:
+            break
+    return tried
+
+
 def detect_at(gray, setup: Setup, *, extra, stations=False, cache=None) -> Refined:
     """Stages 1-6 at a known scale. When the silhouette does not give every slot and the tip, it is located
     again with thin background lines across the tube filled (a specular streak that splits it), then by
@@ -95,81 +142,50 @@ def detect_at(gray, setup: Setup, *, extra, stations=False, cache=None) -> Refin
     ``extra``: the Detection's scale fields (:func:`~.plane.finish`); ``stations``: the refinement's region
     also holds the tube's outline (diameter stations, no calibration); ``cache``: the working copies'
     segmentations by factor, and the colour image under ``"colour"``."""
-    geom, opts, f = setup.geom, setup.opts, setup.f
+    geom, opts = setup.geom, setup.opts
     m = geom.n_points
     cache = {} if cache is None else cache
-    shape, seg = segmented(gray, f, opts, cache)
+    shape, seg = segmented(gray, setup.f, opts, cache)
     if seg.mask is None:
         return Refined(empty_detection(m, "no_manipulator", seg.message))
-    low_m = setup.low_m
-    R = geom.outer_radius
-    exp_area = (2 * R * (geom.tip_z - geom.base_edge_z) - float(np.sum(slot_widths(geom) * slot_depths(geom)))) \
-        / low_m ** 2
     lay = notch_layout(geom)
     wanted = {i for i in range(m) if lay.kind[i] != "base"}
-    tried, masks = [], []
-    for variant in VARIANTS:
-        if variant == "threshold":
-            mask = seg.mask
-        elif variant == "streaks":
-            mask = fill_streaks(seg.mask, streak_length(geom, opts) / low_m,
-                                 holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
-                                 bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
-        else:
-            seg_c = colour_segmentation(cache, f, opts)
-            if seg_c is None or seg_c.mask is None:
-                break
-            # a wire or a tendon is as neutral as the tube, and a grid line as coloured: thin lines go
-            thin = min(2 * R - float(slot_depths(geom).max()), R) / low_m
-            mask = remove_thin(seg_c.mask, thin_px=thin, max_length_px=1.5 * float(slot_widths(geom).max()) / low_m)
-            # and gaps of a pixel or two closed (a backbone whose highlight mirrors the card)
-            mask = close_disk(mask, opts.colour_close_px) if opts.colour_close_px > 0 else mask
-        masks.append(mask)
-        region, box = largest_region(mask)
-        ratio = float(region.sum()) / exp_area
-        if ratio < opts.area_range[0] or region.mean() > 0.95:
-            tried.append(empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is "
-                                         f"{ratio:.2f} x the tube's silhouette area (wrong geometry or "
-                                         "camera file?)"))
-        else:
-            tried.append(locate(region, box, shape, setup, small=seg.image, dark=seg.contrast < 0))
-        if isinstance(tried[-1], Located) and wanted <= tried[-1].points:
-            break
-    found = [t for t in tried if isinstance(t, Located)]
+    tried = locate_variants(seg, shape, setup, cache, wanted=wanted)
+    found = [t.outcome for t in tried if isinstance(t.outcome, Located)]
     # slot counts that fit the opposite mirror flag are strong evidence: they win over an incomplete result
-    conflict = [t for t in tried if isinstance(t, Detection) and "opposite mirror flag" in t.message]
+    conflict = [t.outcome for t in tried if isinstance(t.outcome, Detection)
+                and "opposite mirror flag" in t.outcome.message]
     if not found or (conflict and not any(wanted <= t.points for t in found)):
-        return Refined((conflict or [tried[0]])[0])
-    order = sorted((k for k in range(len(tried)) if isinstance(tried[k], Located)),
-                   key=lambda k: -len(tried[k].specs))
+        return Refined((conflict or [tried[0].outcome])[0])
+    order = sorted((t for t in tried if isinstance(t.outcome, Located)), key=lambda t: -len(t.outcome.specs))
 
-    def refined(k):
+    def refined(t: Variant) -> Refined:
         # corners found on the colour silhouette are confirmed by the tube's width on it: a polished limb that
         # mirrors the backdrop is missing from it, and an edge inside the tube then passes for the outer edge
         # (and so are slots numbered without the tip, which would confirm the tube's width)
-        ctx = tried[k]
+        ctx = t.outcome
         return refine_and_finish(gray, seg, ctx, setup, extra=extra, stations=stations,
-                                 width_mask=masks[k] if VARIANTS[k] == "colour" or ctx.confirm_width else None)
+                                 width_mask=t.mask if t.name == "colour" or ctx.confirm_width else None)
 
     # the variants are refined and the corners merged point by point: each numbers each side on its own
     # evidence (the threshold one side, the colour distance the other), and a corner two variants place
     # apart is not used; a variant that located only corners already ok adds nothing and is not refined
-    outs, done = [(order[0], refined(order[0]))], set()
-    for k in order[1:]:
-        ref = outs[-1][1].refinement
+    runs, names, done = [refined(order[0])], [order[0].name], set()
+    for t in order[1:]:
+        ref = runs[-1].refinement
         if ref is not None and ref.plane_input is not None:
             done |= {i for i, st in enumerate(ref.plane_input.status) if st == "ok"}
-        if tried[k].points - done:
-            outs.append((k, refined(k)))
-    refs = [(k, run.refinement) for k, run in outs
-            if run.refinement is not None and run.refinement.plane_input is not None]
-    if len(refs) < 2:
-        return outs[0][1]
-    merged = merge_plane_inputs([ref.plane_input for _, ref in refs], [VARIANTS[k] for k, _ in refs],
+        if t.outcome.points - done:
+            runs.append(refined(t))
+            names.append(t.name)
+    keep = [q for q, run in enumerate(runs) if run.refinement is not None and run.refinement.plane_input is not None]
+    if len(keep) < 2:
+        return runs[0]
+    merged = merge_plane_inputs([runs[q].refinement.plane_input for q in keep], [names[q] for q in keep],
                                 agree_px=opts.variant_agree_w * float(slot_widths(geom).min()) * setup.px_per_m)
     det = finish(setup.camera, geom, merged, scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol,
                  link_tol=link_tolerance(geom, opts), **extra)
-    return Refined(det, dataclasses.replace(refs[0][1], plane_input=merged))
+    return Refined(det, dataclasses.replace(runs[keep[0]].refinement, plane_input=merged))
 
 
 def refine_and_finish(gray, seg, ctx: Located, setup: Setup, *, extra=None, stations=None,

@@ -1,7 +1,8 @@
 """The records the detector's stages hand each other for one image at one scale (:mod:`.pipeline` runs
 them in order): what every stage knows (:class:`Setup`), a cropped silhouette (:class:`Crop`), its parse
 (:class:`Parsed`), the corners located on the working copy (:class:`Located`), their refinement
-(:class:`Refinement`) and one run's outcome (:class:`Refined`)."""
+(:class:`Refinement`), one silhouette variant located (:class:`Variant`) and one run's outcome
+(:class:`Refined`)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from .plane import PlaneInput
 from .refine import CornerSpecs
 from .result import Detection
 
-__all__ = ["Crop", "Located", "Parsed", "Refined", "Refinement", "Setup"]
+__all__ = ["Crop", "Located", "Parsed", "Refined", "Refinement", "Setup", "Variant"]
 
 
 @dataclass(frozen=True)
@@ -217,3 +218,22 @@ class Refined:
 
     detection: Detection
     refinement: Refinement | None = None
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One silhouette variant located (:func:`.pipeline.locate_variants`).
+
+    Attributes
+    ----------
+    name : str
+        ``"threshold"``, ``"streaks"`` or ``"colour"`` (:data:`.pipeline.VARIANTS`).
+    mask : ndarray (h, w) uint8
+        Its working-copy silhouette.
+    outcome : Located or Detection
+        The corners located on it, or the Detection of a failure.
+    """
+
+    name: str
+    mask: np.ndarray
+    outcome: Located | Detection
