@@ -17,7 +17,7 @@ silhouette) lies more than 5 px from the truth. With --oracle the first estimate
 are replaced by the true corners (+2 px in u and v) before the refinement: what the refinement and the
 checks make of a perfect silhouette.
 
-The stages are recorded by wrapping the package's ``refine_and_finish`` (the detector itself is not
+The stages are recorded by wrapping ``pipeline.refine_and_finish`` (the detector itself is not
 changed; where several silhouette variants are refined, a corner counts in the furthest stage any of them
 took it to). Run:  python benchmarks/pbr_losses.py [--pbr-dir tests/data/pbr] [--oracle]
 """
@@ -37,7 +37,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))   # this checkou
 
 import notchfit.vision.detection as detection  # noqa: E402
 from notchfit.io import load_geometry, load_image  # noqa: E402
-from notchfit.vision.detection.pipeline import link_widths, statuses  # noqa: E402
+from notchfit.vision.detection import pipeline  # noqa: E402
+from notchfit.vision.detection.subpixel import link_widths, statuses  # noqa: E402
 from notchfit.vision.render.pbr import PbrTruth, score_detection  # noqa: E402
 
 STAGES = ("segmentation / outline / base", "slot mouths / numbering", "refine: no edges", "refine: sigma / shift",
@@ -67,7 +68,8 @@ class Recorder:
             specs = [dataclasses.replace(s, xy=(pts[s.point] + 2.0 - origin) / factor)
                      if vis[s.point] and np.all(np.isfinite(pts[s.point])) else s for s in specs]
             ctx = dataclasses.replace(ctx, specs=specs)
-        det, ref = self.original(gray, seg, ctx, setup, **kw)
+        run = self.original(gray, seg, ctx, setup, **kw)
+        ref = run.refinement
         # every silhouette variant that located corners is refined: the union of their corners, each in the
         # furthest stage any variant took it to, its first estimate from the first variant that located it
         self.specs = (self.specs or set()) | {s.point for s in specs}
@@ -89,15 +91,15 @@ class Recorder:
                     stage = STAGES[5]
                 old = self.stage.get(int(i), STAGES[2])
                 self.stage[int(i)] = max(old, stage, key=STAGES.index)
-        return det, ref
+        return run
 
 
 def losses(folder, oracle=False):
     """Per scene kind: a Counter of stages over the visible corners, and (lost after numbering, of them with
     the first estimate > 5 px off) per kind."""
-    rec_ = Recorder(detection.refine_and_finish)
+    rec_ = Recorder(pipeline.refine_and_finish)
     rec_.oracle = oracle
-    detection.refine_and_finish = rec_
+    pipeline.refine_and_finish = rec_
     root = Path(__file__).resolve().parent.parent
     rows = collections.defaultdict(collections.Counter)
     far = collections.defaultdict(lambda: [0, 0])
@@ -126,7 +128,7 @@ def losses(folder, oracle=False):
                     far[rec["kind"]][1] += int(np.linalg.norm(rec_.first[i] - truth.points_px[i]) > 5)
                 rows[rec["kind"]][stage] += 1
     finally:
-        detection.refine_and_finish = rec_.original
+        pipeline.refine_and_finish = rec_.original
     return rows, far
 
 

@@ -499,7 +499,7 @@ def test_link_width_beside_a_corner_tells_an_inner_edge_from_the_outer_one():
     highlight's boundary where the polished limb mirrors the backdrop) finds it 20 % narrower."""
     from types import SimpleNamespace
 
-    from notchfit.vision.detection.pipeline import link_widths
+    from notchfit.vision.detection.subpixel import link_widths
 
     f, R_px, m_per_px = 2, 20.0, 1e-5
     mask = np.zeros((100, 100), np.uint8)
@@ -570,7 +570,7 @@ def _plane_input(status, pts, cov_px=0.1):
 def test_silhouette_variants_merged_point_by_point_and_a_dispute_is_never_numbered():
     """Two variants each number one side (known answer: the union), agree on a shared corner (the smaller
     covariance is kept), and give point 4 to corners a slot width apart: neither is trusted."""
-    from notchfit.vision.detection.pipeline import merge_plane_inputs
+    from notchfit.vision.detection.plane import merge_plane_inputs
 
     nan = [np.nan, np.nan]
     a = _plane_input(["ok", "ok", "occluded", "ok", "occluded"], [[10, 0], [20, 0], nan, [40, 0], nan], 0.2)
@@ -636,10 +636,10 @@ def test_a_ramp_many_blur_widths_wide_is_not_an_edge_and_its_corner_is_withheld(
     face seen from the side whose two rims 3 px apart widen its rise to 3.2 px (edge_spread's business: a
     wider σ, not a lost corner), and a polished limb shaded into the backdrop it mirrors (rise 16 px, the
     chuck_full render's): only the ramp is flagged, also where ramps are most of the edges (the sharp
-    edges are the lower quartile, not the median). pipeline.statuses then withholds the ramp's corner."""
+    edges are the lower quartile, not the median). subpixel.statuses then withholds the ramp's corner."""
     from types import SimpleNamespace
 
-    from notchfit.vision.detection.pipeline import statuses
+    from notchfit.vision.detection.subpixel import statuses
     from notchfit.vision.detection.refine import wide_edges
 
     rng = np.random.default_rng(8)

@@ -4,7 +4,8 @@ The detector does **not** assume the kinematics (a detector that does looks
 perfect on images made by the same model and degrades on real geometry). It
 uses the silhouette of geometry.md ("What a camera sees") and the
 geometry's dimensions (outer radius ``R``, slot widths and depths, slot
-sides, where along a side the joints are). Stages, one module each:
+sides, where along a side the joints are). :mod:`.pipeline` runs the stages
+in order (they hand each other the records of :mod:`.records`), one module each:
 
 1. :mod:`.segment` — segment a downsampled copy: polarity (dark on light
    or light on dark) from the image border, a quadratic background surface,
@@ -16,8 +17,8 @@ sides, where along a side the joints are). Stages, one module each:
    them, found in any in-plane orientation (or stated: ``base=``); the free
    end is the tip.
 4. :mod:`.numbering`, :mod:`.corners` — number the slots from the base,
-   find the tip, first corner estimates.
-5. :mod:`.refine` — sub-pixel corners from edge profiles and line fits at
+   find the tip, first corner estimates (stages 2-4: :mod:`.locate`).
+5. :mod:`.subpixel`, :mod:`.refine` — sub-pixel corners from edge profiles and line fits at
    full resolution, only near the corners; a face seen a little from the
    side (tilt, perspective) as an ellipse arc tangent to the outer edge.
 6. :mod:`.plane` — map to the plane; check rigid-link widths, the base edge
@@ -48,19 +49,20 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ...physics.geometry import Geometry, notch_layout
+from ...physics.geometry import Geometry
 from ...imaging import to_gray
 from ...units import MM
 from .options import DetectorOptions
 from .overlay import draw_overlay, overlay_with_crop
-from .pipeline import Located, Setup, link_tolerance, locate, merge_plane_inputs, refine_and_finish
-from .plane import finish
+from .pipeline import detect_at
+from .pipeline import segmented as _segmented
+from .pipeline import streak_length as _streak_length
+from .plane import finish, link_tolerance
+from .records import Setup
 from .result import STATUSES, Detection, detections_table, empty_detection
-from .base import holder_mask
 from .dims import slot_depths, slot_widths
-from .segment import (Segmentation, band_directions, chroma_distance, close_disk, downsample, fill_holes,
-                      fill_thin_lines, largest_region, remove_thin)
-from .segment import segment as _segment
+from .segment import Segmentation, band_directions, fill_holes, fill_thin_lines, largest_region
+from .subpixel import edge_stations as _stations
 from .view import DiameterScale, mirror_without_camera, view_orientation
 from .width import band_centreline, band_width, measure_diameter, plausible_radii, trim_box, tube_radius
 
@@ -150,9 +152,8 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
     px_per_m, sgn = view_orientation(camera, (H, W), mirror)
     f = work_factor(geom, px_per_m, opts)
     extra = {"scale_mm_per_px": 1.0 / (px_per_m * MM), "scale_sigma": 0.0}
-    det, _ = _detect_at(gray, Setup(camera, geom, opts, f, px_per_m, sgn, base), extra=extra,
-                        cache={"colour": colour})
-    return det
+    return detect_at(gray, Setup(camera, geom, opts, f, px_per_m, sgn, base), extra=extra,
+                     cache={"colour": colour}).detection
 
 
 def work_factor(geom: Geometry, px_per_m: float, opts: DetectorOptions) -> int:
@@ -163,156 +164,12 @@ def work_factor(geom: Geometry, px_per_m: float, opts: DetectorOptions) -> int:
     return max(1, int(round(r)))
 
 
-def _segmented(gray, f, opts, cache: dict):
-    """Downsampled copy (cached per factor), its segmentation and largest region."""
-    H, W = gray.shape
-    if H // f < 16 or W // f < 16:
-        raise ValueError(f"image too small: {W}x{H} px")
-    if f not in cache:
-        small = downsample(gray, f)
-        seg = _segment(small, min_snr=opts.min_snr, noise_scale=f, level=opts.segment_level,
-                       full=gray if f > 1 else None)
-        cache[f] = (small.shape, seg)
-    return cache[f]
+def _detect_at(gray, setup: Setup, **kw):
+    """:func:`.pipeline.detect_at` as (Detection, Refinement or None), the form the no-camera scale path
+    below reads."""
+    run = detect_at(gray, setup, **kw)
+    return run.detection, run.refinement
 
-
-def _colour_segmentation(cache, f: int, opts) -> Segmentation | None:
-    """The segmentation of the working copy's distance from the backdrop's colour (:func:`chroma_distance`):
-    a shadow or shading on a coloured card keeps its colour, a neutral metal tube does not. None for a gray
-    image."""
-    colour = cache.get("colour")
-    if colour is None:
-        return None
-    return _segment(chroma_distance(downsample(colour, f)), min_snr=opts.min_snr, noise_scale=f,
-                    level=opts.segment_level)
-
-
-def _streak_length(geom, opts) -> float:
-    """Longest background line filled across the tube [m]: ``streak_fill_R`` R, but short enough that a
-    segment 25° off the direction across the tube cannot span a slot (1.5 w)."""
-    return min(opts.streak_fill_R * geom.outer_radius, 1.5 * float(slot_widths(geom).min()))
-
-
-def _fill_streaks(mask, length_px, *, holder_radius, bridge_px, radius_px):
-    """:func:`fill_thin_lines` across the tube (a streak along it, not a slot's mouth), except next to the
-    holder (the corners where the tube meets it stay sharp); computed in the box around the largest region."""
-    _, (x0, y0, bw, bh) = largest_region(mask)
-    pad = int(2 * max(bridge_px, radius_px, length_px)) + 4
-    X0, Y0 = max(x0 - pad, 0), max(y0 - pad, 0)
-    X1, Y1 = min(x0 + bw + pad, mask.shape[1]), min(y0 + bh + pad, mask.shape[0])
-    crop = np.ascontiguousarray(mask[Y0:Y1, X0:X1])
-    filled = mask.copy()
-    filled[Y0:Y1, X0:X1] = fill_thin_lines(crop, length_px, across=band_directions(crop, bridge_px, radius_px))
-    region, _ = largest_region(filled)
-    holder = holder_mask(region, holder_radius, regrow=False)
-    if holder.any():
-        near = cv2.dilate(holder, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(length_px) + 5,) * 2))
-        filled = np.where(near > 0, mask, filled).astype(np.uint8)
-    return filled
-
-
-#: The silhouettes :func:`_detect_at` tries, in order: the threshold, with thin streaks filled, by colour.
-_VARIANTS = ("threshold", "streaks", "colour")
-
-
-def _detect_at(gray, setup: Setup, *, extra, stations=False, cache=None):
-    """Stages 1-6 at a known scale. When the silhouette does not give every slot and the tip, it is located
-    again with thin background lines across the tube filled (a specular streak that splits it), then by
-    colour; every variant that located a corner not yet ``ok`` on an earlier one is refined, and their
-    corners are merged point by point (:func:`~.pipeline.merge_plane_inputs`). Returns (Detection, refinement or None: the refinement of the
-    variant that located the most corners, carrying the merged corners)."""
-    geom, opts, f = setup.geom, setup.opts, setup.f
-    m = geom.n_points
-    cache = {} if cache is None else cache
-    shape, seg = _segmented(gray, f, opts, cache)
-    if seg.mask is None:
-        return empty_detection(m, "no_manipulator", seg.message), None
-    low_m = setup.low_m
-    R = geom.outer_radius
-    exp_area = (2 * R * (geom.tip_z - geom.base_edge_z) - float(np.sum(slot_widths(geom) * slot_depths(geom)))) \
-        / low_m ** 2
-    lay = notch_layout(geom)
-    wanted = {i for i in range(m) if lay.kind[i] != "base"}
-    tried, masks = [], []
-    for variant in _VARIANTS:
-        if variant == "threshold":
-            mask = seg.mask
-        elif variant == "streaks":
-            mask = _fill_streaks(seg.mask, _streak_length(geom, opts) / low_m,
-                                 holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
-                                 bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
-        else:
-            seg_c = _colour_segmentation(cache, f, opts)
-            if seg_c is None or seg_c.mask is None:
-                break
-            # a wire or a tendon is as neutral as the tube, and a grid line as coloured: thin lines go
-            thin = min(2 * R - float(slot_depths(geom).max()), R) / low_m
-            mask = remove_thin(seg_c.mask, thin_px=thin, max_length_px=1.5 * float(slot_widths(geom).max()) / low_m)
-            # and gaps of a pixel or two closed (a backbone whose highlight mirrors the card)
-            mask = close_disk(mask, opts.colour_close_px) if opts.colour_close_px > 0 else mask
-        masks.append(mask)
-        region, box = largest_region(mask)
-        ratio = float(region.sum()) / exp_area
-        if ratio < opts.area_range[0] or region.mean() > 0.95:
-            tried.append(empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is "
-                                         f"{ratio:.2f} x the tube's silhouette area (wrong geometry or "
-                                         "camera file?)"))
-        else:
-            tried.append(locate(region, box, shape, setup, small=seg.image, dark=seg.contrast < 0))
-        if isinstance(tried[-1], Located) and wanted <= tried[-1].points:
-            break
-    found = [t for t in tried if isinstance(t, Located)]
-    # slot counts that fit the opposite mirror flag are strong evidence: they win over an incomplete result
-    conflict = [t for t in tried if isinstance(t, Detection) and "opposite mirror flag" in t.message]
-    if not found or (conflict and not any(wanted <= t.points for t in found)):
-        return (conflict or [tried[0]])[0], None
-    order = sorted((k for k in range(len(tried)) if isinstance(tried[k], Located)),
-                   key=lambda k: -len(tried[k].specs))
-
-    def refined(k):
-        # corners found on the colour silhouette are confirmed by the tube's width on it: a polished limb that
-        # mirrors the backdrop is missing from it, and an edge inside the tube then passes for the outer edge
-        # (and so are slots numbered without the tip, which would confirm the tube's width)
-        ctx = tried[k]
-        return refine_and_finish(gray, seg, ctx, setup, extra=extra, stations=stations,
-                                 width_mask=masks[k] if _VARIANTS[k] == "colour" or ctx.confirm_width else None)
-
-    # the variants are refined and the corners merged point by point: each numbers each side on its own
-    # evidence (the threshold one side, the colour distance the other), and a corner two variants place
-    # apart is not used; a variant that located only corners already ok adds nothing and is not refined
-    outs, done = [(order[0], *refined(order[0]))], set()
-    for k in order[1:]:
-        ref = outs[-1][2]
-        if ref is not None and ref.plane_input is not None:
-            done |= {i for i, st in enumerate(ref.plane_input.status) if st == "ok"}
-        if tried[k].points - done:
-            outs.append((k, *refined(k)))
-    refs = [(k, ref) for k, _, ref in outs if ref is not None and ref.plane_input is not None]
-    if len(refs) < 2:
-        return outs[0][1], outs[0][2]
-    merged = merge_plane_inputs([ref.plane_input for _, ref in refs], [_VARIANTS[k] for k, _ in refs],
-                                agree_px=opts.variant_agree_w * float(slot_widths(geom).min()) * setup.px_per_m)
-    det = finish(setup.camera, geom, merged, scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol,
-                 link_tol=link_tolerance(geom, opts), **extra)
-    return det, dataclasses.replace(refs[0][1], plane_input=merged)
-
-
-def _stations(ref, n_per_edge, sgn):
-    """Points on the straight outer edge next to every ok corner, with the unit normal into the tube (S, 4)."""
-    sp = ref.specs
-    K = len(sp.C)
-    rows = []
-    for k in np.nonzero(ref.ok)[0]:
-        for e, (D, L, face) in enumerate(((-sp.Din[k], sp.Lin[k], sp.face[k]), (sp.Dout[k], sp.Lout[k],
-                                                                                 sp.face[K + k]))):
-            if face or not np.isfinite(L) or L < 8:
-                continue
-            trav = sp.Din[k] if e == 0 else sp.Dout[k]
-            inward = -sgn * np.array([trav[1], -trav[0]])
-            for s in np.linspace(0.3, 0.7, n_per_edge) * L:
-                P = sp.C[k] + s * D
-                rows.append([P[0], P[1], inward[0], inward[1]])
-    return np.array(rows).reshape(-1, 4)
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,7 @@ class Numbering:
         A one-sided tube's slots numbered without its tip: no tip pair ``2R``
         apart confirms that the silhouette is the whole tube (half of it, split
         along a highlight, has consistent corners on an inner edge), so each
-        corner's link must be ``2R`` wide beside it (``pipeline.link_widths``).
+        corner's link must be ``2R`` wide beside it (``subpixel.link_widths``).
     """
 
     right: list

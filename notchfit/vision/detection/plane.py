@@ -9,6 +9,7 @@ face is not the base edge and the base points are hidden (``occluded``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -226,3 +227,62 @@ def finish(camera, geom, p: PlaneInput, *, scale_tol, base_edge_tol, check_base=
                                 + (" ..." if len(bad) > 20 else "")])
     return Detection(plane, pts_px, sigma, tuple(status), ist, text, p.contour_px, float(blur), base_side=p.side,
                      **extra)
+
+
+def link_tolerance(geom, opts):
+    """(relative, absolute [m]) tolerance of the rigid-link check, or None at a rough scale (no checks)."""
+    if not math.isfinite(opts.scale_tol):
+        return None
+    return opts.link_rel_tol, opts.link_abs_w * float(slot_widths(geom).min())
+
+
+def merge_plane_inputs(inputs, names, *, agree_px: float) -> PlaneInput:
+    """The refined corners of several silhouette variants, point by point (each variant numbers each side of
+    the tube on its own evidence: its base or tip corner agrees with that side's slots).
+
+    A point ``ok`` on one variant is taken from it; ``ok`` on several, from the one with the smallest
+    covariance when all put it within ``agree_px`` [px] of each other, else it is ``ambiguous`` (two
+    variants gave that number to different corners: neither is trusted). A point ``ok`` nowhere keeps the
+    first variant's status (``ambiguous`` from another where the first has it ``occluded``). The overlay's
+    outline, the base side and the blur are the first variant's.
+
+    Parameters
+    ----------
+    inputs : list of PlaneInput
+        One per variant, the first the variant that located the most corners.
+    names : list of str
+        The variants' names (the message says which gave what).
+    agree_px : float
+        Largest distance between two variants' positions of one corner [px].
+
+    Returns
+    -------
+    PlaneInput
+    """
+    first = inputs[0]
+    pts_px, ideal, cov = first.pts_px.copy(), first.ideal.copy(), first.cov.copy()
+    status = list(first.status)
+    msg = list(first.messages)
+    taken, disputed = {}, []
+    for i in range(len(status)):
+        oks = [k for k, p in enumerate(inputs) if p.status[i] == "ok"]
+        if not oks:
+            amb = [k for k, p in enumerate(inputs) if p.status[i] == "ambiguous"]
+            if status[i] == "occluded" and amb:
+                status[i], pts_px[i] = "ambiguous", inputs[amb[0]].pts_px[i]
+            continue
+        P = np.array([inputs[k].pts_px[i] for k in oks])
+        if np.max(np.linalg.norm(P[:, None] - P[None], axis=2)) > agree_px:
+            status[i], pts_px[i], ideal[i], cov[i] = "ambiguous", P[0], np.nan, np.nan
+            disputed.append(i)
+            continue
+        k = min(oks, key=lambda q: float(np.trace(inputs[q].cov[i])))
+        status[i], pts_px[i], ideal[i], cov[i] = "ok", inputs[k].pts_px[i], inputs[k].ideal[i], inputs[k].cov[i]
+        if k:
+            taken.setdefault(names[k], []).append(i + 1)
+    for name, pts in taken.items():
+        msg.append(f"points {', '.join(map(str, pts))} from the {name} silhouette")
+    if disputed:
+        msg.append(f"points {', '.join(str(i + 1) for i in disputed)} are placed differently by two silhouettes: "
+                   "not used")
+    return PlaneInput(pts_px, ideal, cov, status, msg, first.blur, first.contour_px, first.side)
