@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ...physics.geometry import Geometry
+from ...physics.geometry import Geometry, notch_layout
 from ...imaging import to_gray
 from ...units import MM
 from .options import DetectorOptions
@@ -162,13 +162,6 @@ def work_factor(geom: Geometry, px_per_m: float, opts: DetectorOptions) -> int:
     r = min(geom.outer_radius * px_per_m / opts.work_radius_px,
             float(slot_widths(geom).min()) * px_per_m / opts.work_slot_px)
     return max(1, int(round(r)))
-
-
-def _detect_at(gray, setup: Setup, **kw):
-    """:func:`.pipeline.detect_at` as (Detection, Refinement or None), the form the no-camera scale path
-    below reads."""
-    run = detect_at(gray, setup, **kw)
-    return run.detection, run.refinement
 
 
 
@@ -355,8 +348,8 @@ def _at_rough_scale(gray, geom, opts, rough, *, sgn, base, cache):
     if scale is not None:
         px_per_m, extra = scale
         cam = DiameterScale(1 / px_per_m, (W, H))
-        det = _detect_at(gray, Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base),
-                         cache=cache, extra=extra)[0]
+        det = detect_at(gray, Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base),
+                        cache=cache, extra=extra).detection
         if det.n_ok == 0:
             # nothing confirms the band's width (shaded limbs pull its crossings inside, a profile across a
             # slot measures less): the widths next to the corners of a detection at the rough scale
@@ -385,7 +378,8 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
     # the rough scale can be a few % off: no scale or base-edge check before the measured scale
     rough_setup = Setup(DiameterScale(1 / px_per_m, (W, H)), geom,
                         opts.replace(scale_tol=math.inf, base_edge_tol=math.inf), f, px_per_m, sgn, base)
-    det, ref = _detect_at(gray, rough_setup, extra={}, stations=True, cache=cache)
+    run = detect_at(gray, rough_setup, extra={}, stations=True, cache=cache)
+    det, ref = run.detection, run.refinement
     if ref is None or not ref.ok.any():
         return det
     st = _stations(ref, opts.width_stations, sgn)
@@ -404,5 +398,4 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
         return finish(cam, geom, p, scale_tol=opts.scale_tol, base_edge_tol=opts.base_edge_tol,
                       link_tol=link_tolerance(geom, opts), **extra)
     setup = Setup(cam, geom, opts, work_factor(geom, px_per_m, opts), px_per_m, sgn, base)
-    det, _ = _detect_at(gray, setup, extra=extra, cache=cache)
-    return det
+    return detect_at(gray, setup, extra=extra, cache=cache).detection
