@@ -47,9 +47,11 @@ class Detection:
         centre for a calibrated camera).
     scale_sigma : float
         Standard uncertainty of ``scale_mm_per_px`` [mm/px]: 0 for a
-        calibrated camera (its own uncertainty is the calibration's), the
-        spread of the diameter measurements otherwise; NaN without a camera
-        file when no corner is ``ok`` (nothing confirms the band measured).
+        calibrated camera (its own uncertainty is the calibration's);
+        without a camera file the spread of the diameter measurements, at
+        least the disagreement with another band that also confirmed corners
+        and with the scale the ok corners' rigid links imply; NaN when no
+        corner is ``ok`` (nothing confirms the band measured).
     assumption : str
         How the scale was obtained, in words (empty for a calibrated camera).
     base_side : str
