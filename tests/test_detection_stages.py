@@ -443,6 +443,28 @@ def test_without_a_camera_the_face_term_assumes_a_normal_lens():
     assert cov[0, 1, 1] == pytest.approx(0.0, abs=1e-12)
 
 
+
+def test_without_a_camera_a_face_refusing_the_assumed_arc_takes_the_widest_arc_it_allows():
+    """Without a camera file the view is assumed, so sin β is only bounded by it: a longer face lying on
+    the arc of a quarter of the assumed sin β (a longer lens than the normal one assumed) refuses the assumed
+    arc; of the narrower arcs tried the widest it allows is half the assumed one (a quarter arc away from
+    the crossings, as the straight line is), so its term is 0.5 R sin β / 2, not none; with the assumed arc
+    alone (``shrink=()``, as a camera file's known view is used) the face counts as straight."""
+    from notchfit.vision.detection.refine import face_view_cov
+
+    W, H, R = 1600, 1200, 30.0
+    cam = DiameterScale(1e-5, (W, H))
+    X = np.array([[(W - 1) / 2 + 400.0, (H - 1) / 2]])
+    dd = np.array([[1.0, 0.0], [0.0, 1.0]])
+    sin_b = 400.0 / math.hypot(400.0, math.hypot(W, H))
+    u = np.arange(3.0, 50.0)
+    rng = np.random.default_rng(3)
+    pts = X[0] + np.stack([0.25 * sin_b * np.sqrt(u * (2 * R - u)), u], 1) + rng.normal(0, 0.02, (len(u), 2))
+    args = (X, dd, np.array([False, True]), np.array([True]), pts, np.ones(len(u), int))
+    cov = face_view_cov(cam, *args, radius_px=R)
+    assert cov[0, 0, 0] == pytest.approx((0.5 * R * 0.5 * sin_b) ** 2, rel=1e-9)
+    assert face_view_cov(cam, *args, radius_px=R, shrink=())[0, 0, 0] == 0.0     # the assumed arc alone
+
 def _warm_card_scene(rng):
     """A warm-grey card (BGR 150, 170, 185) under a soft shadow as dark as a neutral tube (40 % of the
     light over a band 60 px wide, soft edges), and the neutral tube (BGR 95 each, 30 px wide) beside it

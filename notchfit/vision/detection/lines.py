@@ -1,4 +1,4 @@
-"""Small numeric helpers of the detector: Otsu split, lines, grouped robust line fits."""
+"""Small numeric helpers of the detector: Otsu split, lines, grouped robust line fits, line or arc."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-__all__ = ["group_lines", "group_median", "intersect", "otsu", "pca_line", "poly2", "robust_group_lines", "unit"]
+__all__ = ["arcs_allowed", "group_lines", "group_median", "intersect", "otsu", "pca_line", "poly2", "robust_group_lines", "unit"]
 
 
 def otsu(values, bins=256):
@@ -112,3 +112,33 @@ def robust_group_lines(pts, groups, n_groups, *, k_mad=3.0, floor=0.15, n_iter=3
     t = (pts[:, 0] - c[groups, 0]) * d[groups, 0] + (pts[:, 1] - c[groups, 1]) * d[groups, 1]
     stt = np.bincount(groups, wgt * t * t, n_groups)
     return c, d, n, s2, stt, keep
+
+
+def arcs_allowed(pts, grp, X, fe, d_limb, sin_b, radius_px: float, significance: float,
+                 min_points: int = 6) -> np.ndarray:
+    """(n,) bool: whether each face's crossings (edge ``fe``, corner ``X``) fit the arc of a face seen
+    ``asin(sin_b)`` from the side, bulging either way, not significantly worse than a straight line: the
+    residual sums of ``v = v0 + c u (± sin_b g(u))`` in closed form, all faces at once."""
+    n = len(fe)
+    slot = np.full(max(int(grp.max()) + 1 if len(grp) else 0, int(fe.max()) + 1), -1)
+    slot[fe] = np.arange(n)
+    sel = slot[grp]
+    keep = sel >= 0
+    q, P = sel[keep], pts[keep] - X[sel[keep]]
+    d = d_limb[q]
+    u = np.abs(P[:, 1] * d[:, 0] - P[:, 0] * d[:, 1])
+    v = np.sum(P * d, 1)
+    near = u <= 2 * radius_px
+    q, u, v = q[near], u[near], v[near]
+    g = np.sqrt(np.clip(u * (2 * radius_px - u), 0, None))
+    S = lambda w: np.bincount(q, w, n)
+    N, Su, Suu = S(np.ones_like(u)), S(u), S(u * u)
+    det = N * Suu - Su * Su
+    rss = []
+    for t in (v, v - sin_b[q] * g, v + sin_b[q] * g):
+        St, Sut, Stt = S(t), S(u * t), S(t * t)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rss.append(Stt - (Suu * St * St - 2 * Su * St * Sut + N * Sut * Sut) / det)
+    s2 = np.maximum(rss[0] / np.maximum(N - 2, 1), 1e-6)
+    ok = np.minimum(rss[1], rss[2]) <= rss[0] + significance * s2
+    return ok | (N < min_points) | ~(det > 0)

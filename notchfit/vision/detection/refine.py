@@ -21,7 +21,8 @@ import numpy as np
 
 from ._kernels import profile_crossings, profile_levels, profile_maps
 from .edges import Crossings, Profiles, choose_edges
-from .lines import group_median, robust_group_lines, unit
+from .lines import arcs_allowed, group_median, robust_group_lines, unit
+from .view import DiameterScale
 
 __all__ = ["CornerLines", "CornerSpecs", "PassResult", "ProfileLayout", "Profiles", "corner_lines",
            "curved_face_corners", "edge_crossings", "edge_spread", "face_view_cov", "refine_pass", "sample_profiles",
@@ -551,7 +552,7 @@ def _corner_arcs(pts, grp, lines: CornerLines, curved, *, radius_px, max_u0, fit
 
 
 def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, factor: float = 0.5,
-                  significance: float = 9.0) -> np.ndarray:
+                  significance: float = 9.0, shrink: tuple = (0.5, 0.25, 0.125)) -> np.ndarray:
     """Covariance (K, 2, 2) [ideal px²] along the outer edge of corners whose circular face was fitted as a
     straight line, from how far the camera sees that face from the side.
 
@@ -569,7 +570,13 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
     sqrt(u (2R - u))`` fits them worse than the straight line by more than
     ``significance`` times their residual variance (a flat outline, as a
     silhouette drawn in the plane, is a straight line along its whole
-    length), the face is straight and the line's corner stands.
+    length), the face is straight and the line's corner stands. Without a
+    camera file (:class:`~.view.DiameterScale`) the view is an assumption
+    (a normal lens facing the plane), so ``sin β`` is only bounded by it: a
+    face whose crossings refuse the assumed arc is tried with the arc
+    narrowed by each of ``shrink`` in turn, and the widest arc they allow
+    gives the term (a longer focal length than assumed sees the face less
+    from the side; refusing the assumed arc does not make the face straight).
 
     Parameters
     ----------
@@ -603,40 +610,18 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
     ray = np.c_[X[ks], np.ones(len(ks))] @ np.linalg.inv(camera.camera_matrix).T
     with np.errstate(invalid="ignore", divide="ignore"):
         sin_b = np.abs(np.sum(ray * axis, 1)) / (np.linalg.norm(ray, axis=1) * np.linalg.norm(axis, axis=1))
-    allowed = _arcs_allowed(pts, grp, X[ks], fe, d_limb, sin_b, radius_px, significance)
+    allowed = arcs_allowed(pts, grp, X[ks], fe, d_limb, sin_b, radius_px, significance)
+    if isinstance(camera, DiameterScale):
+        assumed = sin_b
+        for f in shrink:
+            retry = ~allowed & np.isfinite(assumed)
+            if not retry.any():
+                break
+            ok = retry & arcs_allowed(pts, grp, X[ks], fe, d_limb, f * assumed, radius_px, significance)
+            sin_b, allowed = np.where(ok, f * assumed, sin_b), allowed | ok
     var = np.where(np.isfinite(sin_b) & allowed, (factor * radius_px * sin_b) ** 2, 0.0)
     out[ks] = var[:, None, None] * d_limb[:, :, None] * d_limb[:, None, :]
     return out
-
-
-def _arcs_allowed(pts, grp, X, fe, d_limb, sin_b, radius_px: float, significance: float,
-                  min_points: int = 6) -> np.ndarray:
-    """(n,) bool: whether each face's crossings (edge ``fe``, corner ``X``) fit the arc of a face seen
-    ``asin(sin_b)`` from the side, bulging either way, not significantly worse than a straight line: the
-    residual sums of ``v = v0 + c u (± sin_b g(u))`` in closed form, all faces at once."""
-    n = len(fe)
-    slot = np.full(max(int(grp.max()) + 1 if len(grp) else 0, int(fe.max()) + 1), -1)
-    slot[fe] = np.arange(n)
-    sel = slot[grp]
-    keep = sel >= 0
-    q, P = sel[keep], pts[keep] - X[sel[keep]]
-    d = d_limb[q]
-    u = np.abs(P[:, 1] * d[:, 0] - P[:, 0] * d[:, 1])
-    v = np.sum(P * d, 1)
-    near = u <= 2 * radius_px
-    q, u, v = q[near], u[near], v[near]
-    g = np.sqrt(np.clip(u * (2 * radius_px - u), 0, None))
-    S = lambda w: np.bincount(q, w, n)
-    N, Su, Suu = S(np.ones_like(u)), S(u), S(u * u)
-    det = N * Suu - Su * Su
-    rss = []
-    for t in (v, v - sin_b[q] * g, v + sin_b[q] * g):
-        St, Sut, Stt = S(t), S(u * t), S(t * t)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rss.append(Stt - (Suu * St * St - 2 * Su * St * Sut + N * Sut * Sut) / det)
-    s2 = np.maximum(rss[0] / np.maximum(N - 2, 1), 1e-6)
-    ok = np.minimum(rss[1], rss[2]) <= rss[0] + significance * s2
-    return ok | (N < min_points) | ~(det > 0)
 
 
 def _next_directions(camera, sp: CornerSpecs, c, dd, good_e, okc, Cn):
