@@ -49,7 +49,8 @@ def test_metric_angles_without_angles_is_one_line_error(tmp_path, capsys):
 
 def test_assume_step_and_one_cause(tmp_path):
     """--assume-step takes a step where experiment.toml gives no [protocol] (said as "assumed",
-    no estimate); --one-cause writes at most one cause."""
+    no estimate); --one-cause writes at most one cause; --noise-floor-only judges the baseline against
+    the noise alone (no fold prediction band in the floor)."""
     import json
 
     from notchfit.cli import main
@@ -57,8 +58,9 @@ def test_assume_step_and_one_cause(tmp_path):
     study = _small_study(tmp_path)
     out = tmp_path / "out"
     assert main(["diagnose", str(study), "--out", str(out), "--assume-step", "--one-cause", "--no-figures",
-                 "--max-folds", "2", "--causes", "proximal_friction,external_load"]) == 0
+                 "--max-folds", "2", "--causes", "proximal_friction,external_load", "--noise-floor-only"]) == 0
     d = json.loads((out / "diagnosis.json").read_text())
+    assert d["fold_band_rms_mm"] == 0.0 and d["floor_rms_mm"] == d["noise_rms_mm"]
     assert set(d["protocol"]["source"].values()) == {"assumed"}
     assert set(d["protocol"]["ramp_time_s"].values()) == {0.0}
     assert "a step was assumed" in d["protocol"]["text"]

@@ -44,6 +44,10 @@ Experiments measured as joint angles are compared in degrees (--metric:
 auto takes notch points when every experiment has them, else angles). The
 protocol is [protocol] ramp_time_s of experiment.toml; where it is absent
 the diagnosis estimates it (--assume-step: take a step instead).
+The baseline is judged against a floor of the measurement noise plus each
+fold's own prediction uncertainty (a fold that must extrapolate to the
+heaviest trial is uncertain where its training trials do not reach);
+--noise-floor-only judges it against the noise alone.
 The (model x fold) calibrations run in parallel (--jobs, or a Dask cluster
 with --scheduler); --seed seeds the noise floor's Monte Carlo draws.
 
@@ -76,6 +80,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--one-cause", action="store_true", help="name at most one cause (no second-cause step)")
     parser.add_argument("--assume-step", action="store_true",
                         help="where experiment.toml gives no [protocol], assume a step instead of estimating it")
+    parser.add_argument("--noise-floor-only", action="store_true",
+                        help="judge the baseline against the measurement noise alone, without the folds' "
+                             "prediction uncertainty")
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     add_batch_options(parser)
 
@@ -136,7 +143,7 @@ def run(args) -> int:
         diag = diagnose(exps, jobs=args.jobs, scheduler=args.scheduler, seed=args.seed,
                         causes=causes, max_folds=args.max_folds, metric=args.metric,
                         second_cause=not args.one_cause, estimate_protocol=not args.assume_step,
-                        progress=steps)
+                        fold_band=not args.noise_floor_only, progress=steps)
         steps("writing diagnosis.json and the figures")
         write_diagnosis(diag, run_.stage, figures=not args.no_figures)
     print(diag.summary())
