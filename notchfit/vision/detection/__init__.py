@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ...physics.geometry import Geometry, notch_layout
+from ...physics.geometry import Geometry
 from ...imaging import to_gray
 from ...units import MM
 from .options import DetectorOptions
@@ -57,7 +57,7 @@ from .overlay import draw_overlay, overlay_with_crop
 from .pipeline import detect_at
 from .pipeline import segmented as _segmented
 from .pipeline import streak_length as _streak_length
-from .plane import finish, link_tolerance
+from .plane import finish, link_distances, link_tolerance
 from .records import Setup
 from .result import STATUSES, Detection, detections_table, empty_detection
 from .dims import slot_depths, slot_widths
@@ -311,18 +311,12 @@ def _links_agree(det: Detection, geom: Geometry) -> Detection:
     polished tube's halo gives widths that agree with each other, and corners that pass the rigid-link
     check's tolerance, 15 %, at a scale several % off)."""
     ok = np.array([s == "ok" for s in det.status])
-    lay = notch_layout(geom)
-    ratios = [float(np.linalg.norm(det.points[i] - det.points[j]) / np.linalg.norm(lay.straight[i] - lay.straight[j]))
-              for link in np.unique(lay.link) for i, j in _pairs(np.nonzero((lay.link == link) & ok)[0])]
+    ratios = [d_meas / d_exp for pairs in link_distances(det.points, ok, geom).values()
+              for _, _, d_meas, d_exp in pairs]
     if not ratios:
         return det
     off = det.scale_mm_per_px * abs(float(np.median(ratios)) - 1)
     return dataclasses.replace(det, scale_sigma=off) if off > det.scale_sigma else det
-
-
-def _pairs(idx):
-    """Every unordered pair of ``idx``."""
-    return [(int(a), int(b)) for k, a in enumerate(idx) for b in idx[k + 1:]]
 
 
 def _most_confirmed(dets: list) -> Detection:

@@ -18,7 +18,7 @@ from ...physics.geometry import notch_layout
 from .dims import slot_widths
 from .result import Detection
 
-__all__ = ["PlaneInput", "base_edge_offset", "finish", "rigid_link_check", "to_plane_points"]
+__all__ = ["PlaneInput", "base_edge_offset", "finish", "link_distances", "rigid_link_check", "to_plane_points"]
 
 
 @dataclass(frozen=True)
@@ -81,6 +81,20 @@ def base_edge_offset(plane, ok, geom) -> float:
     return float(np.linalg.norm(plane[ib] - plane[ip]) - expect)
 
 
+def link_distances(plane, ok, geom) -> dict:
+    """Every pair of ok points on one link with its measured and straight-configuration distance:
+    ``{link: [(i, j, d_measured, d_expected), ...]}`` (i < j) [m]; the links are rigid, so the two agree
+    whatever the joint angles (geometry.md)."""
+    lay = notch_layout(geom)
+    out = {}
+    for link in np.unique(lay.link):
+        idx = [int(i) for i in np.nonzero(lay.link == link)[0] if ok[i]]
+        out[link] = [(i, j, float(np.linalg.norm(plane[i] - plane[j])),
+                      float(np.linalg.norm(lay.straight[i] - lay.straight[j])))
+                     for a, i in enumerate(idx) for j in idx[a + 1:]]
+    return out
+
+
 def rigid_link_check(plane, ok, geom, *, rel_tol: float, abs_tol: float, need_partner=()):
     """Ok points that disagree with their own link's rigid shape, and points left unconfirmed (m,) bool x 2.
 
@@ -99,15 +113,9 @@ def rigid_link_check(plane, ok, geom, *, rel_tol: float, abs_tol: float, need_pa
     lay = notch_layout(geom)
     m = len(ok)
     bad, unconfirmed = np.zeros(m, bool), np.zeros(m, bool)
-    for link in np.unique(lay.link):
+    for link, pairs in link_distances(plane, ok, geom).items():
         idx = [int(i) for i in np.nonzero(lay.link == link)[0] if ok[i]]
-        mis = {}
-        for a in range(len(idx)):
-            for b in range(a + 1, len(idx)):
-                i, j = idx[a], idx[b]
-                d_exp = float(np.linalg.norm(lay.straight[i] - lay.straight[j]))
-                d_meas = float(np.linalg.norm(plane[i] - plane[j]))
-                mis[(i, j)] = abs(d_meas - d_exp) / max(rel_tol * d_exp, abs_tol)
+        mis = {(i, j): abs(d_meas - d_exp) / max(rel_tol * d_exp, abs_tol) for i, j, d_meas, d_exp in pairs}
         live = set(idx)
         while True:
             pairs = [p for p, e in mis.items() if p[0] in live and p[1] in live]
