@@ -101,7 +101,7 @@ def run_fold(task: FoldTask) -> FoldResult:
             floor = noise_floor(prep, cal.params(task.base, prep.tube), cache, seed=task.seed)
             preds[int(i)] = (P, theta, floor)
         band = {}
-        if task.band and not task.cause:
+        if task.band:                                  # the baseline's (run_folds asks for no other)
             var = fold_band(train, cal, [task.preps[i] for i in task.test], cache=cache, scales=task.scales,
                             base=task.base, diff_step=task.calibrate_kw.get("diff_step", 2e-3))
             band = {int(i): v for i, v in zip(task.test, var)}

@@ -331,14 +331,14 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     singles = run(order, {c: base_start for c in order}) if order else {}
     held.update(singles)
     base_mse = base.sample_mse(preps)
-    base_ms = pooled_mse(base_mse)
+    base_ms, band = pooled_mse(base_mse), base.mean_band()
     noise, lof_kw = _noise(base, singles, preps), dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
     say("fitting the baseline on all experiments")
     full_base = st.protocol_fit or calibrate(preps, None, base_start[0], scales=st.scales, base=st.base, **kw)
     cands = [score_candidate(c, held[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
                              min_excess_removed=min_excess_removed) for c in order]
-    cause, lof = _lack_of_fit_first(cands, base_ms, preps, base, lof_kw, noise + base.mean_band(), none_tol)
-    first = _First(cause, sigs, cands, base_mse, noise, lof, base.mean_band())
+    cause, lof = _lack_of_fit_first(cands, base_ms, preps, base, lof_kw, noise + band, none_tol)
+    first = _First(cause, sigs, cands, base_mse, noise, lof, band)
     second = _second(st, opts, held, first, run)
     named = second.causes
     say(f"fitting the extended model ({model_key(named)}) on all experiments")
