@@ -369,9 +369,12 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
     R = geom.outer_radius
     px_per_m = rough.px_per_m / R
     f = work_factor(geom, px_per_m, opts)
-    # the rough scale can be a few % off: no scale or base-edge check before the measured scale
+    # the rough scale can be a few % off: no scale or base-edge check before the measured scale, and no search
+    # outside the silhouette's edges (how much narrower than the tube it is needs the scale; the widths are
+    # measured from the silhouette's edges)
     rough_setup = Setup(DiameterScale(1 / px_per_m, (W, H)), geom,
-                        opts.replace(scale_tol=math.inf, base_edge_tol=math.inf), f, px_per_m, sgn, base)
+                        opts.replace(scale_tol=math.inf, base_edge_tol=math.inf, outer_reach_R=0.0), f, px_per_m,
+                        sgn, base)
     run = detect_at(gray, rough_setup, extra={}, stations=True, cache=cache)
     det, ref = run.detection, run.refinement
     if ref is None or not ref.ok.any():

@@ -107,6 +107,11 @@ class DetectorOptions:
         across slot faces (whose first position is the least certain) [px],
         for a downsampling factor of 2 or less; multiplied by ``factor / 2``
         above it (the first corner estimates are as coarse as the copy).
+    outer_reach_R : float
+        How far outside the silhouette's outer edges the refinement looks
+        for the tube's end before its first pass [R] (a polished limb that
+        mirrors the backdrop, or a shaded one, is left out of the silhouette;
+        :func:`.subpixel.outer_offsets`); 0: not at all.
     iterations : int
         Refinement passes after the first.
     sigma_inflation : float
@@ -166,6 +171,7 @@ class DetectorOptions:
     profile_step_px: float = 0.5
     stage1_half_px: float = 7.0
     stage1_face_px: float = 12.0
+    outer_reach_R: float = 0.4
     iterations: int = 1
     sigma_inflation: float = 1.45
     width_stations: int = 5

@@ -205,7 +205,8 @@ def refine_and_finish(gray, seg, ctx: Located, setup: Setup, *, extra=None, stat
     specs = ctx.specs
     if specs:
         far = ctx.tube_px if stations else None
-        ref = refine_corners(gray, specs, setup, full=ctx.full, contrast=seg.contrast, extra_px=far)
+        ref = refine_corners(gray, specs, setup, full=ctx.full, contrast=seg.contrast, extra_px=far,
+                             outline_px=ctx.contour_px)
         status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
         if width_mask is not None:
             wid = link_widths(ref, width_mask, setup.f, camera, setup.px_per_m, geom.outer_radius)

@@ -54,6 +54,11 @@ class CornerSpecs:
     holder_face : ndarray (2K,) bool, optional
         Edges along a holder's face (the base corners'): their object side
         is the holder, whose shading and highlights are its own.
+    outside : ndarray (K,) bool, optional
+        Corners whose outer edge lies outside the silhouette (a polished limb
+        that mirrors the backdrop, :func:`.subpixel.outer_offsets`): next to
+        them a face's crossings are the boundary of that mirror image, so
+        they cannot tell the face's arc (:func:`face_view_cov`'s ``assume``).
     """
 
     C: np.ndarray
@@ -65,6 +70,7 @@ class CornerSpecs:
     curved: np.ndarray | None = None
     partner: np.ndarray | None = None
     holder_face: np.ndarray | None = None
+    outside: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -552,7 +558,7 @@ def _corner_arcs(pts, grp, lines: CornerLines, curved, *, radius_px, max_u0, fit
 
 
 def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, factor: float = 0.5,
-                  significance: float = 9.0, shrink: tuple = (0.5, 0.25, 0.125)) -> np.ndarray:
+                  significance: float = 9.0, shrink: tuple = (0.5, 0.25, 0.125), assume=None) -> np.ndarray:
     """Covariance (K, 2, 2) [ideal px²] along the outer edge of corners whose circular face was fitted as a
     straight line, from how far the camera sees that face from the side.
 
@@ -594,6 +600,8 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
         Undistorted edge crossings [px] and their edge 0..2K-1.
     radius_px : float
         The tube's radius [ideal px].
+    assume : ndarray (K,) bool, optional
+        Corners whose face's crossings are not asked (``CornerSpecs.outside``): the arc is assumed.
     """
     K = len(X)
     out = np.zeros((K, 2, 2))
@@ -611,6 +619,8 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
     with np.errstate(invalid="ignore", divide="ignore"):
         sin_b = np.abs(np.sum(ray * axis, 1)) / (np.linalg.norm(ray, axis=1) * np.linalg.norm(axis, axis=1))
     allowed = arcs_allowed(pts, grp, X[ks], fe, d_limb, sin_b, radius_px, significance)
+    if assume is not None:
+        allowed |= assume[ks]
     if isinstance(camera, DiameterScale):
         assumed = sin_b
         for f in shrink:
@@ -772,7 +782,7 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
         on_line = okc & np.all(X == X_line, axis=1)
         if on_line.any():
             cov_sys = cov_sys + face_view_cov(camera, X, dd, sp.curved, on_line, und, pr.edge[valid],
-                                              radius_px=radius_px, factor=view_bias)
+                                              radius_px=radius_px, factor=view_bias, assume=sp.outside)
     Cn = np.full((K, 2), np.nan)
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])

@@ -9,11 +9,13 @@ import math
 import numpy as np
 
 from ...physics.geometry import notch_layout
+from .edges import dense_profiles
 from .lines import unit
 from .records import Refinement, Setup
-from .refine import CornerSpecs, ProfileLayout, refine_pass
+from .refine import CornerSpecs, ProfileLayout, refine_pass, sample_profiles
 
-__all__ = ["edge_stations", "link_widths", "refine_corners", "statuses"]
+__all__ = ["edge_stations", "limb_edges", "link_widths", "outer_offsets", "outer_starts", "ray_exits", "refine_corners",
+           "statuses", "unexplained_cov", "width_deficits"]
 
 
 def _roi(gray, C, Din, Dout, Lin, Lout, extra, margin):
@@ -66,7 +68,160 @@ def _partners(pidx, geom) -> np.ndarray:
     return out
 
 
-def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None):
+def limb_edges(sp: CornerSpecs) -> np.ndarray:
+    """(2K,) bool: the corners' outer edges along the tube (not slot faces, not a base corner's edges: beside
+    those lie the holder's face and its rim)."""
+    K = len(sp.C)
+    out = ~np.asarray(sp.face, bool)
+    if sp.holder_face is not None:
+        out &= ~np.tile(sp.holder_face[:K] | sp.holder_face[K:], 2)
+    return out
+
+
+def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float, s_end: float = 3.0,
+                  k_sig: float = 6.0, corr_px: float = 4.0, bg_frac: float = 0.35, min_profiles: int = 8,
+                  step: float = 1.0) -> np.ndarray:
+    """How far outside each outer edge of the silhouette the tube ends [px] (2K,), 0 where it is not seen.
+
+    A silhouette is the tube's body against the backdrop; a polished limb
+    mirrors the backdrop, so a strip along the outer edge (about 0.1-0.3 R,
+    brighter, darker or as bright as the backdrop) is left out of it, and a
+    shaded limb is left out the same way. Outward of the silhouette's edge,
+    everything up to the backdrop is tube. Along a straight edge the mean of
+    its profiles shows even a faint limb (the noise averages down over the
+    edge's length): the backdrop level is the mean profile's median over its
+    outer ``bg_frac`` of ``reach_px``, and the tube ends at the outermost
+    sample nearer the silhouette whose mean departs from it by more than
+    ``k_sig`` standard errors (the profiles' spread at that sample over
+    ``sqrt(n / corr_px)``: neighbouring profiles share blur and a JPEG's
+    blocks). That is the outer foot of the tube's last step, a blur width or
+    two beyond its half-way point: a first estimate, which the refinement's
+    first pass, with profiles several blur widths long, takes from there. An edge whose backdrop window itself is not flat (a grid line, a
+    shadow's edge along it) gives 0. Slot faces (their backdrop is the slot, a
+    slot width wide) and a holder's face are not searched.
+
+    Parameters
+    ----------
+    img, off : the image region [image units] and its offset (u0, v0) [px].
+    sp : CornerSpecs
+        The corners' first estimates and edges [px].
+    sgn : float
+        Orientation sign of the outline (the profiles' normals point from the object to the background).
+    reach_px : float
+        How far outside the silhouette to look [px].
+    s0, s_end : float
+        The profiles start ``s0`` after the corner and end ``s_end`` before the edge's end [px].
+    """
+    K = len(sp.C)
+    out = np.zeros(2 * K)
+    search = ~sp.face if sp.holder_face is None else ~sp.face & ~sp.holder_face
+    if not search.any() or reach_px < 3 * step:
+        return out
+    sub = CornerSpecs(sp.C, sp.Din, sp.Dout, np.where(search[:K], sp.Lin, 0.0), np.where(search[K:], sp.Lout, 0.0),
+                      sp.face)
+    pr = sample_profiles(img, off, sub, sgn, ProfileLayout(s0, s_end, reach_px, step))
+    if pr is None:
+        return out
+    P = dense_profiles(pr.values, pr.start, pr.half, pr.n_t)
+    t = pr.t
+    full = np.isfinite(P).all(axis=1)
+    bg = t >= (1.0 - bg_frac) * reach_px
+    near = (t > 0) & ~bg
+    for e in np.nonzero(search)[0]:
+        rows = np.nonzero(full & (pr.edge == e))[0]
+        if len(rows) < min_profiles:
+            continue
+        m = P[rows].mean(axis=0)
+        se = P[rows].std(axis=0) / math.sqrt(max(len(rows) / corr_px, 1.0))
+        level = float(np.median(m[bg]))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = np.abs(m - level) / se
+        if np.any(z[bg] > k_sig):
+            continue                                 # the backdrop beside the edge is not one level
+        dep = np.nonzero(near & (z > k_sig))[0]
+        if len(dep):
+            out[e] = float(t[dep.max()])
+    return out
+
+
+def ray_exits(poly, P, u, *, min_s: float = 1.0) -> np.ndarray:
+    """Distance (n,) [px] from each point ``P`` (n, 2) along the unit direction ``u`` (n, 2) to the nearest
+    crossing of the closed polygon ``poly`` (N, 2) beyond ``min_s`` (inf: none)."""
+    A = np.asarray(poly, float)
+    B = np.roll(A, -1, axis=0)
+    E = B - A                                                         # (N, 2)
+    W = A[None, :, :] - P[:, None, :]                                 # (n, N, 2)
+    cross = lambda a, b: a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    den = cross(u[:, None, :], E[None])                               # (n, N)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = cross(W, E[None]) / den
+        r = cross(W, u[:, None, :]) / den
+    hit = (np.abs(den) > 1e-12) & (r >= 0) & (r <= 1) & (s > min_s)
+    return np.where(hit, s, np.inf).min(axis=1)
+
+
+def width_deficits(sp: CornerSpecs, sgn, outline_px, diameter_px: float, *, min_frac: float = 0.3) -> np.ndarray:
+    """How much narrower than the tube (``diameter_px``) the silhouette ``outline_px`` (N, 2) is across each
+    edge (2K,) [px], halfway along its usable length (at most a radius from the corner): from the edge inward
+    to the outline's far side, at least ``min_frac`` diameters away (the edge's own side is crossed next to
+    the start); NaN where no ray crosses it."""
+    K = len(sp.C)
+    trav = np.concatenate([sp.Din, sp.Dout])
+    nrm = sgn * np.stack([trav[:, 1], -trav[:, 0]], axis=1)
+    along = np.concatenate([-sp.Din, sp.Dout])
+    L = np.nan_to_num(np.concatenate([sp.Lin, sp.Lout]))
+    P = np.concatenate([sp.C, sp.C]) + np.minimum(0.5 * L, 0.5 * diameter_px)[:, None] * along
+    w = ray_exits(outline_px, P, -nrm, min_s=min_frac * diameter_px)
+    return np.where(np.isfinite(w), diameter_px - w, np.nan)
+
+
+def outer_starts(sp: CornerSpecs, offsets, sgn, *, min_move: float, deficit=None) -> np.ndarray:
+    """First estimates (K, 2) [px] with each corner's outer edges moved out by ``offsets`` (2K,)
+    (:func:`outer_offsets`) where that exceeds ``min_move`` [px] (the silhouette's own resolution): the corner
+    is where the moved lines meet. A first estimate only: the refinement measures the corner. ``deficit``
+    (2K,) [px]: how much narrower than the tube the silhouette is across each edge (:func:`width_deficits`);
+    an edge moves at most that: a silhouette as wide as the tube misses no limb, and
+    what lies outside it is the backdrop's own (a cast shadow)."""
+    K = len(sp.C)
+    trav = np.concatenate([sp.Din, sp.Dout])
+    nrm = sgn * np.stack([trav[:, 1], -trav[:, 0]], axis=1)          # object -> background
+    if deficit is not None:
+        offsets = np.minimum(offsets, np.where(np.isfinite(deficit), np.maximum(deficit, 0.0), 0.0))
+    d = np.where(offsets > min_move, offsets, 0.0)
+    C = sp.C.copy()
+    for k in np.nonzero((d[:K] > 0) | (d[K:] > 0))[0]:
+        A = np.stack([nrm[k], nrm[K + k]])
+        if abs(np.linalg.det(A)) > 0.5:                               # edges at least 30 deg apart
+            C[k] = sp.C[k] + np.linalg.solve(A, np.array([d[k], d[K + k]]))
+    return C
+
+
+def unexplained_cov(sp: CornerSpecs, sgn, offsets, deficit, *, resolution: float) -> np.ndarray:
+    """Covariance (K, 2, 2) [px²] of each corner from the part of its silhouette's missing width that its
+    outer edges' search did not find.
+
+    Where the silhouette is narrower than the tube by ``deficit`` (2K,) [px] across an outer edge and the
+    tube was seen to end ``offsets`` (2K,) [px] outside it (:func:`outer_offsets`; the other side's limb
+    taken to miss as much, the same surface in the same light), the rest, less the silhouette's
+    ``resolution`` [px], is a limb neither the silhouette nor the search saw (a polished limb as bright as
+    the backdrop it mirrors): that edge lies anywhere over it, a uniform offset of variance ``rest² / 12``
+    along its normal, carried to the corner by the two edges' intersection. 0 where nothing is missing.
+    """
+    K = len(sp.C)
+    rest = np.nan_to_num(deficit, nan=0.0) - 2.0 * np.clip(offsets, 0.0, None) - resolution
+    var = np.where(rest > 0, rest, 0.0) ** 2 / 12.0
+    out = np.zeros((K, 2, 2))
+    trav = np.concatenate([sp.Din, sp.Dout])
+    nrm = sgn * np.stack([trav[:, 1], -trav[:, 0]], axis=1)
+    for k in np.nonzero((var[:K] > 0) | (var[K:] > 0))[0]:
+        A = np.stack([nrm[k], nrm[K + k]])
+        if abs(np.linalg.det(A)) > 0.5:
+            J = np.linalg.inv(A)
+            out[k] = J @ np.diag([var[k], var[K + k]]) @ J.T
+    return out
+
+
+def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, outline_px=None):
     """Stage 5 for all corners: first pass with long profiles, then passes sized by the measured blur.
 
     Returns
@@ -86,6 +241,20 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None):
     margin = 2 * max(opts.stage1_half_px, opts.stage1_face_px) * kf + 10
     extra = np.zeros((0, 2)) if extra_px is None else extra_px
     img, off = _roi(gray, sp.C, sp.Din, sp.Dout, sp.Lin, sp.Lout, extra, margin)
+    cov_missing = np.zeros((len(sp.C), 2, 2))
+    if opts.outer_reach_R > 0:
+        # the silhouette misses a polished or shaded limb: the first estimates start where the tube ends
+        offs = outer_offsets(img, off, sp, sgn, reach_px=opts.outer_reach_R * radius_px, s0=5.0 * kf)
+        short = None if outline_px is None else width_deficits(sp, sgn, outline_px, 2.0 * radius_px)
+        C1 = outer_starts(sp, offs, sgn, min_move=float(setup.f), deficit=short)
+        sp.outside = np.any(C1 != sp.C, axis=1)
+        sp.C = C1
+        if short is not None:
+            # both limbs miss at most the search's reach: a larger deficit is not a link's width
+            # (and a slot face's or a base corner's ray does not cross a link)
+            sure = np.where(limb_edges(sp) & (short > 0) & (short <= 2 * opts.outer_reach_R * radius_px), short, np.nan)
+            cov_missing = unexplained_cov(sp, sgn, np.minimum(offs, np.nan_to_num(sure, nan=0.0)), sure,
+                                          resolution=float(setup.f))
     bl = 1.0
     for it in range(1 + opts.iterations):
         if it == 0:
@@ -105,7 +274,8 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None):
     shift = np.linalg.norm(sp.C - C0, axis=1)
     sig_px = np.sqrt(np.maximum(np.trace(res.cov, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
     # the reported covariance adds what the edges' own profiles show (two rims of a face seen from the side)
-    return Refinement(pidx, sp.C, res.X, res.cov + res.cov_sys / opts.sigma_inflation ** 2, res.ok, shift, bl,
+    cov_sys = res.cov_sys + cov_missing
+    return Refinement(pidx, sp.C, res.X, res.cov + cov_sys / opts.sigma_inflation ** 2, res.ok, shift, bl,
                       sig_px, sp, img, off, kf, wide=res.wide)
 
 
