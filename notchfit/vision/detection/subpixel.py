@@ -69,18 +69,15 @@ def _partners(pidx, geom) -> np.ndarray:
 
 
 def limb_edges(sp: CornerSpecs) -> np.ndarray:
-    """(2K,) bool: the corners' outer edges along the tube (not slot faces, not a base corner's edges: beside
-    those lie the holder's face and its rim)."""
-    K = len(sp.C)
+    """(2K,) bool: the corners' outer edges along the tube: not slot faces (their backdrop is the slot) nor
+    a holder's face."""
     out = ~np.asarray(sp.face, bool)
-    if sp.holder_face is not None:
-        out &= ~np.tile(sp.holder_face[:K] | sp.holder_face[K:], 2)
-    return out
+    return out if sp.holder_face is None else out & ~sp.holder_face
 
 
 def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float, s_end: float = 3.0,
                   k_sig: float = 6.0, corr_px: float = 4.0, bg_frac: float = 0.35, min_profiles: int = 8,
-                  step: float = 1.0) -> np.ndarray:
+                  step: float = 1.0, only=None) -> np.ndarray:
     """How far outside each outer edge of the silhouette the tube ends [px] (2K,), 0 where it is not seen.
 
     A silhouette is the tube's body against the backdrop; a polished limb
@@ -96,9 +93,9 @@ def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float,
     ``sqrt(n / corr_px)``: neighbouring profiles share blur and a JPEG's
     blocks). That is the outer foot of the tube's last step, a blur width or
     two beyond its half-way point: a first estimate, which the refinement's
-    first pass, with profiles several blur widths long, takes from there. An edge whose backdrop window itself is not flat (a grid line, a
-    shadow's edge along it) gives 0. Slot faces (their backdrop is the slot, a
-    slot width wide) and a holder's face are not searched.
+    first pass, with profiles several blur widths long, takes from there. An
+    edge whose backdrop window itself is not flat (a grid line, a shadow's
+    edge along it) gives 0. Only :func:`limb_edges` are searched.
 
     Parameters
     ----------
@@ -111,10 +108,14 @@ def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float,
         How far outside the silhouette to look [px].
     s0, s_end : float
         The profiles start ``s0`` after the corner and end ``s_end`` before the edge's end [px].
+    only : ndarray (2K,) bool, optional
+        The edges to search (default every outer edge).
     """
     K = len(sp.C)
     out = np.zeros(2 * K)
-    search = ~sp.face if sp.holder_face is None else ~sp.face & ~sp.holder_face
+    search = limb_edges(sp)
+    if only is not None:
+        search &= only
     if not search.any() or reach_px < 3 * step:
         return out
     sub = CornerSpecs(sp.C, sp.Din, sp.Dout, np.where(search[:K], sp.Lin, 0.0), np.where(search[K:], sp.Lout, 0.0),
@@ -127,20 +128,26 @@ def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float,
     full = np.isfinite(P).all(axis=1)
     bg = t >= (1.0 - bg_frac) * reach_px
     near = (t > 0) & ~bg
-    for e in np.nonzero(search)[0]:
-        rows = np.nonzero(full & (pr.edge == e))[0]
-        if len(rows) < min_profiles:
-            continue
-        m = P[rows].mean(axis=0)
-        se = P[rows].std(axis=0) / math.sqrt(max(len(rows) / corr_px, 1.0))
-        level = float(np.median(m[bg]))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            z = np.abs(m - level) / se
-        if np.any(z[bg] > k_sig):
-            continue                                 # the backdrop beside the edge is not one level
-        dep = np.nonzero(near & (z > k_sig))[0]
-        if len(dep):
-            out[e] = float(t[dep.max()])
+    # every edge's mean profile and its standard error at once (the profiles come edge by edge)
+    e_r, P = pr.edge[full], P[full]
+    n = np.bincount(e_r, minlength=2 * K).astype(float)
+    edges = np.nonzero(search & (n >= min_profiles))[0]
+    if not len(edges):
+        return out
+    first, ends = np.searchsorted(e_r, edges), np.searchsorted(e_r, edges, side="right")
+    cs1 = np.vstack([np.zeros(P.shape[1]), np.cumsum(P, axis=0)])
+    cs2 = np.vstack([np.zeros(P.shape[1]), np.cumsum(P * P, axis=0)])
+    ne = n[edges][:, None]
+    m = (cs1[ends] - cs1[first]) / ne
+    var = np.maximum((cs2[ends] - cs2[first]) / ne - m * m, 0.0)
+    se = np.sqrt(var) / np.sqrt(np.maximum(ne / corr_px, 1.0))
+    level = np.median(m[:, bg], axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = np.abs(m - level[:, None]) / se
+    flat = ~np.any(z[:, bg] > k_sig, axis=1)        # else the backdrop beside the edge is not one level
+    dep = near[None, :] & (z > k_sig)
+    last = np.where(dep.any(axis=1), t[dep.shape[1] - 1 - np.argmax(dep[:, ::-1], axis=1)], 0.0)
+    out[edges] = np.where(flat, last, 0.0)
     return out
 
 
@@ -162,17 +169,22 @@ def ray_exits(poly, P, u, *, min_s: float = 1.0) -> np.ndarray:
 
 def width_deficits(sp: CornerSpecs, sgn, outline_px, diameter_px: float, *, min_frac: float = 0.3) -> np.ndarray:
     """How much narrower than the tube (``diameter_px``) the silhouette ``outline_px`` (N, 2) is across each
-    edge (2K,) [px], halfway along its usable length (at most a radius from the corner): from the edge inward
-    to the outline's far side, at least ``min_frac`` diameters away (the edge's own side is crossed next to
-    the start); NaN where no ray crosses it."""
+    outer edge along the tube (:func:`limb_edges`) (2K,) [px], halfway along its usable length (at most a
+    radius from the corner): from the edge inward to the outline's far side, at least ``min_frac``
+    diameters away (the edge's own side is crossed next to the start); NaN where no ray crosses it or for
+    other edges."""
     K = len(sp.C)
     trav = np.concatenate([sp.Din, sp.Dout])
     nrm = sgn * np.stack([trav[:, 1], -trav[:, 0]], axis=1)
     along = np.concatenate([-sp.Din, sp.Dout])
     L = np.nan_to_num(np.concatenate([sp.Lin, sp.Lout]))
     P = np.concatenate([sp.C, sp.C]) + np.minimum(0.5 * L, 0.5 * diameter_px)[:, None] * along
-    w = ray_exits(outline_px, P, -nrm, min_s=min_frac * diameter_px)
-    return np.where(np.isfinite(w), diameter_px - w, np.nan)
+    out = np.full(2 * K, np.nan)
+    e = np.nonzero(limb_edges(sp))[0]
+    if len(e):
+        w = ray_exits(outline_px, P[e], -nrm[e], min_s=min_frac * diameter_px)
+        out[e] = np.where(np.isfinite(w), diameter_px - w, np.nan)
+    return out
 
 
 def outer_starts(sp: CornerSpecs, offsets, sgn, *, min_move: float, deficit=None) -> np.ndarray:
@@ -244,15 +256,17 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, 
     cov_missing = np.zeros((len(sp.C), 2, 2))
     if opts.outer_reach_R > 0:
         # the silhouette misses a polished or shaded limb: the first estimates start where the tube ends
-        offs = outer_offsets(img, off, sp, sgn, reach_px=opts.outer_reach_R * radius_px, s0=5.0 * kf)
         short = None if outline_px is None else width_deficits(sp, sgn, outline_px, 2.0 * radius_px)
+        # a silhouette within a working-copy pixel of the tube's width misses nothing worth a search
+        wanted = None if short is None else np.nan_to_num(short, nan=0.0) > setup.f
+        offs = outer_offsets(img, off, sp, sgn, reach_px=opts.outer_reach_R * radius_px, s0=5.0 * kf, only=wanted)
         C1 = outer_starts(sp, offs, sgn, min_move=float(setup.f), deficit=short)
         sp.outside = np.any(C1 != sp.C, axis=1)
         sp.C = C1
         if short is not None:
             # both limbs miss at most the search's reach: a larger deficit is not a link's width
-            # (and a slot face's or a base corner's ray does not cross a link)
-            sure = np.where(limb_edges(sp) & (short > 0) & (short <= 2 * opts.outer_reach_R * radius_px), short, np.nan)
+            # (and a slot face's or a holder face's ray does not cross a link)
+            sure = np.where((short > 0) & (short <= 2 * opts.outer_reach_R * radius_px), short, np.nan)
             cov_missing = unexplained_cov(sp, sgn, np.minimum(offs, np.nan_to_num(sure, nan=0.0)), sure,
                                           resolution=float(setup.f))
     bl = 1.0
