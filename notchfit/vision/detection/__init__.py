@@ -19,7 +19,8 @@ in order (they hand each other the records of :mod:`.records`), one module each:
 4. :mod:`.numbering`, :mod:`.corners` — number the slots from the base,
    find the tip, first corner estimates (stages 2-4: :mod:`.locate`).
 5. :mod:`.subpixel`, :mod:`.refine` — sub-pixel corners from edge profiles and line fits at
-   full resolution, only near the corners; a face seen a little from the
+   full resolution, only near the corners, started where the tube ends
+   (a polished limb the silhouette misses); a face seen a little from the
    side (tilt, perspective) as an ellipse arc tangent to the outer edge.
 6. :mod:`.plane` — map to the plane; check rigid-link widths, the base edge
    and every link's corners against its drawn shape (a slot numbered one
