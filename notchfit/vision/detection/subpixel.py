@@ -68,6 +68,13 @@ def _partners(pidx, geom) -> np.ndarray:
     return out
 
 
+def _outward(sp: CornerSpecs, sgn) -> np.ndarray:
+    """Unit normals (2K, 2) of every edge from the object to the background (edge e < K: corner e's incoming
+    edge, else its outgoing edge), as the refinement's profiles run."""
+    trav = np.concatenate([sp.Din, sp.Dout])
+    return sgn * np.stack([trav[:, 1], -trav[:, 0]], axis=1)
+
+
 def limb_edges(sp: CornerSpecs) -> np.ndarray:
     """(2K,) bool: the corners' outer edges along the tube: not slot faces (their backdrop is the slot) nor
     a holder's face."""
@@ -174,8 +181,7 @@ def width_deficits(sp: CornerSpecs, sgn, outline_px, diameter_px: float, *, min_
     diameters away (the edge's own side is crossed next to the start); NaN where no ray crosses it or for
     other edges."""
     K = len(sp.C)
-    trav = np.concatenate([sp.Din, sp.Dout])
-    nrm = sgn * np.stack([trav[:, 1], -trav[:, 0]], axis=1)
+    nrm = _outward(sp, sgn)
     along = np.concatenate([-sp.Din, sp.Dout])
     L = np.nan_to_num(np.concatenate([sp.Lin, sp.Lout]))
     P = np.concatenate([sp.C, sp.C]) + np.minimum(0.5 * L, 0.5 * diameter_px)[:, None] * along
@@ -195,8 +201,7 @@ def outer_starts(sp: CornerSpecs, offsets, sgn, *, min_move: float, deficit=None
     an edge moves at most that: a silhouette as wide as the tube misses no limb, and
     what lies outside it is the backdrop's own (a cast shadow)."""
     K = len(sp.C)
-    trav = np.concatenate([sp.Din, sp.Dout])
-    nrm = sgn * np.stack([trav[:, 1], -trav[:, 0]], axis=1)          # object -> background
+    nrm = _outward(sp, sgn)
     if deficit is not None:
         offsets = np.minimum(offsets, np.where(np.isfinite(deficit), np.maximum(deficit, 0.0), 0.0))
     d = np.where(offsets > min_move, offsets, 0.0)
@@ -223,8 +228,7 @@ def unexplained_cov(sp: CornerSpecs, sgn, offsets, deficit, *, resolution: float
     rest = np.nan_to_num(deficit, nan=0.0) - 2.0 * np.clip(offsets, 0.0, None) - resolution
     var = np.where(rest > 0, rest, 0.0) ** 2 / 12.0
     out = np.zeros((K, 2, 2))
-    trav = np.concatenate([sp.Din, sp.Dout])
-    nrm = sgn * np.stack([trav[:, 1], -trav[:, 0]], axis=1)
+    nrm = _outward(sp, sgn)
     for k in np.nonzero((var[:K] > 0) | (var[K:] > 0))[0]:
         A = np.stack([nrm[k], nrm[K + k]])
         if abs(np.linalg.det(A)) > 0.5:
