@@ -292,6 +292,12 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
     for a, node in ((0, 0), (C - 1, M - 1)):
         if allowed[a, node]:
             out = _agree_with_end(out, tight, allowed, wgt, anchor=a, anchor_weight=anchor_weight)
+    if allowed[C - 1, M - 1] and out:
+        # tip corners that do not fit the last slot within twice the tolerance (the bridged outline rounds a
+        # convex corner off a little) dispute it: a tendon loop's corner, or a spurious slot past a missing
+        # last one (a base corner found is often a holder's face off the base edge: it disputes nothing)
+        wide = _feasible(cands, geom, ChainTolerance(2 * tol.rel_tol, 2 * tol.abs_tol, tol.per_joint), scale)[1]
+        out = {k: u for k, u in out.items() if u != M - 2 or wide[k + 1, M - 2, C - 1, M - 1]}
     return ChainNumbers({k: int(joints[u]) for k, u in out.items()}, [k for k in range(K) if k not in out],
                         base_ok, tip_ok)
 
@@ -299,9 +305,7 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
 def _agree_with_end(out: dict, feas, allowed, wgt, *, anchor: int, anchor_weight: float) -> dict:
     """The numbers ``out`` (candidate -> node) that an end found (``anchor``: 0 the base, C - 1 the tip) does
     not dispute: a matching through the end that numbers a candidate otherwise, or gives its node to another
-    (a mirrored view, a spurious slot next to a missing one, a slot split in two); and the last slot when the
-    tip corners found do not fit it (a tendon loop's corner, or a spurious slot past a missing last one: the
-    tip corners are the tube's own, whereas a base corner found is often a holder's face off the base edge)."""
+    (a mirrored view, a spurious slot next to a missing one, a slot split in two)."""
     C, M = allowed.shape
     at = np.zeros_like(allowed)
     at[anchor, 0 if anchor == 0 else M - 1] = True
@@ -312,7 +316,5 @@ def _agree_with_end(out: dict, feas, allowed, wgt, *, anchor: int, anchor_weight
             others = np.delete(via.on[:, u], k + 1)
             if np.delete(via.on[k + 1], u).any() or others.any():
                 continue
-        if anchor == C - 1 and u == M - 2 and not feas[k + 1, M - 2, C - 1, M - 1]:
-            continue
         keep[k] = u
     return keep
