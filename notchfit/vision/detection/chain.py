@@ -93,6 +93,10 @@ class SideCandidates:
     tip: np.ndarray | None = None
     slack: np.ndarray | None = None
 
+    def slack_of(self, k: int) -> float:
+        """Candidate ``k``'s extra tolerance [unit]."""
+        return 0.0 if self.slack is None else float(self.slack[k])
+
 
 @dataclass(frozen=True)
 class ChainNumbers:
@@ -276,28 +280,40 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
             unique[k - 1] = int(us[0])
     base_ok = bool(best.on[0, 0] and not best.skipped[0])
     tip_ok = bool(best.on[C - 1, M - 1] and not best.skipped[C - 1])
+    # an end on every best matching, next to its first (last) slot in each
+    uu = np.arange(M)
+    base_next = base_ok and not best.edges[0, 0][:, uu != 1].any()
+    tip_next = tip_ok and not best.edges[:, :, C - 1, M - 1][:, uu != M - 2].any()
     # equal links repeat: a matching fits as well shifted by a joint unless an end of the chain agrees next to
     # its first (last) slot (beyond a missing slot the joints' play can reach a link's length), or every
     # joint of the side is matched (checked against the ends found below)
-    loose = feas.copy()
-    loose[0, 0, :, 1] = False
-    loose[:, M - 2, C - 1, M - 1] = False
-    held = _best(loose, allowed, wgt, start=allowed, end=allowed).score < best.score - 1e-6
+    held = base_next or tip_next
+    if not held:
+        loose = feas.copy()
+        loose[0, 0, :, 1] = False
+        loose[:, M - 2, C - 1, M - 1] = False
+        held = _best(loose, allowed, wgt, start=allowed, end=allowed).score < best.score - 1e-6
     out = dict(unique) if held or len(unique) == M - 2 == K else {}
     # an end that joins a matching of its own next to its first (last) slot disputes the numbers it gives
     # otherwise (a loose join is weak evidence: it disputes nothing)
     tight = feas.copy()
     tight[0, 0, :, 2:] = False
     tight[:, :M - 2, C - 1, M - 1] = False
-    for a, node in ((0, 0), (C - 1, M - 1)):
-        if allowed[a, node]:
+    # (an end next to its first or last slot on every best matching: a matching through it is one of those)
+    for a, node, nxt in ((0, 0, base_next), (C - 1, M - 1, tip_next)):
+        if allowed[a, node] and out and not nxt:
             out = _agree_with_end(out, tight, allowed, wgt, anchor=a, anchor_weight=anchor_weight)
-    if allowed[C - 1, M - 1] and out:
+    last = [k for k, u in out.items() if u == M - 2]
+    if cands.tip is not None and last:
         # tip corners that do not fit the last slot within twice the tolerance (the bridged outline rounds a
         # convex corner off a little) dispute it: a tendon loop's corner, or a spurious slot past a missing
         # last one (a base corner found is often a holder's face off the base edge: it disputes nothing)
-        wide = _feasible(cands, geom, ChainTolerance(2 * tol.rel_tol, 2 * tol.abs_tol, tol.per_joint), scale)[1]
-        out = {k: u for k, u in out.items() if u != M - 2 or wide[k + 1, M - 2, C - 1, M - 1]}
+        lay = notch_layout(geom)
+        nodes, _ = _nodes(geom, cands.side, lay)
+        d0 = _expected(geom, nodes[-2:], cands.side, scale, lay)[0][0, 1]
+        miss = abs(np.linalg.norm(cands.tip - cands.far[last[0]]) - d0) - cands.slack_of(last[0])
+        if miss > 2 * max(tol.rel_tol * d0, tol.abs_tol):
+            del out[last[0]]
     return ChainNumbers({k: int(joints[u]) for k, u in out.items()}, [k for k in range(K) if k not in out],
                         base_ok, tip_ok)
 
