@@ -310,9 +310,9 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
         # last one (a base corner found is often a holder's face off the base edge: it disputes nothing)
         lay = notch_layout(geom)
         nodes, _ = _nodes(geom, cands.side, lay)
-        d0 = _expected(geom, nodes[-2:], cands.side, scale, lay)[0][0, 1]
+        d0, play = (a[0, 1] for a in _expected(geom, nodes[-2:], cands.side, scale, lay))
         miss = abs(np.linalg.norm(cands.tip - cands.far[last[0]]) - d0) - cands.slack_of(last[0])
-        if miss > 2 * max(tol.rel_tol * d0, tol.abs_tol):
+        if miss > 2 * max(tol.rel_tol * d0, tol.abs_tol) + tol.per_joint * play:
             del out[last[0]]
     return ChainNumbers({k: int(joints[u]) for k, u in out.items()}, [k for k in range(K) if k not in out],
                         base_ok, tip_ok)
