@@ -109,7 +109,7 @@ class ChainNumbers:
     unnumbered : list of int
         Candidates that some best matching leaves out or numbers differently.
     base_ok, tip_ok : bool
-        The anchor agrees with the slots in every best matching.
+        The anchor is on every best matching.
     """
 
     joints: dict
@@ -286,7 +286,7 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
     tip_next = tip_ok and not best.edges[:, :, C - 1, M - 1][:, uu != M - 2].any()
     # equal links repeat: a matching fits as well shifted by a joint unless an end of the chain agrees next to
     # its first (last) slot (beyond a missing slot the joints' play can reach a link's length), or every
-    # joint of the side is matched (checked against the ends found below)
+    # joint of the side is matched (checked against the ends found below); ``loose``: no end joined next
     held = base_next or tip_next
     if not held:
         loose = feas.copy()
