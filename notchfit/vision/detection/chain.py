@@ -12,14 +12,23 @@ distance plus the most the joints between them can change it otherwise
 base corners (link 0) and the tip corners (link n) found by the outline are
 anchors that join the matching like slots (counting half a slot: a holder's
 face off the base edge is more common than a spurious gap that fits the
-chain). Of the feasible numberings, those matching the most are kept; a candidate gets a number only when
-every one of them gives it that number (a spurious gap, a missing slot, a
-hidden end link cost only the slots they touch; a shift that the chain cannot
-tell apart numbers nothing: never a wrong number). The links repeat, so a
-side is numbered only when the base or the tip corners agree with its slots
-in every best matching (they fix where the count starts), or when every
-joint of the side is matched and no base or tip corner found disagrees. The candidates keep their
-own measured corners: the chain decides identities only.
+chain). Of the feasible numberings, those matching the most are kept; a
+candidate gets a number only when every one of them gives it that number,
+so two equally good matchings (a slot split in two by a bridge of texture,
+a spurious gap next to a missing slot) cost only the candidates they
+dispute. The links repeat, so the numbers stand only when every best
+matching holds an end of the chain next to its first (last) slot — the base
+or the tip, whichever is seen: beyond a missing slot the joints' play can
+reach a link's length — or when every joint of the side is matched. An end
+found then disputes the numbers that a matching of its own (joined next to
+its first or last slot) gives otherwise (a mirrored view, a spurious gap
+next to a missing slot), and tip corners that do not fit the last slot
+dispute it (a tendon loop's corner); an end that fits nothing disputes
+nothing (a hidden tip, a holder's face). A spurious gap, a missing or split
+slot, a hidden end link cost only the slots they touch; a shift that the
+chain cannot tell apart numbers nothing: never a wrong number. The
+candidates keep their own measured corners: the chain decides identities
+only.
 
 Solved exactly by dynamic programming over (candidate, joint) pairs with
 every transition tested at once (numpy), forward and backward, so that the
@@ -84,6 +93,10 @@ class SideCandidates:
     tip: np.ndarray | None = None
     slack: np.ndarray | None = None
 
+    def slack_of(self, k: int) -> float:
+        """Candidate ``k``'s extra tolerance [unit]."""
+        return 0.0 if self.slack is None else float(self.slack[k])
+
 
 @dataclass(frozen=True)
 class ChainNumbers:
@@ -96,7 +109,7 @@ class ChainNumbers:
     unnumbered : list of int
         Candidates that some best matching leaves out or numbers differently.
     base_ok, tip_ok : bool
-        The anchor agrees with the slots in every best matching.
+        The anchor is on every best matching.
     """
 
     joints: dict
@@ -146,6 +159,92 @@ def _expected(geom: Geometry, nodes, side: int, scale: float, lay):
     return d, play
 
 
+@dataclass(frozen=True)
+class _Best:
+    """The best matchings of one dynamic programme: their score, the (candidate, node) pairs on some best
+    matching (C, M), the candidates some best matching jumps over or leaves out before its first (after its
+    last) node (C,), the transitions on some best matching (C, M, C, M), and the pairs some best matching
+    begins (ends) with (C, M)."""
+
+    score: float
+    on: np.ndarray
+    skipped: np.ndarray
+    edges: np.ndarray
+    firsts: np.ndarray
+    lasts: np.ndarray
+
+
+def _best(feas, allowed, wgt, *, start, end, eps: float = 1e-6) -> _Best:
+    """Best monotone matchings by dynamic programming, forward and backward, every transition tested at once.
+
+    ``feas[c', u', c, u]``: candidate c' at node u' may be followed by c at u; ``allowed`` (C, M): c may take
+    u; ``wgt`` (C,): what a matched candidate counts; ``start``, ``end`` (C, M): where a matching may begin
+    and end (a matching that must hold an anchor begins or ends at it)."""
+    NEG = -1e9
+    C, M = allowed.shape
+    gain = np.where(feas, 0.0, NEG)
+    fwd = np.full((C, M), NEG)
+    for c in range(C):
+        prev = (fwd[:, :, None] + gain[:, :, c, :]).max(axis=(0, 1))
+        fwd[c] = np.where(allowed[c], wgt[c] + np.maximum(np.where(start[c], 0.0, NEG), prev), NEG)
+    bwd = np.full((C, M), NEG)
+    for c in range(C - 1, -1, -1):
+        nxt = (gain[c] + bwd[None, :, :]).max(axis=(1, 2))
+        bwd[c] = np.where(allowed[c], wgt[c] + np.maximum(np.where(end[c], 0.0, NEG), nxt), NEG)
+    ends = fwd[end]
+    score = float(ends.max()) if ends.size else NEG
+    if score <= 0:
+        z = np.zeros((C, M), bool)
+        return _Best(score, z, np.ones(C, bool), np.zeros((C, M, C, M), bool), z, z)
+    valid = (fwd > NEG / 2) & (bwd > NEG / 2)
+    on = valid & (np.abs(fwd + bwd - wgt[:, None] - score) < eps)
+    edges = feas & valid[:, :, None, None] & valid[None, None, :, :] \
+        & (np.abs(fwd[:, :, None, None] + gain + bwd[None, None, :, :] - score) < eps)
+    firsts = on & start & (np.abs(fwd - wgt[:, None]) < eps)
+    lasts = on & end & (np.abs(bwd - wgt[:, None]) < eps)
+    skipped = np.zeros(C, bool)
+    cc = np.arange(C)
+    for c1, _, c2, _ in zip(*np.nonzero(edges)):
+        skipped |= (cc > c1) & (cc < c2)
+    if firsts.any():
+        skipped |= cc < np.nonzero(firsts.any(1))[0].max()
+    if lasts.any():
+        skipped |= cc > np.nonzero(lasts.any(1))[0].min()
+    return _Best(score, on, skipped, edges, firsts, lasts)
+
+
+def _feasible(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, scale: float):
+    """The candidates with the anchors as candidates 0 (base) and K + 1 (tip): which node each may take
+    (C, M), which transitions agree with the chain (C, M, C, M), and each node's joint (M,)."""
+    lay = notch_layout(geom)
+    nodes, joints = _nodes(geom, cands.side, lay)
+    M = len(nodes)
+    d0, play = _expected(geom, nodes, cands.side, scale, lay)
+    K = len(cands.near)
+    nan2 = np.full(2, np.nan)
+    base = cands.base if cands.base is not None else nan2
+    tip = cands.tip if cands.tip is not None else nan2
+    near = np.vstack([[base], cands.near.reshape(-1, 2), [tip]])
+    far = np.vstack([[base], cands.far.reshape(-1, 2), [tip]])
+    C = K + 2
+    allowed = np.zeros((C, M), bool)                 # candidate c may take node u
+    allowed[1:K + 1, 1:M - 1] = True
+    allowed[0, 0] = cands.base is not None
+    allowed[C - 1, M - 1] = cands.tip is not None
+    d = np.linalg.norm(far[:, None, :] - near[None, :, :], axis=2)          # (C, C) far of c' -> near of c
+    limit = np.maximum(tol.rel_tol * d0, tol.abs_tol) + tol.per_joint * play
+    slack = np.zeros(C)
+    if cands.slack is not None:
+        slack[1:K + 1] = cands.slack
+    limit = limit[None, :, None, :] + (slack[:, None] + slack[None, :])[:, None, :, None]
+    ok_uu = np.arange(M)[:, None] < np.arange(M)[None, :]
+    ok_cc = np.arange(C)[:, None] < np.arange(C)[None, :]
+    feas = (np.abs(d[:, None, :, None] - d0[None, :, None, :]) <= limit) \
+        & ok_cc[:, None, :, None] & ok_uu[None, :, None, :] & allowed[:, :, None, None] & allowed[None, None, :, :]
+    feas &= np.isfinite(d)[:, None, :, None]
+    return allowed, feas, joints
+
+
 def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, scale: float,
                 anchor_weight: float = 0.5) -> ChainNumbers:
     """Number one side's candidate slots by the best agreement with the chain (module docstring).
@@ -164,81 +263,74 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
     -------
     ChainNumbers
     """
-    lay = notch_layout(geom)
-    nodes, joints = _nodes(geom, cands.side, lay)
-    M = len(nodes)
-    d0, play = _expected(geom, nodes, cands.side, scale, lay)
-    # the candidates, with the anchors as candidates 0 (base) and K + 1 (tip) that only their node takes
-    K = len(cands.near)
-    nan2 = np.full(2, np.nan)
-    near = np.vstack([[cands.base if cands.base is not None else nan2], cands.near.reshape(-1, 2),
-                      [cands.tip if cands.tip is not None else nan2]])
-    far = np.vstack([[cands.base if cands.base is not None else nan2], cands.far.reshape(-1, 2),
-                     [cands.tip if cands.tip is not None else nan2]])
-    C = K + 2
-    allowed = np.zeros((C, M), bool)                 # candidate c may take node u
-    allowed[1:K + 1, 1:M - 1] = True
-    allowed[0, 0] = cands.base is not None
-    allowed[C - 1, M - 1] = cands.tip is not None
-    d = np.linalg.norm(far[:, None, :] - near[None, :, :], axis=2)          # (C, C) far of c' -> near of c
-    limit = np.maximum(tol.rel_tol * d0, tol.abs_tol) + tol.per_joint * play
-    slack = np.zeros(C)
-    if cands.slack is not None:
-        slack[1:K + 1] = cands.slack
-    limit = limit[None, :, None, :] + (slack[:, None] + slack[None, :])[:, None, :, None]
-    ok_uu = (np.arange(M)[:, None] < np.arange(M)[None, :])
-    ok_cc = (np.arange(C)[:, None] < np.arange(C)[None, :])
-    # feasible[c', u', c, u]: c' at u' followed by c at u
-    feas = (np.abs(d[:, None, :, None] - d0[None, :, None, :]) <= limit) \
-        & ok_cc[:, None, :, None] & ok_uu[None, :, None, :] & allowed[:, :, None, None] & allowed[None, None, :, :]
-    feas &= np.isfinite(d)[:, None, :, None]
+    allowed, feas, joints = _feasible(cands, geom, tol, scale)
+    C, M = allowed.shape
+    K = C - 2
     # each slot counts 1, an anchor ``anchor_weight``: a holder's face off the base edge or a droplet at the
     # tip is more common than a spurious slot that fits the chain
     wgt = np.ones(C)
     wgt[[0, C - 1]] = anchor_weight
-    NEG = -1e9
-    fwd = np.where(allowed, wgt[:, None], NEG)
-    for c in range(C):
-        prev = np.where(feas[:, :, c, :], fwd[:, :, None], NEG).max(axis=(0, 1))
-        fwd[c] = np.where(allowed[c], wgt[c] + np.maximum(0.0, prev), NEG)
-    bwd = np.where(allowed, wgt[:, None], NEG)
-    for c in range(C - 1, -1, -1):
-        nxt = np.where(feas[c], bwd[None, None, :, :][0], NEG).max(axis=(1, 2))
-        bwd[c] = np.where(allowed[c], wgt[c] + np.maximum(0.0, nxt), NEG)
-    best = float(fwd.max())
-    if best <= 0:
+    best = _best(feas, allowed, wgt, start=allowed, end=allowed)
+    if best.score <= 0:
         return ChainNumbers({}, list(range(K)))
-    eps = 1e-6
-    on = (np.abs(fwd + bwd - wgt[:, None] - best) < eps) & allowed           # (c, u) on some best matching
-    # a candidate is skipped by some best matching when a best matching jumps over it
-    edge_best = feas & (np.abs(fwd[:, :, None, None] + bwd[None, None, :, :] - best) < eps)
-    firsts = on & (np.abs(fwd - wgt[:, None]) < eps)                          # best matchings start here
-    lasts = on & (np.abs(bwd - wgt[:, None]) < eps)
-    skipped = np.zeros(C, bool)
-    cc = np.arange(C)
-    for c1, _, c2, _ in zip(*np.nonzero(edge_best)):
-        skipped |= (cc > c1) & (cc < c2)
-    if firsts.any():
-        skipped |= cc < np.nonzero(firsts.any(1))[0].max()
-    if lasts.any():
-        skipped |= cc > np.nonzero(lasts.any(1))[0].min()
-    out, unnumbered = {}, []
+    unique = {}
     for k in range(1, K + 1):
-        us = np.nonzero(on[k])[0]
-        if len(us) == 1 and not skipped[k]:
-            out[k - 1] = int(joints[us[0]])
-        else:
-            unnumbered.append(k - 1)
-    # an anchor fixes the count only next to the side's first (last) slot: beyond a missing slot the
-    # joints' play can reach a link's length
-    from_base = np.nonzero(edge_best[0, 0])
-    to_tip = np.nonzero(edge_best[:, :, C - 1, M - 1])
-    base_ok = bool(on[0, 0] and not skipped[0] and len(from_base[1]) and np.all(from_base[1] == 1))
-    tip_ok = bool(on[C - 1, M - 1] and not skipped[C - 1] and len(to_tip[1]) and np.all(to_tip[1] == M - 2))
-    # equal links repeat: a shift by a joint (or the other side's slots, in a mirrored view) fits as well,
-    # unless an end of the chain agrees, or every joint of the side is matched and no end found disagrees
-    complete = len(out) == M - 2 and not unnumbered
-    disagree = (cands.base is not None and not base_ok) or (cands.tip is not None and not tip_ok)
-    if not (base_ok or tip_ok or (complete and not disagree)):
-        return ChainNumbers({}, list(range(K)), False, False)
-    return ChainNumbers(out, unnumbered, base_ok, tip_ok)
+        us = np.nonzero(best.on[k])[0]
+        if len(us) == 1 and not best.skipped[k]:
+            unique[k - 1] = int(us[0])
+    base_ok = bool(best.on[0, 0] and not best.skipped[0])
+    tip_ok = bool(best.on[C - 1, M - 1] and not best.skipped[C - 1])
+    # an end on every best matching, next to its first (last) slot in each
+    uu = np.arange(M)
+    base_next = base_ok and not best.edges[0, 0][:, uu != 1].any()
+    tip_next = tip_ok and not best.edges[:, :, C - 1, M - 1][:, uu != M - 2].any()
+    # equal links repeat: a matching fits as well shifted by a joint unless an end of the chain agrees next to
+    # its first (last) slot (beyond a missing slot the joints' play can reach a link's length), or every
+    # joint of the side is matched (checked against the ends found below); ``loose``: no end joined next
+    held = base_next or tip_next
+    if not held:
+        loose = feas.copy()
+        loose[0, 0, :, 1] = False
+        loose[:, M - 2, C - 1, M - 1] = False
+        held = _best(loose, allowed, wgt, start=allowed, end=allowed).score < best.score - 1e-6
+    out = dict(unique) if held or len(unique) == M - 2 == K else {}
+    # an end that joins a matching of its own next to its first (last) slot disputes the numbers it gives
+    # otherwise (a loose join is weak evidence: it disputes nothing)
+    tight = feas.copy()
+    tight[0, 0, :, 2:] = False
+    tight[:, :M - 2, C - 1, M - 1] = False
+    # (an end next to its first or last slot on every best matching: a matching through it is one of those)
+    for a, node, nxt in ((0, 0, base_next), (C - 1, M - 1, tip_next)):
+        if allowed[a, node] and out and not nxt:
+            out = _agree_with_end(out, tight, allowed, wgt, anchor=a, anchor_weight=anchor_weight)
+    last = [k for k, u in out.items() if u == M - 2]
+    if cands.tip is not None and last:
+        # tip corners that do not fit the last slot within twice the tolerance (the bridged outline rounds a
+        # convex corner off a little) dispute it: a tendon loop's corner, or a spurious slot past a missing
+        # last one (a base corner found is often a holder's face off the base edge: it disputes nothing)
+        lay = notch_layout(geom)
+        nodes, _ = _nodes(geom, cands.side, lay)
+        d0, play = (a[0, 1] for a in _expected(geom, nodes[-2:], cands.side, scale, lay))
+        miss = abs(np.linalg.norm(cands.tip - cands.far[last[0]]) - d0) - cands.slack_of(last[0])
+        if miss > 2 * max(tol.rel_tol * d0, tol.abs_tol) + tol.per_joint * play:
+            del out[last[0]]
+    return ChainNumbers({k: int(joints[u]) for k, u in out.items()}, [k for k in range(K) if k not in out],
+                        base_ok, tip_ok)
+
+
+def _agree_with_end(out: dict, feas, allowed, wgt, *, anchor: int, anchor_weight: float) -> dict:
+    """The numbers ``out`` (candidate -> node) that an end found (``anchor``: 0 the base, C - 1 the tip) does
+    not dispute: a matching through the end that numbers a candidate otherwise, or gives its node to another
+    (a mirrored view, a spurious slot next to a missing one, a slot split in two)."""
+    C, M = allowed.shape
+    at = np.zeros_like(allowed)
+    at[anchor, 0 if anchor == 0 else M - 1] = True
+    via = _best(feas, allowed, wgt, start=at if anchor == 0 else allowed, end=allowed if anchor == 0 else at)
+    keep = {}
+    for k, u in out.items():
+        if via.score > anchor_weight:
+            others = np.delete(via.on[:, u], k + 1)
+            if np.delete(via.on[k + 1], u).any() or others.any():
+                continue
+        keep[k] = u
+    return keep
