@@ -200,10 +200,10 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
         Cross-validate the best screened pair and those within ``screen_tol``
         of its in-sample error, at most ``max_cv``.
     single : callable, optional
-        ``single(causes) -> {cause: HeldOut}``: cross-validates alone the second candidates of the
-        pairs to cross-validate that ``held`` lacks (a candidate the first step did not cross-validate,
-        :func:`notchfit.analysis.diagnosis.diagnose`); added to ``held`` (their fold optima give the
-        union starts, and a named pair's contributions compare each cause alone).
+        ``single(causes) -> {cause: HeldOut}``: cross-validates alone a second candidate that ``held``
+        lacks (one the first step did not cross-validate, :func:`notchfit.analysis.diagnosis.diagnose`),
+        added to ``held``: before the pairs whose fold starts are union starts (its fold optima), and
+        once named (its contribution compares each cause alone).
 
     Returns
     -------
@@ -225,14 +225,12 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
         second = _to_cross_validate(c1, second, screened, noise, rule.min_excess_removed, screen_tol, max_cv)
         if not second:
             return None, {}, (), screened
-    missing = [c2 for c2 in second if c2 not in held]
-    if missing and single is not None:
-        held.update(single(missing))
     models = [(c1, c2) for c2 in second]
+    union = {m: screened.get(model_key(m), (None, None, "first"))[2] == "union" for m in models}
+    _cross_validate_alone([m[1] for m in models if union[m]], held, single)
     starts = {}
     for m in models:
-        union = screened.get(model_key(m), (None, None, "first"))[2] == "union"
-        starts[model_key(m)] = [union_start(c.values, c1, held[m[1]].calibrations[k].values) if union
+        starts[model_key(m)] = [union_start(c.values, c1, held[m[1]].calibrations[k].values) if union[m]
                                 else c.values for k, c in enumerate(m1.calibrations)]
     hp = run(models, starts)
     res = tuple(score_candidate(m, hp[model_key(m)], preps, mse1, ms1, ms1 - noise, z_crit=rule.z_crit,
@@ -244,7 +242,16 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
         ok = score_candidate(best.cause.split("+"), hp[best.cause], preps, base_mse, base_ms, base_ms - noise,
                              z_crit=rule.z_crit, min_excess_removed=rule.min_excess_removed).significant
     c2 = best.cause.split("+")[1] if ok else None
+    if c2 is not None:
+        _cross_validate_alone([c2], held, single)
     return c2, hp, res, screened
+
+
+def _cross_validate_alone(causes, held: dict, single) -> None:
+    """The causes ``held`` lacks cross-validated alone by ``single`` (:func:`second_step`), into ``held``."""
+    missing = [c for c in causes if c not in held]
+    if missing and single is not None:
+        held.update(single(missing))
 
 
 def _removes(cause: str, without: HeldOut, final: HeldOut, preps, noise: float, metric: str) -> str:
