@@ -259,9 +259,8 @@ def _extended(st: _Study, causes, held, screened, kw):
 def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_folds: int = 6,
              causes=CAUSES, none_tol: float = 0.5, z_crit: float = 3.0, min_excess_removed: float = 0.3,
              calibrate_kw: dict | None = None, progress=None, metric: str = "auto", second_cause: bool = True,
-             max_second: int = 4, estimate_protocol: bool = True, lof_alpha: float = 0.01,
-             replicate_tol_sigma: float = 3.0, fold_band: bool = True, screen_candidates: bool = True,
-             screen_ratio: float = 1.0) -> Diagnosis:
+             max_second: int = 4, estimate_protocol: bool = True, lof_alpha: float = 0.01, fold_band: bool = True,
+             replicate_tol_sigma: float = 3.0, screen_candidates: bool = True, screen_ratio: float = 1.0) -> Diagnosis:
     """Diagnose a study against the friction model (Sec. IV-B; docs/diagnosis.md).
 
     The baseline is calibrated on the training experiments of each fold and
@@ -317,10 +316,7 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     fold_band : bool
         Judge the baseline against the noise floor plus its folds' prediction variance (:func:`~.calibration.fold_band`).
     screen_candidates, screen_ratio : bool, float
-        Fit each candidate on every experiment first and cross-validate them in the order of that
-        in-sample error, leaving out those whose in-sample mean squared error is at least ``screen_ratio``
-        times the best significant candidate's held-out one (:func:`_singles`); False: cross-validate every
-        candidate.
+        Screen the candidates on all experiments first (:func:`_singles`; False: cross-validate every one).
 
     Returns
     -------
@@ -345,22 +341,13 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     order = [c for c, _, _ in rank_candidates(sigs, math.sqrt(base.mean_floor())) if c in st.order]
     say("fitting the baseline on all experiments")
     full_base = st.protocol_fit or calibrate(preps, None, base_start[0], scales=st.scales, base=st.base, **kw)
-    base_mse = base.sample_mse(preps)
-    base_ms, band = pooled_mse(base_mse), base.mean_band()
-
-    def score(c, singles):
-        noise = _noise(base, singles, preps)
-        return score_candidate(c, singles[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
-                               min_excess_removed=min_excess_removed)
-
-    def single(cs):
-        return run(cs, {c: base_start for c in cs})
-
+    base_mse, band = base.sample_mse(preps), base.mean_band()
+    score, single = partial(_score, base, preps, base_mse, opts.rule), partial(_single, run, base_start)
     singles, screen, unscreened = _singles(st, opts, order, full_base, single, score)
     held.update(singles)
     noise, lof_kw = _noise(base, singles, preps), dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
     cands = [score(c, singles) for c in order if c in singles]
-    cause, lof = _lack_of_fit_first(cands, base_ms, preps, base, lof_kw, noise + band, none_tol)
+    cause, lof = _lack_of_fit_first(cands, pooled_mse(base_mse), preps, base, lof_kw, noise + band, none_tol)
     first = _First(cause, sigs, cands, base_mse, noise, lof, band, screen, unscreened)
     second = _second(st, opts, held, first, run, single)
     named = second.causes
@@ -369,6 +356,21 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
                  held[model_key(named)].sample_mse(preps) if named else base_mse,
                  heldout_lack_of_fit(preps, held[model_key(named)].predicted, **lof_kw) if named else None)
     return _result(st, opts, held, first, second, fits)
+
+
+def _score(base, preps, base_mse, rule: Thresholds, c: str, singles: dict):
+    """Candidate ``c``'s :class:`~.results.CandidateResult` against the baseline's held-out errors, the noise
+    floor that of the candidates cross-validated so far (:func:`_noise`)."""
+    base_ms = pooled_mse(base_mse)
+    noise = _noise(base, singles, preps)
+    return score_candidate(c, singles[c], preps, base_mse, base_ms, base_ms - noise, z_crit=rule.z_crit,
+                           min_excess_removed=rule.min_excess_removed)
+
+
+def _single(run, starts, causes) -> dict:
+    """``{cause: HeldOut}``: the candidates ``causes`` cross-validated alone by ``run`` from the baseline's
+    fold optima ``starts``."""
+    return run(causes, {c: starts for c in causes})
 
 
 def _singles(st: _Study, opts: _Options, order, full_base, single, score) -> tuple[dict, dict, tuple]:
