@@ -246,3 +246,53 @@ def test_heldout_lack_of_fit_against_repeated_trials():
     off = {i: v + 0.05 for i, v in exact.items()}
     bad = heldout_lack_of_fit(trials, off, alpha=0.01)
     assert bad.overall.significant(0.01) and bad.overall.lack_of_fit_rms == pytest.approx(np.degrees(0.05), rel=0.2)
+
+
+def _screened_singles(monkeypatch, in_sample: dict, heldout: dict, significant: set, *, screen=True):
+    """:func:`study._singles` with a fake screen (in-sample mse per cause) and fake cross-validations
+    (held-out rms per cause); returns the causes cross-validated, in order, and what it returned."""
+    from types import SimpleNamespace
+
+    from notchfit.analysis.diagnosis import CandidateResult
+    from notchfit.analysis.diagnosis import study
+
+    monkeypatch.setattr(study, "screen_singles", lambda order, *a, **k: {c: (None, in_sample[c], "single")
+                                                                         for c in order})
+    done = []
+
+    def single(cs):
+        done.extend(cs)
+        return {c: c for c in cs}
+
+    def score(c, singles):
+        return CandidateResult(c, {}, 1, heldout[c], heldout[c], 0.0, 5.0, 1.0, c in significant)
+
+    opts = SimpleNamespace(screen=screen, screen_ratio=1.0, say=lambda m: None, calibrate_kw={}, jobs=1)
+    st = SimpleNamespace(preps=(SimpleNamespace(metric="points"),), scales=None, base=None, skipped={})
+    full = SimpleNamespace(start=lambda: {})
+    out = study._singles(st, opts, list(in_sample), full, single, score)
+    return done, out, st.skipped
+
+
+def test_candidates_cross_validated_in_in_sample_order_until_none_can_beat_the_best(monkeypatch):
+    mm2 = 1e-6
+    in_sample = {"joint_hysteresis": 0.08 * mm2, "proximal_friction": 0.014 * mm2, "external_load": 0.39 * mm2,
+                 "stiffness_gradient": 0.017 * mm2}
+    heldout = {"joint_hysteresis": 0.29e-3, "proximal_friction": 0.13e-3, "external_load": 0.65e-3,
+               "stiffness_gradient": 0.125e-3}
+    done, (singles, _, left), skipped = _screened_singles(monkeypatch, in_sample, heldout,
+                                                          {"proximal_friction", "joint_hysteresis"})
+    # proximal first (significant, 0.13 mm held-out = 0.0169 mm²); the gradient's in-sample 0.017 mm² is not
+    # below it: every later one left out, the gradient too (its held-out 0.125 mm would not be reached in
+    # practice: a held-out error is not below the in-sample one)
+    assert done == ["proximal_friction"]
+    assert left == ("stiffness_gradient", "joint_hysteresis", "external_load")
+    assert set(skipped["screened"]) == set(left) and "0.130 mm" in skipped["screened"]["external_load"]
+    # without a significant candidate every one is cross-validated, in in-sample order
+    done, (_, _, left), skipped = _screened_singles(monkeypatch, in_sample, heldout, set())
+    assert done == ["proximal_friction", "stiffness_gradient", "joint_hysteresis", "external_load"]
+    assert left == () and "screened" not in skipped
+    # the screen switched off: every candidate in the given order, none fitted on all experiments first
+    done, (_, screen, _), _ = _screened_singles(monkeypatch, in_sample, heldout, {"proximal_friction"},
+                                                screen=False)
+    assert done == list(in_sample) and screen == {}

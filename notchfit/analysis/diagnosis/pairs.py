@@ -38,7 +38,8 @@ from .results import Contribution
 from .signatures import signatures
 from .specs import CANDIDATES, PAPER_START, Thresholds, model_key
 
-__all__ = ["SecondStep", "contributions", "pair_sentence", "screen_pairs", "second_candidates", "second_step"]
+__all__ = ["SecondStep", "contributions", "pair_sentence", "screen_pairs", "screen_singles", "second_candidates",
+           "second_step"]
 
 
 @dataclass(frozen=True)
@@ -100,6 +101,36 @@ def union_start(first: dict, c1: str, second: dict) -> dict:
     return {**second, **{s.name: first[s.name] for s in CANDIDATES[c1]}}
 
 
+def _fit_batch(items, what: str, jobs: int) -> dict:
+    """Run :func:`_fit_all` items (here or in ``jobs`` workers): ``{model key: (Calibration, in-sample mse,
+    variant)}``, the lower cost of each model's variants kept."""
+    res = run_batch(_fit_all, items, keys=[f"{model_key(it[1])}/{it[-1]}" for it in items], jobs=jobs,
+                    progress=False, start_method=multiprocessing.get_start_method())
+    if res.failures:
+        raise RuntimeError(res.summary(what))
+    out = {}
+    for k, cal, ms, variant in res.values():
+        if k not in out or cal.cost < out[k][0].cost:
+            out[k] = (cal, ms, variant)
+    return out
+
+
+def screen_singles(causes, preps, start: dict, *, scales, base, calibrate_kw=None, jobs: int = 1) -> dict:
+    """Each candidate of ``causes`` alone, fitted on every experiment from ``start`` (the baseline's fit on
+    every experiment; the paper's values too where the candidate asks, :data:`~.specs.PAPER_START`), without
+    standard errors: the in-sample errors that order the candidates' cross-validation
+    (:func:`notchfit.analysis.diagnosis.diagnose`).
+
+    Returns
+    -------
+    dict
+        ``{cause: (Calibration, in-sample mean squared error [m² or rad²], "single")}``.
+    """
+    kw = {**(calibrate_kw or {}), "errors": False}
+    return _fit_batch([(tuple(preps), (c,), dict(start), scales, base, kw, "single") for c in causes],
+                      "candidate screen", jobs)
+
+
 def screen_pairs(c1: str, second, preps, start: dict, *, others: dict | None = None, scales, base,
                  calibrate_kw=None, jobs: int = 1) -> dict:
     """``c1`` alone and with each second candidate, fitted on every experiment.
@@ -124,15 +155,7 @@ def screen_pairs(c1: str, second, preps, start: dict, *, others: dict | None = N
         items.append((tuple(preps), (c1, c2), dict(start), scales, base, kw, "first"))
         if c2 in others:
             items.append((tuple(preps), (c1, c2), union_start(start, c1, others[c2]), scales, base, kw, "union"))
-    res = run_batch(_fit_all, items, keys=[f"{model_key(it[1])}/{it[-1]}" for it in items], jobs=jobs,
-                    progress=False, start_method=multiprocessing.get_start_method())
-    if res.failures:
-        raise RuntimeError(res.summary("second-cause screen"))
-    out = {}
-    for k, cal, ms, variant in res.values():
-        if k not in out or cal.cost < out[k][0].cost:
-            out[k] = (cal, ms, variant)
-    return out
+    return _fit_batch(items, "second-cause screen", jobs)
 
 
 def _to_cross_validate(c1, second, screen, noise, min_excess_removed, screen_tol, max_cv) -> list[str]:
@@ -146,7 +169,7 @@ def _to_cross_validate(c1, second, screen, noise, min_excess_removed, screen_tol
 
 
 def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thresholds, *, against_baseline=None,
-                screen=None, screen_tol: float = 1.05, max_cv: int = 2):
+                screen=None, screen_tol: float = 1.05, max_cv: int = 2, single=None):
     """Fit ``c1`` with each second candidate and name the best if it is significant.
 
     Parameters
@@ -176,6 +199,11 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
     screen_tol, max_cv : float, int
         Cross-validate the best screened pair and those within ``screen_tol``
         of its in-sample error, at most ``max_cv``.
+    single : callable, optional
+        ``single(causes) -> {cause: HeldOut}``: cross-validates alone a second candidate that ``held``
+        lacks (one the first step did not cross-validate, :func:`notchfit.analysis.diagnosis.diagnose`),
+        added to ``held``: before the pairs whose fold starts are union starts (its fold optima), and
+        once named (its contribution compares each cause alone).
 
     Returns
     -------
@@ -198,10 +226,11 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
         if not second:
             return None, {}, (), screened
     models = [(c1, c2) for c2 in second]
+    union = {m: screened.get(model_key(m), (None, None, "first"))[2] == "union" for m in models}
+    _cross_validate_alone([m[1] for m in models if union[m]], held, single)
     starts = {}
     for m in models:
-        union = screened.get(model_key(m), (None, None, "first"))[2] == "union"
-        starts[model_key(m)] = [union_start(c.values, c1, held[m[1]].calibrations[k].values) if union
+        starts[model_key(m)] = [union_start(c.values, c1, held[m[1]].calibrations[k].values) if union[m]
                                 else c.values for k, c in enumerate(m1.calibrations)]
     hp = run(models, starts)
     res = tuple(score_candidate(m, hp[model_key(m)], preps, mse1, ms1, ms1 - noise, z_crit=rule.z_crit,
@@ -213,7 +242,16 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
         ok = score_candidate(best.cause.split("+"), hp[best.cause], preps, base_mse, base_ms, base_ms - noise,
                              z_crit=rule.z_crit, min_excess_removed=rule.min_excess_removed).significant
     c2 = best.cause.split("+")[1] if ok else None
+    if c2 is not None:
+        _cross_validate_alone([c2], held, single)
     return c2, hp, res, screened
+
+
+def _cross_validate_alone(causes, held: dict, single) -> None:
+    """The causes ``held`` lacks cross-validated alone by ``single`` (:func:`second_step`), into ``held``."""
+    missing = [c for c in causes if c not in held]
+    if missing and single is not None:
+        held.update(single(missing))
 
 
 def _removes(cause: str, without: HeldOut, final: HeldOut, preps, noise: float, metric: str) -> str:

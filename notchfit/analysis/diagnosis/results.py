@@ -224,7 +224,9 @@ class Diagnosis:
         "estimated" | "assumed"}, "text": str}``.
     skipped : dict
         ``{"signatures": {name: reason}, "candidates": {cause: reason}, "experiments": {cause: the
-        experiment that would reveal it}}`` (:func:`notchfit.analysis.diagnosis.scope.applicable_causes`).
+        experiment that would reveal it}}`` (:func:`notchfit.analysis.diagnosis.scope.applicable_causes`), and
+        ``"screened"``: ``{cause: reason}`` of the candidates fitted on all experiments but not
+        cross-validated (:func:`notchfit.analysis.diagnosis.study._singles`).
     base : FrictionParams or None
         The model the fitted values change (None: the paper's).
     lack_of_fit : LackOfFit or None
@@ -290,6 +292,8 @@ class Diagnosis:
         reveal = self.skipped.get("experiments", {})
         for c, why in self.skipped.get("candidates", {}).items():
             lines.append(f"not tried: {c} ({why})" + (f"; {reveal[c]}" if c in reveal else ""))
+        for c, why in self.skipped.get("screened", {}).items():
+            lines.append(f"not cross-validated: {c} ({why})")
         return "\n".join(lines)
 
     def to_dict(self, *, extended_model_file: str | None = None, figures=None) -> dict:

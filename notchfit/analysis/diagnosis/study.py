@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from typing import Callable
 
@@ -12,9 +12,10 @@ import numpy as np
 from ..causes import REGISTRY
 from .calibration import calibrate
 from .crossval import HeldOut, folds_by_experiment, run_folds
-from .decision import decide, explain, hysteresis_shape, rank_candidates, score_candidate
+from .decision import decide, explain, fmt_err, hysteresis_shape, rank_candidates, score_candidate
 from .noise import pooled_mse, pooled_rms
-from .pairs import SecondStep, contributions, pair_sentence, screen_pairs, second_candidates, second_step
+from .pairs import (SecondStep, contributions, pair_sentence, screen_pairs, screen_singles, second_candidates,
+                    second_step)
 from .replicates import heldout_lack_of_fit, lack_of_fit_first
 from ..estimation.observations import choose_metric, observe_study
 from .results import Diagnosis, Gain
@@ -76,6 +77,8 @@ class _Options:
     rule: Thresholds
     second_cause: bool
     max_second: int
+    screen: bool = True
+    screen_ratio: float = 1.0
 
 
 @dataclass
@@ -108,6 +111,8 @@ class _First:
     noise: float
     lack_of_fit: object
     band: float = 0.0
+    screen: dict = field(default_factory=dict)
+    unscreened: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -204,7 +209,7 @@ def _masked_first(st: _Study, opts: _Options, cands, held):
     return first, second, screened
 
 
-def _second(st: _Study, opts: _Options, held, step: _First, run) -> SecondStep:
+def _second(st: _Study, opts: _Options, held, step: _First, run, single) -> SecondStep:
     """The second-cause step (:mod:`notchfit.analysis.diagnosis.pairs`). For ``unexplained`` (two strong
     effects can each keep the other's candidate from significance) every pair is screened and the best is
     cross-validated from the candidate better alone; it must be significant against the baseline too."""
@@ -220,14 +225,19 @@ def _second(st: _Study, opts: _Options, held, step: _First, run) -> SecondStep:
     else:
         first, against = cause, None
         second = [c for c in second_candidates(first, cands, max_second=opts.max_second) if c in st.order]
+        # the candidates not cross-validated alone follow, by their in-sample error (a dominant first
+        # effect can hide a second one from the single candidates' screen)
+        second += [c for c in step.unscreened if c != first and not REGISTRY[c].second_if_significant]
+        second = second[:opts.max_second]
         screen = partial(screen_pairs, first, preps=st.preps, start=held[first].mean_values(), scales=st.scales,
-                         others={c: held[c].mean_values() for c in second}, base=st.base,
+                         others={c: held[c].mean_values() if c in held else step.screen[c][0].start()
+                                 for c in second}, base=st.base,
                          calibrate_kw=opts.calibrate_kw, jobs=opts.jobs)
         if second:
             opts.say(f"screening {len(second)} second causes with {first} on all experiments")
     within = pooled_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + opts.rule.none_tol)
     c2, hp, res, screened = second_step(first, held, st.preps, run, noise, second, opts.rule,
-                                        against_baseline=against, screen=screen)
+                                        against_baseline=against, screen=screen, single=single)
     held.update(hp)
     if against is not None:
         return SecondStep((first, c2) if c2 else (), first, res, within, screened)
@@ -249,8 +259,8 @@ def _extended(st: _Study, causes, held, screened, kw):
 def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_folds: int = 6,
              causes=CAUSES, none_tol: float = 0.5, z_crit: float = 3.0, min_excess_removed: float = 0.3,
              calibrate_kw: dict | None = None, progress=None, metric: str = "auto", second_cause: bool = True,
-             max_second: int = 4, estimate_protocol: bool = True, lof_alpha: float = 0.01,
-             replicate_tol_sigma: float = 3.0, fold_band: bool = True) -> Diagnosis:
+             max_second: int = 4, estimate_protocol: bool = True, lof_alpha: float = 0.01, fold_band: bool = True,
+             replicate_tol_sigma: float = 3.0, screen_candidates: bool = True, screen_ratio: float = 1.0) -> Diagnosis:
     """Diagnose a study against the friction model (Sec. IV-B; docs/diagnosis.md).
 
     The baseline is calibrated on the training experiments of each fold and
@@ -305,6 +315,8 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
         (replicate tensions within ``replicate_tol_sigma`` load-cell σ; :func:`_lack_of_fit_first`).
     fold_band : bool
         Judge the baseline against the noise floor plus its folds' prediction variance (:func:`~.calibration.fold_band`).
+    screen_candidates, screen_ratio : bool, float
+        Screen the candidates on all experiments first (:func:`_singles`; False: cross-validate every one).
 
     Returns
     -------
@@ -315,7 +327,7 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
         raise ValueError(f"unknown cause(s) {sorted(unknown)}; known: {', '.join(CAUSES)}")
     opts = _Options(tuple(causes), metric, estimate_protocol, dict(calibrate_kw or {}), jobs, seed,
                     progress or (lambda msg: None), Thresholds(none_tol, z_crit, min_excess_removed), second_cause,
-                    max_second)
+                    max_second, screen_candidates, screen_ratio)
     say, kw, st = opts.say, opts.calibrate_kw, _setup(experiments, opts)
     preps, folds = st.preps, folds_by_experiment(len(st.preps), max_folds)
     run_on = partial(run_folds, preps, calibrate_kw=kw, seed=seed, jobs=jobs, scheduler=scheduler,
@@ -327,25 +339,74 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     held, base_start = {"baseline": base}, [cal.start() for cal in base.calibrations]
     sigs = signatures(preps, base, base.mean_floor())
     order = [c for c, _, _ in rank_candidates(sigs, math.sqrt(base.mean_floor())) if c in st.order]
-    say(f"fitting {len(order)} candidate extensions")
-    singles = run(order, {c: base_start for c in order}) if order else {}
-    held.update(singles)
-    base_mse = base.sample_mse(preps)
-    base_ms, band = pooled_mse(base_mse), base.mean_band()
-    noise, lof_kw = _noise(base, singles, preps), dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
     say("fitting the baseline on all experiments")
     full_base = st.protocol_fit or calibrate(preps, None, base_start[0], scales=st.scales, base=st.base, **kw)
-    cands = [score_candidate(c, held[c], preps, base_mse, base_ms, base_ms - noise, z_crit=z_crit,
-                             min_excess_removed=min_excess_removed) for c in order]
-    cause, lof = _lack_of_fit_first(cands, base_ms, preps, base, lof_kw, noise + band, none_tol)
-    first = _First(cause, sigs, cands, base_mse, noise, lof, band)
-    second = _second(st, opts, held, first, run)
+    base_mse, band = base.sample_mse(preps), base.mean_band()
+    score, single = partial(_score, base, preps, base_mse, opts.rule), partial(_single, run, base_start)
+    singles, screen, unscreened = _singles(st, opts, order, full_base, single, score)
+    held.update(singles)
+    noise, lof_kw = _noise(base, singles, preps), dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
+    cands = [score(c, singles) for c in order if c in singles]
+    cause, lof = _lack_of_fit_first(cands, pooled_mse(base_mse), preps, base, lof_kw, noise + band, none_tol)
+    first = _First(cause, sigs, cands, base_mse, noise, lof, band, screen, unscreened)
+    second = _second(st, opts, held, first, run, single)
     named = second.causes
     say(f"fitting the extended model ({model_key(named)}) on all experiments")
     fits = _Fits(full_base, _extended(st, named, held, second.screened, kw),
                  held[model_key(named)].sample_mse(preps) if named else base_mse,
                  heldout_lack_of_fit(preps, held[model_key(named)].predicted, **lof_kw) if named else None)
     return _result(st, opts, held, first, second, fits)
+
+
+def _score(base, preps, base_mse, rule: Thresholds, c: str, singles: dict):
+    """Candidate ``c``'s :class:`~.results.CandidateResult` against the baseline's held-out errors, the noise
+    floor that of the candidates cross-validated so far (:func:`_noise`)."""
+    base_ms = pooled_mse(base_mse)
+    noise = _noise(base, singles, preps)
+    return score_candidate(c, singles[c], preps, base_mse, base_ms, base_ms - noise, z_crit=rule.z_crit,
+                           min_excess_removed=rule.min_excess_removed)
+
+
+def _single(run, starts, causes) -> dict:
+    """``{cause: HeldOut}``: the candidates ``causes`` cross-validated alone by ``run`` from the baseline's
+    fold optima ``starts``."""
+    return run(causes, {c: starts for c in causes})
+
+
+def _singles(st: _Study, opts: _Options, order, full_base, single, score) -> tuple[dict, dict, tuple]:
+    """The single candidates cross-validated: ``({cause: HeldOut}, screen, not cross-validated)``.
+
+    Without the screen (``opts.screen`` False) every candidate of ``order``. With it, each candidate is
+    first fitted on every experiment from ``full_base`` (:func:`~.pairs.screen_singles`) and the
+    candidates are cross-validated in the order of that in-sample error, until the next one's in-sample
+    mean squared error is at least ``opts.screen_ratio`` times the held-out one of the best significant
+    candidate so far: a model's held-out error is not below its in-sample one, so that candidate could
+    not be the best (the decision names the best by held-out error). Those left are recorded in
+    ``st.skipped["screened"]`` with their in-sample rms; they stay second candidates
+    (:func:`_second`). Without a significant candidate every one is cross-validated.
+    """
+    if not order:
+        return {}, {}, ()
+    if not opts.screen:
+        return single(order), {}, ()
+    opts.say(f"screening {len(order)} candidate extensions on all experiments")
+    screen = screen_singles(order, st.preps, full_base.start(), scales=st.scales, base=st.base,
+                            calibrate_kw=opts.calibrate_kw, jobs=opts.jobs)
+    ranked = sorted(order, key=lambda c: screen[c][1])
+    singles, best = {}, None
+    for k, c in enumerate(ranked):
+        if best is not None and screen[c][1] >= opts.screen_ratio * best.heldout_rms ** 2:
+            left = tuple(ranked[k:])
+            unit = st.preps[0].metric
+            st.skipped["screened"] = {
+                x: (f"in-sample rms {fmt_err(math.sqrt(screen[x][1]), unit)} on all experiments, not below "
+                    f"{best.cause}'s held-out {fmt_err(best.heldout_rms, unit)}") for x in left}
+            return singles, screen, left
+        opts.say(f"cross-validating {c}")
+        singles.update(single([c]))
+        sig = [r for r in (score(x, singles) for x in singles) if r.significant]
+        best = min(sig, key=lambda r: r.heldout_rms) if sig else None
+    return singles, screen, ()
 
 
 def _lack_of_fit_first(cands, base_ms: float, preps, base, lof_kw: dict, noise: float, none_tol: float):
@@ -375,6 +436,9 @@ def _result(st: _Study, opts: _Options, held, first: _First, second: SecondStep,
             text += hysteresis_shape(extended.values, st.scales.angle)
     if st.skipped["candidates"]:
         text += " Not tried: " + "; ".join(f"{c} ({why})" for c, why in st.skipped["candidates"].items()) + "."
+    if st.skipped.get("screened"):
+        text += (" Not cross-validated (fitted on all experiments, they could not beat the named cause): "
+                 + "; ".join(f"{c} ({why})" for c, why in st.skipped["screened"].items()) + ".")
     if st.skipped["experiments"]:
         text += " To reveal what this study cannot: " + "; ".join(st.skipped["experiments"].values()) + "."
     text += " " + st.protocol["text"]
