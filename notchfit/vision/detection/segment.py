@@ -15,12 +15,14 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from skimage.segmentation import watershed
 
 from ._kernels import block_mean_u8, surface_threshold
 from .lines import otsu, poly2
 
 __all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "downsample", "fill_holes",
-           "fill_thin_lines", "largest_region", "remove_thin", "segment"]
+           "fill_thin_lines", "grow_over_sharp_edges", "largest_region", "local_difference", "local_segmentation",
+           "remove_thin", "segment"]
 
 
 @dataclass(frozen=True)
@@ -303,6 +305,68 @@ def fill_holes(region, *, keep_area=(0.0, 0.0)) -> np.ndarray:
     out = region.copy()
     cv2.drawContours(out, holes, -1, 1, thickness=-1)
     return out
+
+
+def local_difference(small, radius_px: float, *, contrast: float, highlight=None) -> np.ndarray:
+    """How far each pixel of the working copy lies toward the object from its local background (h, w) float32
+    (object positive): the background is a grey closing (a dark object; an opening for a bright one) by a disk
+    of radius ``radius_px``, wider than the tube's half-width, so the tube and its slots drop out of it while
+    what varies more slowly stays, such as a soft cast shadow, whose penumbra is as wide as the light source
+    seen from the backdrop. A shadow as dark as the tube joins the tube on a threshold of the image; on this
+    difference it is near 0 where its penumbra is wider than the disk, and the tube's sharp-edged band keeps
+    its contrast.
+
+    ``highlight``: pixels that differ from the backdrop the other way (a specular line along a polished tube,
+    (h, w) bool); they are taken as object (the object's level) before the closing, else the closing would
+    keep them as background and cut the tube along them."""
+    img = np.asarray(small, np.float32)
+    sign = 1.0 if contrast >= 0 else -1.0
+    work = sign * img                                    # the object bright
+    if highlight is not None and highlight.any():
+        work = work.copy()
+        work[highlight] = float(np.median(work[~highlight])) + abs(contrast)
+    r = max(int(round(radius_px)), 1)
+    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)
+    pad = r + 2
+    big = cv2.copyMakeBorder(work, pad, pad, pad, pad, cv2.BORDER_REFLECT)
+    return work - cv2.morphologyEx(big, cv2.MORPH_OPEN, ker)[pad:-pad, pad:-pad]
+
+
+def grow_over_sharp_edges(small, seeds, within, *, blur: float = 1.0) -> np.ndarray:
+    """The object of ``seeds`` grown over the rest of ``within`` up to the image's sharp edges (uint8 0/1):
+    a watershed of the gradient magnitude (scikit-image), flooded from the seeds and from everything outside
+    ``within``. A holder wider than the local background's disk drops out of :func:`local_difference`, but
+    it meets the tube without an edge and the backdrop across a sharp one, so the seeds' flood takes it; a
+    soft shadow meets the backdrop across its penumbra, a low ridge, and the tube across the tube's sharp
+    edge, so the backdrop's flood takes it."""
+    img = cv2.GaussianBlur(np.asarray(small, np.float32), (0, 0), blur)
+    grad = cv2.magnitude(cv2.Sobel(img, cv2.CV_32F, 1, 0), cv2.Sobel(img, cv2.CV_32F, 0, 1))
+    markers = np.zeros(img.shape, np.int32)
+    markers[cv2.dilate(np.asarray(within, np.uint8), np.ones((3, 3), np.uint8)) == 0] = 1
+    markers[np.asarray(seeds) > 0] = 2
+    return (watershed(grad, markers) == 2).astype(np.uint8)
+
+
+def local_segmentation(seg: Segmentation, radius_px: float, *, min_snr: float = 4.0, noise_scale: float = 1.0,
+                       level: float = 0.5, opposite: float = 0.25, opposite_snr: float = 6.0) -> Segmentation:
+    """The tube's silhouette against its local background: :func:`segment` of :func:`local_difference` (a
+    disk of ``radius_px`` [working px]), the holder grown back over the sharp edges of the threshold's
+    silhouette (:func:`grow_over_sharp_edges`). A soft cast shadow as dark as the tube is left out.
+
+    ``seg``: the working copy's segmentation by a threshold (:func:`segment`); its pixels that differ from
+    the backdrop the other way by ``opposite`` times the contrast and ``opposite_snr`` times the noise (a
+    specular line along a polished tube) are object. The other keywords as for :func:`segment`."""
+    small = np.asarray(seg.image, np.float32)
+    if seg.mask is None or small.ndim != 2 or not (seg.mask == 0).any():
+        return Segmentation(None, seg.contrast, seg.noise, seg.message)
+    back = float(np.median(small[seg.mask == 0]))
+    other = max(opposite * abs(seg.contrast), opposite_snr * seg.noise)
+    highlight = (seg.mask > 0) & ((small - back) * np.sign(seg.contrast) < -other)
+    loc = segment(local_difference(small, radius_px, contrast=seg.contrast, highlight=highlight),
+                  min_snr=min_snr, noise_scale=noise_scale, level=level)
+    if loc.mask is None:
+        return loc
+    return Segmentation(grow_over_sharp_edges(small, loc.mask, seg.mask), loc.contrast, loc.noise, image=small)
 
 
 def remove_thin(mask, *, thin_px: float, max_length_px: float) -> np.ndarray:
