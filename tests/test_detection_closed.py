@@ -92,12 +92,15 @@ TWO_SIDED = Geometry(n_joints=6, p=1.6e-3, outer_radius=0.81e-3, slot_width=0.6e
 
 
 def test_a_soft_shadow_as_dark_as_the_tube_on_a_gray_card():
-    """A two-sided tube on a gray card with a soft cast shadow beside its right side, as dark as the tube and
-    about three tube widths across (a penumbra as wide as the light source seen from the card). The gray
-    threshold joins it to the tube (no slot on that side is a gap), and a gray image has no colour to tell
-    it from the tube. Against the local background (a grey opening by a disk 1.2 R) the shadow is flat and the
-    tube's sharp-edged band stands out; the holder, wider than the disk, is grown back over the image's sharp
-    edges. Before: no corner; now the slots of both sides and the tip, none with another corner's number."""
+    """A two-sided tube on a gray card with a soft cast shadow beside its right side, as dark as the tube at
+    its centre (two tube radii from the edge) and about three tube widths across (a penumbra as wide as the
+    light source seen from the card). The gray threshold joins it to the tube (no slot on that side is a gap),
+    and a gray image has no colour to tell it from the tube. Against the local background (a grey opening by
+    a disk 1.2 R) the shadow is flat and the tube's sharp-edged band stands out; the holder, wider than the
+    disk, is grown back over the image's sharp edges. Before: no corner; now every slot corner of both sides,
+    the base and the tip, none with another corner's number, within 1.5 px (the refinement's 50 % crossings
+    on the shaded side are pulled toward the shadow by up to 1.2 px: the image-wide levels do not hold
+    there)."""
     th = np.array([0.1, -0.1, 0.12, -0.08, 0.1, -0.1])
     cam, plane = scene_camera(th, TWO_SIDED, image_size=(640, 600), mm_per_px=1 / 40, angle_deg=90, base_at=0.12)
     r = render_scene(th, TWO_SIDED, cam, plane=plane, scene=Scene(holder="chuck"), rng=np.random.default_rng(4))
@@ -106,13 +109,13 @@ def test_a_soft_shadow_as_dark_as_the_tube_on_a_gray_card():
     t = np.clip((g - tube) / (card - tube), 0, 1)                     # how much card a pixel shows
     vv, uu = np.mgrid[0:g.shape[0], 0:g.shape[1]].astype(np.float32)
     right_u = float(np.mean(r.points_px[[2, 3, 4, 5, 6, 7], 0]))       # the right side's edge (image left)
-    shade = 1 - 0.6 * np.exp(-((uu - right_u + 28) / 90) ** 2) * ((vv > 90) & (vv < 470))
+    shade = 1 - 0.6 * np.exp(-((uu - right_u + 60) / 90) ** 2) * ((vv > 90) & (vv < 470))
     shade = cv2.GaussianBlur(shade.astype(np.float32), (0, 0), 8)
     det = detect_notches(np.clip(g * (1 - (1 - shade) * t), 0, 255).astype(np.uint8), cam, TWO_SIDED)
     lay = notch_layout(TWO_SIDED)
     ok = np.array(det.status) == "ok"
     d = np.linalg.norm(det.points_px[:, None, :] - r.points_px[None, :, :], axis=2)
     assert (np.argmin(d[ok], axis=1) == np.nonzero(ok)[0]).all(), "a corner carries another corner's number"
-    assert d[ok, np.nonzero(ok)[0]].max() < 2.0, det.message
+    assert d[ok, np.nonzero(ok)[0]].max() < 1.5, det.message
     slot = np.isin(lay.kind, ["proximal", "distal"])
-    assert (ok & slot & (lay.side > 0)).sum() >= 4 and (ok & slot & (lay.side < 0)).sum() >= 4, det.message
+    assert (ok & slot & (lay.side > 0)).sum() >= 5 and (ok & slot & (lay.side < 0)).sum() >= 5, det.message

@@ -97,10 +97,12 @@ def variant_mask(name: str, seg: Segmentation, setup: Setup, cache: dict):
                             holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
                             bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
     if name == "local":
+        # thin lines stay, as on the threshold's silhouette: a wire taken off the tip face would leave the
+        # tip's corners to be refined across it
         seg_c = local_segmentation(seg, opts.local_bg_R * R / low_m, min_snr=opts.min_snr, noise_scale=f,
                                    level=opts.segment_level)
-    else:
-        seg_c = colour_segmentation(cache, f, opts)
+        return None if seg_c.mask is None else seg_c.mask
+    seg_c = colour_segmentation(cache, f, opts)
     if seg_c is None or seg_c.mask is None:
         return None
     # a wire or a tendon is as neutral as the tube, and a grid line as coloured: thin lines go
