@@ -15,14 +15,13 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from skimage.segmentation import watershed
 
 from ._kernels import block_mean_u8, surface_threshold
 from .lines import otsu, poly2
 
 __all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "downsample", "fill_holes",
            "fill_thin_lines", "grow_over_sharp_edges", "largest_region", "local_difference", "local_segmentation",
-           "remove_thin", "segment"]
+           "octagon_opening", "remove_thin", "segment"]
 
 
 @dataclass(frozen=True)
@@ -326,25 +325,43 @@ def local_difference(small, radius_px: float, *, contrast: float, highlight=None
         work = work.copy()
         work[highlight] = float(np.median(work[~highlight])) + abs(contrast)
     r = max(int(round(radius_px)), 1)
-    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)
     pad = r + 2
     big = cv2.copyMakeBorder(work, pad, pad, pad, pad, cv2.BORDER_REFLECT)
-    return work - cv2.morphologyEx(big, cv2.MORPH_OPEN, ker)[pad:-pad, pad:-pad]
+    return work - octagon_opening(big, r)[pad:-pad, pad:-pad]
 
 
-def grow_over_sharp_edges(small, seeds, within, *, blur: float = 1.0) -> np.ndarray:
+def octagon_opening(img, r: int) -> np.ndarray:
+    """Grey opening by a regular octagon of inner radius ``r`` [px] (a disk within 8 %): the Minkowski sum of
+    a square of half-side ``a = (√2 - 1) r`` and a diamond of radius ``r - a``, so the erosion and the
+    dilation are each a separable square's and ``r - a`` passes of the 3 x 3 cross, about ten times faster
+    than by the disk's own kernel at ``r`` = 20."""
+    a = int(round((np.sqrt(2.0) - 1.0) * r))
+    b = max(r - a, 0)
+    sq = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * a + 1,) * 2)
+    cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+    out = cv2.erode(img, sq)
+    if b:
+        out = cv2.dilate(cv2.erode(out, cross, iterations=b), cross, iterations=b)
+    return cv2.dilate(out, sq)
+
+
+def grow_over_sharp_edges(small, seeds, within) -> np.ndarray:
     """The object of ``seeds`` grown over the rest of ``within`` up to the image's sharp edges (uint8 0/1):
-    a watershed of the gradient magnitude (scikit-image), flooded from the seeds and from everything outside
-    ``within``. A holder wider than the local background's disk drops out of :func:`local_difference`, but
-    it meets the tube without an edge and the backdrop across a sharp one, so the seeds' flood takes it; a
-    soft shadow meets the backdrop across its penumbra, a low ridge, and the tube across the tube's sharp
-    edge, so the backdrop's flood takes it."""
-    img = cv2.GaussianBlur(np.asarray(small, np.float32), (0, 0), blur)
-    grad = cv2.magnitude(cv2.Sobel(img, cv2.CV_32F, 1, 0), cv2.Sobel(img, cv2.CV_32F, 0, 1))
+    OpenCV's watershed, flooded from the seeds and from everything outside ``within`` in the order of the
+    step between neighbouring pixels. A holder wider than the local background's disk drops out of
+    :func:`local_difference`, but it meets the tube without an edge and the backdrop across a sharp one, so
+    the seeds' flood takes it; a soft shadow meets the backdrop across its penumbra, in small steps, and the
+    tube across the tube's sharp edge, so the backdrop's flood takes it."""
+    img = np.asarray(small, np.float32)
+    lo, hi = float(img.min()), float(img.max())
+    g8 = np.round((img - lo) * (255.0 / max(hi - lo, 1e-6))).astype(np.uint8)
     markers = np.zeros(img.shape, np.int32)
     markers[cv2.dilate(np.asarray(within, np.uint8), np.ones((3, 3), np.uint8)) == 0] = 1
     markers[np.asarray(seeds) > 0] = 2
-    return (watershed(grad, markers) == 2).astype(np.uint8)
+    cv2.watershed(cv2.merge([g8, g8, g8]), markers)
+    obj = (markers == 2).astype(np.uint8)
+    # the flood's boundary pixels (-1) are the object's where they touch it, as in the seeds' own mask
+    return obj | ((markers == -1) & (cv2.dilate(obj, np.ones((3, 3), np.uint8)) > 0)).astype(np.uint8)
 
 
 def local_segmentation(seg: Segmentation, radius_px: float, *, min_snr: float = 4.0, noise_scale: float = 1.0,
