@@ -235,3 +235,39 @@ def test_width_profile_crossings_equal_the_numpy_formulation(sign):
     t0 = np.round(rng.normal(0, 2, len(prof)) * 2) / 2               # on the samples: equidistant ties
     t0[rng.random(len(prof)) < 0.03] = np.nan
     np.testing.assert_array_equal(_crossings(t, prof, level, t0, sign), _width_crossings_numpy(t, prof, level, t0, sign))
+
+
+def _line_levels_numpy(t, P, t0, win):
+    """The width profiles' straight-line levels as numpy formulates them (the reference of the compiled
+    :func:`notchfit.vision.detection._kernels.line_levels`)."""
+    x = t[None, :] - t0[:, None]
+    m = (x >= win[0]) & (x <= win[1]) & np.isfinite(P)
+    n = m.sum(1)
+    Pz = np.where(m, P, 0.0)
+    xz = np.where(m, x, 0.0)
+    sx, sy = xz.sum(1), Pz.sum(1)
+    sxx, sxy = (xz * xz).sum(1), (xz * Pz).sum(1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        den = n * sxx - sx * sx
+        b = np.where(np.abs(den) > 1e-12, (n * sxy - sx * sy) / den, 0.0)
+        a0 = (sy - b * sx) / n
+    return np.where(n >= 3, a0, np.nan), b
+
+
+@pytest.mark.parametrize("n", [5, 40, 129, 641, 1500])
+def test_width_line_levels_equal_the_numpy_formulation(n):
+    """Row lengths below, inside and beyond one block of numpy's pairwise sums; windows anywhere (one or two
+    samples, across a block's end, none), NaN samples (outside the image), a NaN centre, whole rows."""
+    from notchfit.vision.detection.width import _line_levels
+
+    rng = np.random.default_rng(n)
+    t = np.arange(n) * 0.5 - 0.25 * n
+    P = rng.normal(100, 40, (60, n)) * 10.0 ** rng.uniform(-3, 3, (60, 1))
+    P[rng.random(P.shape) < 0.05] = np.nan
+    t0 = rng.uniform(t[0] - 5, t[-1] + 5, 60)
+    t0[3] = np.nan
+    for win in ((2.0, 9.5), (-9.5, -2.0), (0.0, 0.5), (-1e9, 1e9), (3.0, 2.0)):
+        a, b = _line_levels(t, P, t0, win)
+        a_ref, b_ref = _line_levels_numpy(t, P, t0, win)
+        np.testing.assert_array_equal(a, a_ref)
+        np.testing.assert_array_equal(b, b_ref)

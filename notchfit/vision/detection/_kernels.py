@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["block_mean_u8", "nearest_crossings", "profile_crossings", "profile_levels", "profile_maps",
+__all__ = ["block_mean_u8", "line_levels", "nearest_crossings", "profile_crossings", "profile_levels", "profile_maps",
            "surface_threshold"]
 
 
@@ -215,3 +215,92 @@ def nearest_crossings(t, P, level, t0, sign):
         q0, q1 = sign * (P[r, j] - lv), sign * (P[r, j + 1] - lv)
         out[r] = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
     return out
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_block(a, lo, n):
+    """A block of numpy's pairwise summation (``n`` <= 128): eight running sums, then the rest in turn."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - n % 8:
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_sum(a, n):
+    """``a[:n].sum()`` as numpy sums a contiguous float64 row, to the last bit: blocks of at most 128
+    (:func:`_pairwise_block`), longer runs split in two at a multiple of 8 and their sums added. The split
+    tree is walked with an explicit stack (numba's on-disk cache does not hold recursive functions)."""
+    if n <= 128:
+        return _pairwise_block(a, 0, n)
+    los, ns, split = np.empty(64, np.int64), np.empty(64, np.int64), np.zeros(64, np.bool_)
+    vals = np.empty(64)
+    top, nv = 0, 0
+    los[0], ns[0] = 0, n
+    while top >= 0:
+        lo, m = los[top], ns[top]
+        if m <= 128:
+            vals[nv] = _pairwise_block(a, lo, m)
+            nv += 1
+            top -= 1
+        elif not split[top]:
+            split[top] = True
+            m2 = m // 2
+            m2 -= m2 % 8
+            los[top + 1], ns[top + 1], split[top + 1] = lo + m2, m - m2, False
+            los[top + 2], ns[top + 2], split[top + 2] = lo, m2, False
+            top += 2
+        else:
+            vals[nv - 2] = vals[nv - 2] + vals[nv - 1]
+            nv -= 1
+            top -= 1
+    return vals[0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def line_levels(t, P, t0, w0, w1):
+    """Per row of ``P`` (rows, n): the straight line (offset at ``t0[row]``, slope) fitted to the finite
+    samples with ``t - t0`` in [w0, w1] (NaN offset under 3 samples) (:func:`.width._line_levels`): the
+    masked rows and their four sums as numpy forms and sums them, without the full-array temporaries."""
+    rows, n = P.shape
+    a_out, b_out = np.empty(rows), np.empty(rows)
+    xz, pz, xx, xp = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for r in range(rows):
+        cnt = 0
+        for k in range(n):
+            x = t[k] - t0[r]
+            p = P[r, k]
+            if x >= w0 and x <= w1 and np.isfinite(p):
+                cnt += 1
+                xz[k], pz[k] = x, p
+            else:
+                xz[k], pz[k] = 0.0, 0.0
+            xx[k], xp[k] = xz[k] * xz[k], xz[k] * pz[k]
+        sx, sy = 0.0 + _pairwise_sum(xz, n), 0.0 + _pairwise_sum(pz, n)
+        sxx, sxy = 0.0 + _pairwise_sum(xx, n), 0.0 + _pairwise_sum(xp, n)
+        fn = float(cnt)
+        den = fn * sxx - sx * sx
+        b = (fn * sxy - sx * sy) / den if np.abs(den) > 1e-12 else 0.0
+        a0 = (sy - b * sx) / fn
+        a_out[r] = a0 if cnt >= 3 else np.nan
+        b_out[r] = b
+    return a_out, b_out
