@@ -271,3 +271,39 @@ def test_width_line_levels_equal_the_numpy_formulation(n):
         a_ref, b_ref = _line_levels_numpy(t, P, t0, win)
         np.testing.assert_array_equal(a, a_ref)
         np.testing.assert_array_equal(b, b_ref)
+
+
+def _edges_numpy(t, P, t0, obj_win, bg_win, sign, rising=True):
+    """The width profiles' 50 % crossings between straight-line levels as numpy formulates them (the
+    reference of the compiled :func:`notchfit.vision.detection._kernels.level_crossings`)."""
+    a_o, b_o = _line_levels_numpy(t, P, t0, obj_win)
+    a_b, b_b = _line_levels_numpy(t, P, t0, bg_win)
+    tc = t0.astype(float)
+    s = sign if rising else -sign
+    for _ in range(3):
+        mid = 0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0))
+        tc = _width_crossings_numpy(t, P, np.nan_to_num(mid, nan=np.inf), t0, s)
+        tc = np.where(np.isfinite(tc), tc, t0)
+    return _width_crossings_numpy(t, P, np.nan_to_num(0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0)),
+                                                          nan=np.inf), t0, s)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+@pytest.mark.parametrize("rising", [True, False])
+def test_width_edges_equal_the_numpy_formulation(sign, rising):
+    """Rising and falling edges of either polarity with shading, NaN samples (outside the image), a NaN
+    centre, rows without an edge, windows with too few samples."""
+    from notchfit.vision.detection.width import _edges
+
+    rng = np.random.default_rng(11)
+    t = np.arange(-160, 160.5, 0.5)
+    pos = rng.normal(0, 3, 40)
+    prof = 100 + 60 * sign * erf((t[None, :] - pos[:, None]) / 2.0) * (1 if rising else -1)
+    prof += rng.normal(0, 2, prof.shape) + 0.05 * t[None, :] * rng.normal(0, 1, (40, 1))
+    prof[rng.random(prof.shape) < 0.02] = np.nan
+    prof[5] = 100.0
+    t0 = np.round(pos + rng.normal(0, 1.5, 40))
+    t0[7] = np.nan
+    for obj_win, bg_win in (((4.0, 10.0), (-10.0, -4.0)), ((-10.0, -4.0), (4.0, 10.0)), ((4.0, 4.2), (-1.0, -0.9))):
+        np.testing.assert_array_equal(_edges(t, prof, t0, obj_win, bg_win, sign, rising),
+                                      _edges_numpy(t, prof, t0, obj_win, bg_win, sign, rising))

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["block_mean_u8", "line_levels", "nearest_crossings", "profile_crossings", "profile_levels", "profile_maps",
+__all__ = ["block_mean_u8", "level_crossings", "line_levels", "nearest_crossings", "profile_crossings", "profile_levels", "profile_maps",
            "surface_threshold"]
 
 
@@ -190,30 +190,68 @@ def surface_threshold(small, row, col, X, Y, c4, sign, hi, lo):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _nearest_crossing(t, p, lv, c, sign):
+    """One row of :func:`nearest_crossings`."""
+    n = len(p)
+    best_j, best = 0, np.inf
+    q_prev = sign * (p[0] - lv)
+    for k in range(n - 1):
+        q_next = sign * (p[k + 1] - lv)
+        d = np.abs(t[k] - c) if (q_prev < 0 and q_next >= 0) else np.inf
+        if k == 0 or np.isnan(d) or d < best:
+            best_j, best = k, d
+            if np.isnan(d):
+                break
+        q_prev = q_next
+    if not np.isfinite(best):
+        return np.nan
+    j = best_j
+    q0, q1 = sign * (p[j] - lv), sign * (p[j + 1] - lv)
+    return t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def nearest_crossings(t, P, level, t0, sign):
     """Per row of ``P`` (rows, n): the interpolated crossing of ``level[row]`` nearest ``t0[row]`` where
     ``sign (P - level)`` goes from < 0 to >= 0, NaN where there is none (:func:`.width._crossings`, one
     pass per row; numpy's ``argmin`` semantics: the first nearest, a NaN distance first)."""
-    rows, n = P.shape
+    rows = P.shape[0]
     out = np.empty(rows)
     for r in range(rows):
-        lv, c = level[r], t0[r]
-        best_j, best = 0, np.inf
-        q_prev = sign * (P[r, 0] - lv)
-        for k in range(n - 1):
-            q_next = sign * (P[r, k + 1] - lv)
-            d = np.abs(t[k] - c) if (q_prev < 0 and q_next >= 0) else np.inf
-            if k == 0 or np.isnan(d) or d < best:
-                best_j, best = k, d
-                if np.isnan(d):
-                    break
-            q_prev = q_next
-        if not np.isfinite(best):
-            out[r] = np.nan
-            continue
-        j = best_j
-        q0, q1 = sign * (P[r, j] - lv), sign * (P[r, j + 1] - lv)
-        out[r] = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
+        out[r] = _nearest_crossing(t, P[r], level[r], t0[r], sign)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _nan_to_inf(v):
+    """``np.nan_to_num(v, nan=np.inf)`` of one value: NaN -> inf, an infinity -> the largest float of its sign."""
+    if np.isnan(v):
+        return np.inf
+    if v == np.inf:
+        return 1.7976931348623157e308
+    if v == -np.inf:
+        return -1.7976931348623157e308
+    return v
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def level_crossings(t, P, t0, obj_w0, obj_w1, bg_w0, bg_w1, sign):
+    """Per row: the 50 % crossing nearest ``t0`` between the object's and the background's straight-line
+    levels (:func:`line_levels` in [obj_w0, obj_w1] and [bg_w0, bg_w1] of ``t0``), taken at the crossing,
+    three times and once more (:func:`.width._edges`, operation for operation)."""
+    a_o, b_o = line_levels(t, P, t0, obj_w0, obj_w1)
+    a_b, b_b = line_levels(t, P, t0, bg_w0, bg_w1)
+    rows = P.shape[0]
+    out = np.empty(rows)
+    for r in range(rows):
+        c = t0[r]
+        tc = c
+        for _ in range(3):
+            mid = 0.5 * (a_o[r] + b_o[r] * (tc - c) + a_b[r] + b_b[r] * (tc - c))
+            new = _nearest_crossing(t, P[r], _nan_to_inf(mid), c, sign)
+            tc = new if np.isfinite(new) else c
+        mid = 0.5 * (a_o[r] + b_o[r] * (tc - c) + a_b[r] + b_b[r] * (tc - c))
+        out[r] = _nearest_crossing(t, P[r], _nan_to_inf(mid), c, sign)
     return out
 
 

@@ -18,7 +18,7 @@ import math
 import cv2
 import numpy as np
 
-from ._kernels import line_levels, nearest_crossings
+from ._kernels import level_crossings, line_levels, nearest_crossings
 
 __all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along", "trim_box",
            "tube_radius"]
@@ -282,17 +282,11 @@ def _line_levels(t, P, t0, win):
 def _edges(t, P, t0, obj_win, bg_win, sign, rising=True):
     """Per row: 50 % crossing near ``t0`` between the object and background levels, each a straight line
     fitted on its side (``obj_win``, ``bg_win`` offsets from ``t0``) and taken at the crossing: shading
-    across the tube makes the object level slope toward the edge."""
-    a_o, b_o = _line_levels(t, P, t0, obj_win)
-    a_b, b_b = _line_levels(t, P, t0, bg_win)
-    tc = t0.astype(float)
-    s = sign if rising else -sign
-    for _ in range(3):
-        mid = 0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0))
-        tc = _crossings(t, P, np.nan_to_num(mid, nan=np.inf), t0, s)
-        tc = np.where(np.isfinite(tc), tc, t0)
-    final = _crossings(t, P, np.nan_to_num(0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0)), nan=np.inf), t0, s)
-    return final
+    across the tube makes the object level slope toward the edge (compiled: :func:`._kernels.level_crossings`)."""
+    t0 = np.ascontiguousarray(np.broadcast_to(np.asarray(t0, float), (len(P),)))
+    return level_crossings(np.ascontiguousarray(t, float), np.ascontiguousarray(P, float), t0, float(obj_win[0]),
+                           float(obj_win[1]), float(bg_win[0]), float(bg_win[1]),
+                           float(sign if rising else -sign))
 
 
 def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur_px: float, *,
