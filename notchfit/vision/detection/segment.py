@@ -181,7 +181,9 @@ def _otsu_background(sub):
 
 def _surface(A, vals, sel):
     """Coefficients of the quadratic background surface fitted to the samples ``sel`` (lightly regularised)."""
-    return np.linalg.solve(A[sel].T @ A[sel] + 1e-9 * np.eye(6), A[sel].T @ vals[sel])
+    As = A[sel]
+    # a second copy for the product's other side: numpy multiplies a matrix by its own transpose differently
+    return np.linalg.solve(As.T @ A[sel] + 1e-9 * np.eye(6), As.T @ vals[sel])
 
 
 def _trimmed_background(A, vals, keep: float = 0.5, rounds: int = 4):
