@@ -235,3 +235,75 @@ def test_width_profile_crossings_equal_the_numpy_formulation(sign):
     t0 = np.round(rng.normal(0, 2, len(prof)) * 2) / 2               # on the samples: equidistant ties
     t0[rng.random(len(prof)) < 0.03] = np.nan
     np.testing.assert_array_equal(_crossings(t, prof, level, t0, sign), _width_crossings_numpy(t, prof, level, t0, sign))
+
+
+def _line_levels_numpy(t, P, t0, win):
+    """The width profiles' straight-line levels as numpy formulates them (the reference of the compiled
+    :func:`notchfit.vision.detection._kernels.line_levels`)."""
+    x = t[None, :] - t0[:, None]
+    m = (x >= win[0]) & (x <= win[1]) & np.isfinite(P)
+    n = m.sum(1)
+    Pz = np.where(m, P, 0.0)
+    xz = np.where(m, x, 0.0)
+    sx, sy = xz.sum(1), Pz.sum(1)
+    sxx, sxy = (xz * xz).sum(1), (xz * Pz).sum(1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        den = n * sxx - sx * sx
+        b = np.where(np.abs(den) > 1e-12, (n * sxy - sx * sy) / den, 0.0)
+        a0 = (sy - b * sx) / n
+    return np.where(n >= 3, a0, np.nan), b
+
+
+@pytest.mark.parametrize("n", [5, 40, 129, 641, 1500])
+def test_width_line_levels_equal_the_numpy_formulation(n):
+    """Row lengths below, inside and beyond one block of numpy's pairwise sums; windows anywhere (one or two
+    samples, across a block's end, none), NaN samples (outside the image), a NaN centre, whole rows."""
+    from notchfit.vision.detection.width import _line_levels
+
+    rng = np.random.default_rng(n)
+    t = np.arange(n) * 0.5 - 0.25 * n
+    P = rng.normal(100, 40, (60, n)) * 10.0 ** rng.uniform(-3, 3, (60, 1))
+    P[rng.random(P.shape) < 0.05] = np.nan
+    t0 = rng.uniform(t[0] - 5, t[-1] + 5, 60)
+    t0[3] = np.nan
+    for win in ((2.0, 9.5), (-9.5, -2.0), (0.0, 0.5), (-1e9, 1e9), (3.0, 2.0)):
+        a, b = _line_levels(t, P, t0, win)
+        a_ref, b_ref = _line_levels_numpy(t, P, t0, win)
+        np.testing.assert_array_equal(a, a_ref)
+        np.testing.assert_array_equal(b, b_ref)
+
+
+def _edges_numpy(t, P, t0, obj_win, bg_win, sign, rising=True):
+    """The width profiles' 50 % crossings between straight-line levels as numpy formulates them (the
+    reference of the compiled :func:`notchfit.vision.detection._kernels.level_crossings`)."""
+    a_o, b_o = _line_levels_numpy(t, P, t0, obj_win)
+    a_b, b_b = _line_levels_numpy(t, P, t0, bg_win)
+    tc = t0.astype(float)
+    s = sign if rising else -sign
+    for _ in range(3):
+        mid = 0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0))
+        tc = _width_crossings_numpy(t, P, np.nan_to_num(mid, nan=np.inf), t0, s)
+        tc = np.where(np.isfinite(tc), tc, t0)
+    return _width_crossings_numpy(t, P, np.nan_to_num(0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0)),
+                                                          nan=np.inf), t0, s)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+@pytest.mark.parametrize("rising", [True, False])
+def test_width_edges_equal_the_numpy_formulation(sign, rising):
+    """Rising and falling edges of either polarity with shading, NaN samples (outside the image), a NaN
+    centre, rows without an edge, windows with too few samples."""
+    from notchfit.vision.detection.width import _edges
+
+    rng = np.random.default_rng(11)
+    t = np.arange(-160, 160.5, 0.5)
+    pos = rng.normal(0, 3, 40)
+    prof = 100 + 60 * sign * erf((t[None, :] - pos[:, None]) / 2.0) * (1 if rising else -1)
+    prof += rng.normal(0, 2, prof.shape) + 0.05 * t[None, :] * rng.normal(0, 1, (40, 1))
+    prof[rng.random(prof.shape) < 0.02] = np.nan
+    prof[5] = 100.0
+    t0 = np.round(pos + rng.normal(0, 1.5, 40))
+    t0[7] = np.nan
+    for obj_win, bg_win in (((4.0, 10.0), (-10.0, -4.0)), ((-10.0, -4.0), (4.0, 10.0)), ((4.0, 4.2), (-1.0, -0.9))):
+        np.testing.assert_array_equal(_edges(t, prof, t0, obj_win, bg_win, sign, rising),
+                                      _edges_numpy(t, prof, t0, obj_win, bg_win, sign, rising))

@@ -185,6 +185,9 @@ class RoughScale:
     others : tuple of float
         Where no band holds a slot: the silhouette's other bands the tube could be [coarse px] (a
         polished tube's reflections and a shadow break its slots up; a detection at each scale decides).
+    directions : ndarray (h, w) float32 or None
+        :func:`~.segment.band_directions` of ``region`` at ``radius_px`` where the scale search computed
+        them already (the width profiles' directions); None: not computed.
     """
 
     radius_px: float
@@ -193,6 +196,7 @@ class RoughScale:
     offset: tuple
     seg: Segmentation
     others: tuple = ()
+    directions: np.ndarray | None = None
 
     @property
     def px_per_m(self) -> float:
@@ -229,6 +233,7 @@ def _rough_scale(gray, geom, opts, cache):
                              max_radius_px=0.25 * min(shape_c)), reg)
 
     R_lo, n_slots, reg = radius(mask)
+    directions = None
     if np.isfinite(R_lo):
         # a streak splits the tube into two bands of half its width, each with the slots beside it: the
         # filled silhouette's band is the tube when it holds as many slots and is wider
@@ -241,12 +246,14 @@ def _rough_scale(gray, geom, opts, cache):
         R2, n2, reg2 = radius(filled)
         if np.isfinite(R2) and (n2 > n_slots or (n2 == n_slots and R2 > R_lo)):
             R_lo, reg = R2, reg2
+        elif np.array_equal(reg, mask):
+            directions = across            # the width profiles' directions: the same band, the same radius
     if not np.isfinite(R_lo):
         return None, "no tube found: no band of constant width in the silhouette"
     others = () if n_slots else tuple(
         rc for rc in plausible_radii(fill_holes(reg), geom, max_close_px=max_close, min_slot_px=2.0,
                                      max_radius_px=0.25 * min(shape_c)) if rc != R_lo)
-    return RoughScale(float(R_lo), fc, reg, (x0, y0), seg_c, others), ""
+    return RoughScale(float(R_lo), fc, reg, (x0, y0), seg_c, others, directions), ""
 
 
 def _band_widths(gray, geom, opts, rough: RoughScale):
@@ -259,8 +266,11 @@ def _band_widths(gray, geom, opts, rough: RoughScale):
     if len(pts) < 3:
         return np.zeros(0)
     pts = pts[np.linspace(0, len(pts) - 1, min(len(pts), 4 * opts.width_stations)).astype(int)]
-    ang = band_directions(reg, opts.close_slot_factor * float(slot_widths(geom).max()) / geom.outer_radius * R_lo
-                          + 1, R_lo)[pts[:, 1].astype(int), pts[:, 0].astype(int)]
+    across = rough.directions
+    if across is None:
+        across = band_directions(reg, opts.close_slot_factor * float(slot_widths(geom).max()) / geom.outer_radius
+                                 * R_lo + 1, R_lo)
+    ang = across[pts[:, 1].astype(int), pts[:, 0].astype(int)]
     fine = np.isfinite(ang)
     centres = (pts[fine] + rough.offset) * fc + (fc - 1) / 2.0
     normals = np.stack([np.cos(ang[fine]), np.sin(ang[fine])], 1)
@@ -300,8 +310,8 @@ def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
     rough, why = _rough_scale(gray, geom, opts, cache)
     if rough is None:
         return empty_detection(m, "no_manipulator", why)
-    dets = [_at_rough_scale(gray, geom, opts, dataclasses.replace(rough, radius_px=float(rc)), sgn=sgn, base=base,
-                            cache=cache) for rc in (rough.radius_px, *rough.others)]
+    bands = [rough] + [dataclasses.replace(rough, radius_px=float(rc), directions=None) for rc in rough.others]
+    dets = [_at_rough_scale(gray, geom, opts, band, sgn=sgn, base=base, cache=cache) for band in bands]
     return _unconfirmed_scale(_links_agree(_most_confirmed(dets), geom))
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["block_mean_u8", "nearest_crossings", "profile_crossings", "profile_levels", "profile_maps",
+__all__ = ["block_mean_u8", "level_crossings", "line_levels", "nearest_crossings", "profile_crossings", "profile_levels", "profile_maps",
            "surface_threshold"]
 
 
@@ -190,28 +190,155 @@ def surface_threshold(small, row, col, X, Y, c4, sign, hi, lo):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _nearest_crossing(t, p, lv, c, sign):
+    """One row of :func:`nearest_crossings`."""
+    n = len(p)
+    best_j, best = 0, np.inf
+    q_prev = sign * (p[0] - lv)
+    for k in range(n - 1):
+        q_next = sign * (p[k + 1] - lv)
+        d = np.abs(t[k] - c) if (q_prev < 0 and q_next >= 0) else np.inf
+        if k == 0 or np.isnan(d) or d < best:
+            best_j, best = k, d
+            if np.isnan(d):
+                break
+        q_prev = q_next
+    if not np.isfinite(best):
+        return np.nan
+    j = best_j
+    q0, q1 = sign * (p[j] - lv), sign * (p[j + 1] - lv)
+    return t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def nearest_crossings(t, P, level, t0, sign):
     """Per row of ``P`` (rows, n): the interpolated crossing of ``level[row]`` nearest ``t0[row]`` where
     ``sign (P - level)`` goes from < 0 to >= 0, NaN where there is none (:func:`.width._crossings`, one
     pass per row; numpy's ``argmin`` semantics: the first nearest, a NaN distance first)."""
-    rows, n = P.shape
+    rows = P.shape[0]
     out = np.empty(rows)
     for r in range(rows):
-        lv, c = level[r], t0[r]
-        best_j, best = 0, np.inf
-        q_prev = sign * (P[r, 0] - lv)
-        for k in range(n - 1):
-            q_next = sign * (P[r, k + 1] - lv)
-            d = np.abs(t[k] - c) if (q_prev < 0 and q_next >= 0) else np.inf
-            if k == 0 or np.isnan(d) or d < best:
-                best_j, best = k, d
-                if np.isnan(d):
-                    break
-            q_prev = q_next
-        if not np.isfinite(best):
-            out[r] = np.nan
-            continue
-        j = best_j
-        q0, q1 = sign * (P[r, j] - lv), sign * (P[r, j + 1] - lv)
-        out[r] = t[j] + (0 - q0) / (q1 - q0) * (t[j + 1] - t[j])
+        out[r] = _nearest_crossing(t, P[r], level[r], t0[r], sign)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _nan_to_inf(v):
+    """``np.nan_to_num(v, nan=np.inf)`` of one value: NaN -> inf, an infinity -> the largest float of its sign."""
+    if np.isnan(v):
+        return np.inf
+    if v == np.inf:
+        return 1.7976931348623157e308
+    if v == -np.inf:
+        return -1.7976931348623157e308
+    return v
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def level_crossings(t, P, t0, obj_w0, obj_w1, bg_w0, bg_w1, sign):
+    """Per row: the 50 % crossing nearest ``t0`` between the object's and the background's straight-line
+    levels (:func:`line_levels` in [obj_w0, obj_w1] and [bg_w0, bg_w1] of ``t0``), taken at the crossing,
+    three times and once more (:func:`.width._edges`, operation for operation)."""
+    a_o, b_o = line_levels(t, P, t0, obj_w0, obj_w1)
+    a_b, b_b = line_levels(t, P, t0, bg_w0, bg_w1)
+    rows = P.shape[0]
+    out = np.empty(rows)
+    for r in range(rows):
+        c = t0[r]
+        tc = c
+        for _ in range(3):
+            mid = 0.5 * (a_o[r] + b_o[r] * (tc - c) + a_b[r] + b_b[r] * (tc - c))
+            new = _nearest_crossing(t, P[r], _nan_to_inf(mid), c, sign)
+            tc = new if np.isfinite(new) else c
+        mid = 0.5 * (a_o[r] + b_o[r] * (tc - c) + a_b[r] + b_b[r] * (tc - c))
+        out[r] = _nearest_crossing(t, P[r], _nan_to_inf(mid), c, sign)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_block(a, lo, n):
+    """A block of numpy's pairwise summation (``n`` <= 128): eight running sums, then the rest in turn."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - n % 8:
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_sum(a, n):
+    """``a[:n].sum()`` as numpy sums a contiguous float64 row, to the last bit: blocks of at most 128
+    (:func:`_pairwise_block`), longer runs split in two at a multiple of 8 and their sums added. The split
+    tree is walked with an explicit stack (numba's on-disk cache does not hold recursive functions)."""
+    if n <= 128:
+        return _pairwise_block(a, 0, n)
+    los, ns, split = np.empty(64, np.int64), np.empty(64, np.int64), np.zeros(64, np.bool_)
+    vals = np.empty(64)
+    top, nv = 0, 0
+    los[0], ns[0] = 0, n
+    while top >= 0:
+        lo, m = los[top], ns[top]
+        if m <= 128:
+            vals[nv] = _pairwise_block(a, lo, m)
+            nv += 1
+            top -= 1
+        elif not split[top]:
+            split[top] = True
+            m2 = m // 2
+            m2 -= m2 % 8
+            los[top + 1], ns[top + 1], split[top + 1] = lo + m2, m - m2, False
+            los[top + 2], ns[top + 2], split[top + 2] = lo, m2, False
+            top += 2
+        else:
+            vals[nv - 2] = vals[nv - 2] + vals[nv - 1]
+            nv -= 1
+            top -= 1
+    return vals[0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def line_levels(t, P, t0, w0, w1):
+    """Per row of ``P`` (rows, n): the straight line (offset at ``t0[row]``, slope) fitted to the finite
+    samples with ``t - t0`` in [w0, w1] (NaN offset under 3 samples) (:func:`.width._line_levels`): the
+    masked rows and their four sums as numpy forms and sums them, without the full-array temporaries."""
+    rows, n = P.shape
+    a_out, b_out = np.empty(rows), np.empty(rows)
+    xz, pz, xx, xp = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for r in range(rows):
+        cnt = 0
+        for k in range(n):
+            x = t[k] - t0[r]
+            p = P[r, k]
+            if x >= w0 and x <= w1 and np.isfinite(p):
+                cnt += 1
+                xz[k], pz[k] = x, p
+            else:
+                xz[k], pz[k] = 0.0, 0.0
+            xx[k], xp[k] = xz[k] * xz[k], xz[k] * pz[k]
+        sx, sy = 0.0 + _pairwise_sum(xz, n), 0.0 + _pairwise_sum(pz, n)
+        sxx, sxy = 0.0 + _pairwise_sum(xx, n), 0.0 + _pairwise_sum(xp, n)
+        fn = float(cnt)
+        den = fn * sxx - sx * sx
+        b = (fn * sxy - sx * sy) / den if np.abs(den) > 1e-12 else 0.0
+        a0 = (sy - b * sx) / fn
+        a_out[r] = a0 if cnt >= 3 else np.nan
+        b_out[r] = b
+    return a_out, b_out

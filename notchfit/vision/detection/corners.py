@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .closed import wedge_sides
 from .dims import joint_z, slot_depths, slot_widths
 from .lines import intersect, pca_line, unit
 
@@ -148,14 +149,18 @@ def tip_specs(cnt, tip, *, index, geom, low_m):
     return out
 
 
-def slot_specs(cnt, mcnt, pairs_by_side, mouths, *, sgn, index, geom, low_m, raw_corners=None):
+def slot_specs(cnt, mcnt, pairs_by_side, mouths, *, sgn, index, geom, low_m, raw_corners=None, holes=None):
     """Slot corners: proximal and distal corner of every numbered slot.
 
     ``raw_corners`` (label -> indices into ``mcnt``, from
     :func:`~notchfit.vision.detection.outline.raw_mouth_corners`) gives the corners
     and the outer edges' rough directions where known; otherwise they come
-    from the bridged outline at the mouth.
+    from the bridged outline at the mouth. ``holes`` (label -> the pixel
+    centres of a slot closed at its mouth, (K, 2)): the faces' directions
+    are its wedge's sides (:func:`~.closed.wedge_sides`; a slot bent shut
+    turns each face by half its closure), not the normal to the outer edge.
     """
+    holes = holes or {}
     raw_corners = raw_corners or {}
     M = len(mcnt)
     N = len(cnt)
@@ -182,7 +187,8 @@ def slot_specs(cnt, mcnt, pairs_by_side, mouths, *, sgn, index, geom, low_m, raw
                 Pa, Pb = cnt[(i_first - 1) % N], cnt[(i_last + 1) % N]
             else:
                 Pa, Pb = cnt[i_first] - 0.25 * d_in, cnt[i_first] + 0.25 * d_out
-            rows.append((side, j, Pa, Pb, d_in, d_out, a_f, a_s, first_len, second_len))
+            rows.append((side, j, Pa, Pb, d_in, d_out, a_f, a_s, first_len, second_len,
+                         None if bridged or s not in holes else wedge_sides(holes[s])))
     if not rows:
         return []
     # the bridged outline bends near other concavities (the base fillet): take the edge
@@ -193,10 +199,13 @@ def slot_specs(cnt, mcnt, pairs_by_side, mouths, *, sgn, index, geom, low_m, raw
     dirs = outline_directions(mcnt, Ps, rough, a2s)
     ns = len(rows)
     out = []
-    for q, (side, j, Pa, Pb, _, _, _, _, first_len, second_len) in enumerate(rows):
+    for q, (side, j, Pa, Pb, _, _, _, _, first_len, second_len, wedge) in enumerate(rows):
         d_in, d_out = -dirs[q], dirs[ns + q]
         face_a = -outward(d_in)                 # into the tube along the first face
         face_b = outward(d_out)                 # out of the slot along the second face
+        if wedge is not None:                   # the wedge's side next to the first link, then the other
+            first = 0 if np.dot(wedge[0] - wedge[1], -d_in) > 0 else 1
+            face_a, face_b = wedge[first], -wedge[1 - first]
         kinds = ("proximal", "distal") if side > 0 else ("distal", "proximal")
         dj = d[j - 1]
         out.append(CornerSpec(index[(kinds[0], j, side)], Pa, d_in, face_a, first_len, dj, face_out=True))

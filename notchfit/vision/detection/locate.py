@@ -14,8 +14,8 @@ from .chain import ChainTolerance
 from .corners import base_specs, slot_specs, tip_specs
 from .dims import slot_depths, slot_widths
 from .numbering import ChainInput, number_slots, orient_corner_pair
-from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_mouth_corners, slot_mouths, turn_angles,
-                      turn_peaks)
+from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_mouth_corners, slot_mouths,
+                      turn_angles, turn_peaks, wedge_pixels)
 from .records import Crop, Located, Parsed, Setup
 from .result import Detection, empty_detection
 
@@ -85,7 +85,7 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detect
     contour_px = full(cnt)
     plane_px = camera.pixel_to_plane(contour_px) / low_m
     dist = lambda i, j: float(np.linalg.norm(plane_px[i] - plane_px[j]))
-    mouths = slot_mouths(ol, max_wall=0.5 * R_lo, gray=gray, dark=dark)
+    mouths = slot_mouths(ol, max_wall=0.5 * R_lo, gray=gray, dark=dark, reach=float(slot_depths(geom).max()) / low_m)
     be, why = find_base(ol, (holder, strict), R_lo=R_lo, dist=dist, sgn=sgn, min_tube_run_R=opts.min_tube_run_R,
                         min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
                         pair_tol=opts.pair_tol, base=setup.base, mouth_idx=[v[0] for v in mouths.values()])
@@ -181,6 +181,7 @@ def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True) -> 
         specs += tip_specs(cnt, num.tip, index=index, geom=geom, low_m=low_m)
     rawc = res.rawc
     specs += slot_specs(cnt, ol.raw_contour, ((num.right, +1), (num.left, -1)), mouths, sgn=sgn, index=index,
-                        geom=geom, low_m=low_m, raw_corners=rawc)
+                        geom=geom, low_m=low_m, raw_corners=rawc,
+                        holes=wedge_pixels(ol, mouths, max_wall=0.5 * R_lo))
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
     return Located(specs, res.contour_px, num.status, num.messages, be.side, full, res.contour_px[tube], num.tipless)

@@ -87,6 +87,11 @@ class DetectorOptions:
     colour_close_px : int
         The colour silhouette is closed by a disk of this radius [working
         px] (gaps of a pixel or two where a highlight mirrors the card).
+    local_bg_R : float
+        Radius of the disk of the local background (the silhouette variant
+        that leaves out soft shadows, :func:`.segment.local_segmentation`)
+        [tube radii]: wider than the tube's half-width, so the tube drops
+        out of the background, and narrower than a soft shadow's penumbra.
     variant_agree_w : float
         A corner found ``ok`` on two silhouette variants (threshold, streaks
         filled, colour) is kept only where they put it within this fraction
@@ -167,6 +172,7 @@ class DetectorOptions:
     width_tol: float = 0.06
     variant_agree_w: float = 0.25
     colour_close_px: int = 1
+    local_bg_R: float = 1.2
     min_edge_points: int = 5
     profile_step_px: float = 0.5
     stage1_half_px: float = 7.0

@@ -17,9 +17,11 @@ from scipy.ndimage import maximum_filter1d
 from scipy.spatial import cKDTree
 
 from ...polygon import polygon_area
+from .closed import wedge_mouth
 from .segment import close_disk, fill_holes
 
-__all__ = ["Outline", "bridge_slots", "hole_ends", "crop_region", "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
+__all__ = ["Outline", "bridge_slots", "hole_ends", "wedge_pixels", "crop_region",
+           "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
 
 
 @dataclass(frozen=True)
@@ -166,14 +168,27 @@ def turn_peaks(turn, k: int, thr: float, sign: float, exclude=None) -> list:
     return out
 
 
+def _hole_pixels(ol: Outline, s: int) -> np.ndarray:
+    """The pixel centres (x, y) of gap ``s`` (K, 2) float [low-res px, the outline's box]."""
+    bx, by, bw_, bh_ = ol.gap_stats[s, :4]
+    py_, px_ = np.nonzero(ol.gap_labels[by:by + bh_, bx:bx + bw_] == s)
+    return np.stack([px_ + bx, py_ + by], 1).astype(float)
+
+
+def wedge_pixels(ol: Outline, mouths: dict, *, max_wall: float) -> dict:
+    """The pixel centres of every slot closed at its mouth whose point is narrower than a pixel (a hole
+    with one end of its axis beyond ``max_wall`` from the outline, :func:`slot_mouths`): label -> (K, 2)
+    [low-res px]."""
+    return {s: _hole_pixels(ol, s) for s, (_, _, bridged) in mouths.items()
+            if not bridged and len(hole_ends(ol, s, max_wall=max_wall)) < 2}
+
+
 def hole_ends(ol: Outline, s: int, gray=None, dark: bool = True, max_wall: float = np.inf) -> list:
     """The two ends of a hole's long axis (across the tube) on the outline: [(level, -wall, index)], where
     ``wall`` is the distance from the hole to that outline point and ``level`` the most background-like
     value of ``gray`` on the way (-inf without ``gray``); ends beyond ``max_wall`` are left out."""
     cnt = ol.contour
-    bx, by, bw_, bh_ = ol.gap_stats[s, :4]
-    py_, px_ = np.nonzero(ol.gap_labels[by:by + bh_, bx:bx + bw_] == s)
-    pts = np.stack([px_ + bx, py_ + by], 1).astype(float)
+    pts = _hole_pixels(ol, s)
     c, axis = pts.mean(0), np.linalg.svd(pts - pts.mean(0), full_matrices=False)[2][0]
     rel = cnt - c
     along, perp = rel @ axis, np.abs(rel[:, 0] * axis[1] - rel[:, 1] * axis[0])
@@ -198,24 +213,19 @@ def hole_ends(ol: Outline, s: int, gray=None, dark: bool = True, max_wall: float
     return out
 
 
-def _hole_mouth(ol: Outline, s: int, gray, dark: bool, max_wall: float):
-    """The outline index of a hole's mouth, or None: of the two ends of its long axis, the one whose
-    path to the outline passes the most background-like level (a closed mouth still lets a sliver of
-    light through; the backbone on the other side is solid), the nearer one when neither does."""
-    best = hole_ends(ol, s, gray, dark, max_wall)
-    if not best:
-        return None
-    return max(best)[2]
-
-
-def slot_mouths(ol: Outline, *, max_wall: float = np.inf, gray=None, dark: bool = True) -> dict:
+def slot_mouths(ol: Outline, *, max_wall: float = np.inf, gray=None, dark: bool = True, reach=None) -> dict:
     """Where each slot meets the bridged outline: label -> (first index, last index, bridged?).
 
     A slot whose mouth is (almost) closed is a hole; its mouth is one end of
     its long axis (across the tube): the end whose path to the outline is
     brightest in ``gray`` (the downsampled image in the outline's box; a
-    dark object when ``dark``), else the nearer one. Holes further than
-    ``max_wall`` [low-res px] from the outline are not slots.
+    dark object when ``dark``), else the nearer one; ends further than
+    ``max_wall`` [low-res px] from the outline are not mouths. Where one end
+    is further (with ``reach``, the slot's depth [low-res px]), a hole that
+    tapers is a wedge pointed at its mouth, whose point is narrower than a
+    pixel (:func:`~.closed.wedge_mouth`: a slot bent shut closes about its
+    backbone): its mouth is where its axis meets the outline past the
+    narrow end, up to ``reach`` away.
     """
     cnt = ol.contour
     N = len(cnt)
@@ -230,7 +240,12 @@ def slot_mouths(ol: Outline, *, max_wall: float = np.inf, gray=None, dark: bool 
                 idx = np.concatenate([idx[g + 1:], idx[:g + 1] + N])
             mouths[s] = (int(idx[0]) % N, int(idx[-1]) % N, True)
         else:
-            i0 = _hole_mouth(ol, s, gray, dark, max_wall)
+            ends = hole_ends(ol, s, gray, dark, max_wall)
+            i0 = max(ends)[2] if ends else None
+            if len(ends) == 1 and reach is not None:
+                # one end of the axis beyond ``max_wall``: the point of a wedge narrower than a pixel
+                w = wedge_mouth(cnt, _hole_pixels(ol, s), reach=reach)
+                i0 = i0 if w is None else w
             if i0 is not None:
                 mouths[s] = (i0, i0, False)
     return mouths

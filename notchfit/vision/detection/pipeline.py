@@ -24,7 +24,7 @@ from .plane import PlaneInput, finish, link_tolerance, merge_plane_inputs
 from .records import Located, Refined, Setup, Variant
 from .result import Detection, empty_detection
 from .segment import (Segmentation, band_directions, chroma_distance, close_disk, downsample, fill_thin_lines,
-                      largest_region, remove_thin)
+                      largest_region, local_segmentation, remove_thin)
 from .segment import segment as _segment
 from .subpixel import link_widths, refine_corners, statuses
 
@@ -80,8 +80,9 @@ def fill_streaks(mask, length_px, *, holder_radius, bridge_px, radius_px):
     return filled
 
 
-#: The silhouettes :func:`detect_at` tries, in order: the threshold, with thin streaks filled, by colour.
-VARIANTS = ("threshold", "streaks", "colour")
+#: The silhouettes :func:`detect_at` tries, in order: the threshold, with thin streaks filled, by colour, against
+#: the local background (a soft shadow as dark as the tube is not tube, :func:`.segment.local_segmentation`).
+VARIANTS = ("threshold", "streaks", "colour", "local")
 
 
 def variant_mask(name: str, seg: Segmentation, setup: Setup, cache: dict):
@@ -95,6 +96,12 @@ def variant_mask(name: str, seg: Segmentation, setup: Setup, cache: dict):
         return fill_streaks(seg.mask, streak_length(geom, opts) / low_m,
                             holder_radius=opts.holder_width_factor * R / low_m, radius_px=R / low_m,
                             bridge_px=opts.close_slot_factor * float(slot_widths(geom).max()) / low_m + 1)
+    if name == "local":
+        # thin lines stay, as on the threshold's silhouette: a wire taken off the tip face would leave the
+        # tip's corners to be refined across it
+        seg_c = local_segmentation(seg, opts.local_bg_R * R / low_m, min_snr=opts.min_snr, noise_scale=f,
+                                   level=opts.segment_level)
+        return None if seg_c.mask is None else seg_c.mask
     seg_c = colour_segmentation(cache, f, opts)
     if seg_c is None or seg_c.mask is None:
         return None
@@ -117,7 +124,7 @@ def locate_variants(seg: Segmentation, shape, setup: Setup, cache: dict, *, want
     for name in VARIANTS:
         mask = variant_mask(name, seg, setup, cache)
         if mask is None:
-            break
+            continue
         region, box = largest_region(mask)
         ratio = float(region.sum()) / exp_area
         if ratio < opts.area_range[0] or region.mean() > 0.95:

@@ -18,7 +18,7 @@ import math
 import cv2
 import numpy as np
 
-from ._kernels import nearest_crossings
+from ._kernels import level_crossings, line_levels, nearest_crossings
 
 __all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along", "trim_box",
            "tube_radius"]
@@ -272,35 +272,21 @@ def _crossings(t, P, level, t0, sign):
 
 
 def _line_levels(t, P, t0, win):
-    """Per row: straight line (offset at t0, slope) fitted to the samples with t - t0 in ``win``."""
-    x = t[None, :] - t0[:, None]
-    m = (x >= win[0]) & (x <= win[1]) & np.isfinite(P)
-    n = m.sum(1)
-    Pz = np.where(m, P, 0.0)
-    xz = np.where(m, x, 0.0)
-    sx, sy = xz.sum(1), Pz.sum(1)
-    sxx, sxy = (xz * xz).sum(1), (xz * Pz).sum(1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        den = n * sxx - sx * sx
-        b = np.where(np.abs(den) > 1e-12, (n * sxy - sx * sy) / den, 0.0)
-        a0 = (sy - b * sx) / n
-    return np.where(n >= 3, a0, np.nan), b
+    """Per row: straight line (offset at t0, slope) fitted to the samples with t - t0 in ``win`` (compiled:
+    :func:`._kernels.line_levels`, the numpy formulation's sums to the last bit)."""
+    return line_levels(np.ascontiguousarray(t, float), np.ascontiguousarray(P, float),
+                       np.ascontiguousarray(np.broadcast_to(np.asarray(t0, float), (len(P),))), float(win[0]),
+                       float(win[1]))
 
 
 def _edges(t, P, t0, obj_win, bg_win, sign, rising=True):
     """Per row: 50 % crossing near ``t0`` between the object and background levels, each a straight line
     fitted on its side (``obj_win``, ``bg_win`` offsets from ``t0``) and taken at the crossing: shading
-    across the tube makes the object level slope toward the edge."""
-    a_o, b_o = _line_levels(t, P, t0, obj_win)
-    a_b, b_b = _line_levels(t, P, t0, bg_win)
-    tc = t0.astype(float)
-    s = sign if rising else -sign
-    for _ in range(3):
-        mid = 0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0))
-        tc = _crossings(t, P, np.nan_to_num(mid, nan=np.inf), t0, s)
-        tc = np.where(np.isfinite(tc), tc, t0)
-    final = _crossings(t, P, np.nan_to_num(0.5 * (a_o + b_o * (tc - t0) + a_b + b_b * (tc - t0)), nan=np.inf), t0, s)
-    return final
+    across the tube makes the object level slope toward the edge (compiled: :func:`._kernels.level_crossings`)."""
+    t0 = np.ascontiguousarray(np.broadcast_to(np.asarray(t0, float), (len(P),)))
+    return level_crossings(np.ascontiguousarray(t, float), np.ascontiguousarray(P, float), t0, float(obj_win[0]),
+                           float(obj_win[1]), float(bg_win[0]), float(bg_win[1]),
+                           float(sign if rising else -sign))
 
 
 def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur_px: float, *,
@@ -382,8 +368,15 @@ def band_width(img, centres, normals, width0_px: float, contrast: float, *, step
     """
     along = np.stack([-normals[:, 1], normals[:, 0]], 1)
     d = skew_offset * width0_px
+    # the three runs read one float copy of the region around all their profiles
+    H, W = img.shape
+    ends = np.concatenate([centres + s * reach * width0_px * normals for s in (-1.0, 1.0)])
+    m = d + 3 * step + 3
+    lo = np.maximum(np.floor(ends.min(0) - m), 0).astype(int)
+    hi = np.minimum(np.ceil(ends.max(0) + m), [W, H]).astype(int)
+    region = (np.asarray(img[lo[1]:hi[1], lo[0]:hi[0]], np.float32), lo) if np.all(hi > lo) else None
     runs = [band_width_along(img, centres + k * d * along, normals, width0_px, contrast, step=step, reach=reach,
-                             blur_px=blur_px) for k in (0.0, -1.0, 1.0)]
+                             blur_px=blur_px, region=region) for k in (0.0, -1.0, 1.0)]
     (w, tn, tf), (_, tn_a, tf_a), (_, tn_b, tf_b) = runs
     # the (parallel) edges run at an angle e to the profile's perpendicular: both shift by 2 d tan(e)
     # between the neighbours; the width is w cos(e)
@@ -396,7 +389,7 @@ def band_width(img, centres, normals, width0_px: float, contrast: float, *, step
 
 
 def band_width_along(img, centres, normals, width0_px: float, contrast: float, *, step: float = 0.5,
-                     reach: float = 0.8, blur_px: float = math.nan):
+                     reach: float = 0.8, blur_px: float = math.nan, region=None):
     """The tube's width [px] along one profile per centre (S,), NaN where not measured.
 
     Each profile runs through a centreline point along the normal, ``reach``
@@ -416,6 +409,8 @@ def band_width_along(img, centres, normals, width0_px: float, contrast: float, *
         Object minus background level (its sign is the polarity).
     blur_px : float
         Edge blur σ [px]; measured from the profiles when NaN.
+    region : (ndarray (h, w) float32, (x0, y0)) or None
+        A float32 copy of ``img`` from (x0, y0) [px]; the profiles read it where it holds their box.
 
     Returns
     -------
@@ -430,7 +425,11 @@ def band_width_along(img, centres, normals, width0_px: float, contrast: float, *
     if np.any(hi <= lo):
         nan = np.full(len(centres), np.nan)
         return nan, nan, nan
-    roi = np.ascontiguousarray(img[lo[1]:hi[1], lo[0]:hi[0]], dtype=np.float32)
+    if region is not None and np.all(lo >= region[1]) and np.all(hi - region[1] <= region[0].shape[::-1]):
+        X0, Y0 = region[1]
+        roi = region[0][lo[1] - Y0:hi[1] - Y0, lo[0] - X0:hi[0] - X0]
+    else:
+        roi = np.ascontiguousarray(img[lo[1]:hi[1], lo[0]:hi[0]], dtype=np.float32)
     P = cv2.remap(roi, (pts[..., 0] - lo[0]).astype(np.float32), (pts[..., 1] - lo[1]).astype(np.float32),
                   cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan")).astype(float)
     sg = 1.0 if contrast > 0 else -1.0
