@@ -34,18 +34,19 @@ def _seed_of(obs: Observations, seed: int) -> list:
     return [seed, len(obs.time), int(1e6 * obs.tension_sigma), zlib.crc32(obs.name.encode())]
 
 
-def _draws(obs: Observations, rng, draws: int, matched: bool) -> np.ndarray:
-    """The load-cell noise of each draw (draws, 2, S) [N], left and right tendon; with ``matched`` each
-    sample's noise rescaled so that its mean square over the draws is ``σ_T²`` exactly."""
+def _draws(obs: Observations, rng, draws: int, matched: bool | None) -> np.ndarray:
+    """The load-cell noise of each draw (draws, 2, S) [N], left and right tendon; with ``matched`` (None: on
+    a tube with one tendon) each sample's noise rescaled so that its mean square over the draws is ``σ_T²``
+    exactly."""
     e = rng.normal(0.0, obs.tension_sigma, (draws, 2, len(obs.time)))
-    if matched:
+    if len(obs.geom.tendons) == 1 if matched is None else matched:
         rms = np.sqrt(np.mean(e**2, axis=0))
         e = e * (obs.tension_sigma / np.where(rms > 0, rms, 1.0))
     return e
 
 
 def noise_floor(obs: Observations, params: FrictionParams, sims: Simulations | None = None, *,
-                draws: int = 4, seed: int = 0, matched: bool = True) -> np.ndarray:
+                draws: int = 4, seed: int = 0, matched: bool | None = None) -> np.ndarray:
     """Expected squared error of a perfect model, per sample [m² per point or rad² per angle] (S,).
 
     Point noise gives ``2 σ_p²`` (angle noise ``σ_θ²``). The load-cell noise's
@@ -56,18 +57,20 @@ def noise_floor(obs: Observations, params: FrictionParams, sims: Simulations | N
     common offset: a small spurious reversal of the tension makes cables
     stick and changes the friction history.
 
-    Each sample's noise is moment-matched over the draws (``matched``): rescaled so that its mean square
-    is ``σ_T²`` exactly. Where the response is smooth over the noise and driven by the sample's own
+    On a tube with one tendon each sample's noise is moment-matched over the draws (``matched``): rescaled
+    so that its mean square is ``σ_T²`` exactly. Where the response is smooth over the noise and driven by the sample's own
     tension (one tendon, no friction history: a wrist loading along its superelastic curve) the squared
     change of a sample is ``‖J_s‖² ε_s²``, so the floor is then exact with any number of draws: the
     linearised propagation ``σ_T² ‖J_s‖²`` without its ``S`` extra runs. Independent draws are not: on a wrist's superelastic snap, where a few samples carry
     the floor (the tip moves 0.08 mm per 0.01 N there, 0.007 mm elsewhere), four of them put one
     trial's floor anywhere from 0.024 to 0.045 mm rms (the propagation's 0.035 mm), and, one noise
     vector serving every experiment of a length (before each experiment drew its own), every trial
-    of a study low at the same samples (docs/diagnosis.md). At a friction threshold (the seed tube's
-    0.11 N load cells) the matched draws reach at most ``√draws σ_T``: against 200 independent draws
-    they put the floor of a trial that breaks away 13 % (in squared error) below four independent
-    draws' mean there.
+    of a study low at the same samples (docs/diagnosis.md). On the one-tendon wrists (loading and unloading,
+    with friction) the matched draws' floor is that of 200 independent draws within 2 % in rms. With two
+    tendons, whose noise meets in every sample and whose cables stick and slip against each other (the
+    seed tube's 0.11 N load cells), they are not exact and were not unbiased: 7 % below 300 independent
+    draws in rms on the small demo's baseline (four or eight matched draws alike; four independent
+    draws 3 % below, within their scatter), so two tendons keep independent draws.
 
     Parameters
     ----------
@@ -80,8 +83,9 @@ def noise_floor(obs: Observations, params: FrictionParams, sims: Simulations | N
         Monte Carlo draws (0: measurement noise only).
     seed : int
         Seed of the draws: ``numpy.random.default_rng([seed, S, round(1e6 σ_T), crc32(name)])``.
-    matched : bool
-        Moment-match each sample's noise over the draws (False: independent Gaussian draws).
+    matched : bool, optional
+        Moment-match each sample's noise over the draws (False: independent Gaussian draws; default: on a
+        tube with one tendon).
 
     Returns
     -------
