@@ -366,7 +366,8 @@ def fold_band(train, cal: Calibration, test, *, cache: Simulations | None = None
 
     The fold's fit knows its parameters ``x`` up to ``C = (JᵀJ)⁻¹``, ``J`` the whitened training
     residuals' Jacobian at the optimum (the known noise and the per-tube priors only: a model that
-    misfits does not widen its own band, :func:`~notchfit.analysis.estimation.bands.gauss_newton_covariance`);
+    misfits does not widen its own band, :func:`~notchfit.analysis.estimation.bands.gauss_newton_covariance`),
+    widened by the training trials' load-cell noise (``tension_noise``, :func:`_tension_sandwich`);
     a held-out prediction moves with ``x`` by ``J_h``, so its variance is ``diag(J_h C J_hᵀ)``
     (:func:`~notchfit.analysis.estimation.bands.linear_band`). Both Jacobians are the estimation core's
     forward differences (:func:`~notchfit.analysis.estimation.solve.forward_jacobian`) with its steps
