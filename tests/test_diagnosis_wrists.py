@@ -7,7 +7,8 @@ excess over the noise that the candidates then "explained" (false alarms on the 
 Each study is synthesised from a seeded recipe, its truth.json deleted before the analysis, and the verdict
 read from diagnosis.json alone. The default job runs one reduced null study and the loading-only
 hysteresis study; the slow job (`pytest -m slow`) every shipped null wrist recipe (joint angles of two
-tubes, notch points of one), over three seeds, against every candidate. ``benchmarks/null_wrists.py``
+tubes, notch points of one), over three seeds, against every candidate, and the two tubes as notch points
+(seed 1, the last null false alarm: its noise floor's draws and its folds' band, docs/history.md). ``benchmarks/null_wrists.py``
 also measures each recipe the other way.
 """
 import json
