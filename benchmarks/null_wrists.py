@@ -5,7 +5,11 @@ Each recipe is measured as joint angles and as notch points (the recipe's own wa
 study the verdict, the held-out baseline rms against the noise floor, the p-value of the held-out lack of
 fit against the trials' scatter (where trials repeat), the best candidate and the wall and CPU time.
 
-Usage: python benchmarks/null_wrists.py [--seeds 1,2,3] [--jobs 2] [--only wrist_stock]
+The noise floor column is the noise alone; the verdict's floor adds the baseline folds' prediction
+uncertainty (``band``: their parameters known up to the training trials' point or angle noise and their
+load-cell noise, docs/diagnosis.md).
+
+Usage: python benchmarks/null_wrists.py [--seeds 1,2,3] [--jobs 2] [--only wrist_stock] [--observe points]
 """
 import argparse
 import math
@@ -54,7 +58,8 @@ def _row(name, observe, changes, seed, jobs, folder) -> str:
     cand = f"{best.cause} {best.heldout_rms / f:.3f} (z {best.z:.1f})" if best else "-"
     ratio = d.baseline_heldout_rms / d.noise_rms if d.noise_rms > 0 else math.nan
     return (f"| {name} | {observe} | {seed} | {d.cause} | {d.baseline_heldout_rms / f:.3f} {u} | "
-            f"{d.noise_rms / f:.3f} {u} | {ratio:.2f} | {p} | {cand} | {wall:.0f} s / {cpu:.0f} s |")
+            f"{d.noise_rms / f:.3f} {u} | {d.band_rms / f:.3f} {u} | {ratio:.2f} | {p} | {cand} | "
+            f"{wall:.0f} s / {cpu:.0f} s |")
 
 
 def main():
@@ -62,15 +67,16 @@ def main():
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--only", default=None, help="one recipe name")
+    ap.add_argument("--observe", default=None, choices=("angles", "points"), help="one way of measuring")
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="null-wrists-"))
-    print("| recipe | measured | seed | verdict | held-out baseline | noise floor | ratio | lack-of-fit p | "
+    print("| recipe | measured | seed | verdict | held-out baseline | noise floor | band | ratio | lack-of-fit p | "
           "best candidate | wall / CPU |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     try:
         for seed in (int(s) for s in args.seeds.split(",")):
             for name, observe, changes in NULL_WRISTS:
-                if args.only and name != args.only:
+                if (args.only and name != args.only) or (args.observe and observe != args.observe):
                     continue
                 print(_row(name, observe, changes, seed, args.jobs, tmp / f"{name}-{observe}-{seed}"), flush=True)
     finally:

@@ -47,7 +47,7 @@ def test_a_fold_predicting_its_own_training_data_has_the_hat_matrix_trace(tmp_pa
     write_study(synthesize(r, seed=2, method="fast"), tmp_path / "study")
     preps = observe_study(read_study(tmp_path / "study"), "angles")
     cal = calibrate(preps, None, errors=False)
-    var = fold_band(preps, cal, preps, bound_prior=False)
+    var = fold_band(preps, cal, preps, bound_prior=False, tension_noise=False)
     assert len(var) == 2 and all(v.shape == (p.time.size,) for v, p in zip(var, preps))
 
     def trace(var):
@@ -56,7 +56,9 @@ def test_a_fold_predicting_its_own_training_data_has_the_hat_matrix_trace(tmp_pa
     assert not cal.tubes                                # the seed tube: no per-tube unknowns, no priors
     np.testing.assert_allclose(trace(var), len(cal.values), rtol=1e-6)
     # the bounds as a prior only narrow the band (0 < their trace < p)
-    assert 0.0 < trace(fold_band(preps, cal, preps)) < len(cal.values)
+    assert 0.0 < trace(fold_band(preps, cal, preps, tension_noise=False)) < len(cal.values)
+    # the training trials' load-cell noise (0.11 N here) only widens it
+    assert trace(fold_band(preps, cal, preps, bound_prior=False)) > len(cal.values)
 
 
 RULE = dict(none_tol=0.5, z_crit=3.0, min_removed=0.3)
@@ -69,3 +71,52 @@ def test_heldout_band_and_the_floor_in_words():
     text = explain("none", [], [], 0.55 * DEG, 0.3 * DEG, metric="angles", **RULE, band_rms=0.4 * DEG)
     assert "0.550° rms against a floor of 0.500° (noise 0.300°, the folds' prediction uncertainty 0.400°)" in text
     assert "noise floor" in explain("none", [], [], 0.55 * DEG, 0.3 * DEG, metric="angles", **RULE)
+
+
+def test_the_training_tension_noise_gives_the_sandwich_of_a_misweighted_fit():
+    """A model linear in its parameters and in each sample's measured tension, fitted by least squares weighted
+    by the measurement σ alone: the parameters' covariance is ``C Jᵀ Σ J C``, ``Σ = I + σ_T² Σ_s b_s b_sᵀ / σ²``
+    (``b_s`` the rows of sample ``s``'s response to its tension: the load-cell noise moves every point of a
+    sample together), ``C = (JᵀJ)⁻¹``. Two trials, the second with no tendon of that side."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from notchfit.analysis.diagnosis.calibration import _tension_sandwich
+
+    rng = np.random.default_rng(3)
+    S, m, p, sigma = 5, 3, 2, 0.1
+
+    @dataclasses.dataclass(frozen=True, eq=False)
+    class Trial:
+        tension_left: np.ndarray
+        tension_right: np.ndarray
+        tension_sigma: float
+        geom: SimpleNamespace
+        slope: np.ndarray                               # (S, m): each row's response to its sample's tension
+        A: np.ndarray                                   # (S m, p)
+
+    def trial(tendons, sig_t):
+        return Trial(rng.uniform(0, 2, S), rng.uniform(0, 2, S), sig_t, SimpleNamespace(tendons=tendons),
+                     rng.normal(0, 1, (S, m)), rng.normal(0, 1, (S * m, p)))
+
+    @dataclasses.dataclass(frozen=True)
+    class Toy:
+        obs: tuple
+
+        def residuals(self, x):
+            return np.concatenate([(o.A @ x + (o.slope * o.tension_right[:, None]).ravel()) / sigma for o in self.obs])
+
+        def clusters(self):
+            return np.repeat(np.arange(S * len(self.obs)), m)
+
+    obs = (trial(("right",), 0.05), trial(("left",), 0.05))
+    pb, x = Toy(obs), rng.normal(0, 1, p)
+    J = np.vstack([o.A for o in obs]) / sigma
+    C = np.linalg.inv(J.T @ J)
+    Sigma = np.eye(J.shape[0])
+    b = obs[0].slope * 0.05 / sigma                       # the first trial's samples only
+    for s in range(S):
+        v = np.zeros(J.shape[0])
+        v[s * m:(s + 1) * m] = b[s]
+        Sigma += np.outer(v, v)
+    np.testing.assert_allclose(_tension_sandwich(pb, x, J, C), C @ J.T @ Sigma @ J @ C, rtol=1e-6, atol=1e-12)

@@ -321,14 +321,53 @@ def _bases(x0, paper, paper_start: bool) -> tuple:
     return (x0, paper) if paper_start and not np.array_equal(x0, paper) else (x0,)
 
 
+def _tension_sandwich(pb: Problem, x, J: np.ndarray, C: np.ndarray, *, step: float = 1.0) -> np.ndarray:
+    """The parameters' covariance with the training trials' load-cell noise: ``C (C⁻¹ + Σ_s g_s g_sᵀ) C``.
+
+    The fit is least squares weighted by the measurement σ alone (``C = (JᵀJ + P)⁻¹``, ``P`` the prior's
+    information), but the residuals also carry the noise of the measured tensions the simulator is driven
+    with: sample ``s`` of a trial moves by ``v_s = σ_T ∂y_s/∂T`` (whitened). For a misweighted least-squares
+    fit the parameters' covariance is the sandwich ``C (Jᵀ Σ J + P) C`` with ``Σ = I + Σ_s v_s v_sᵀ``, so
+    ``g_s = J_sᵀ v_s`` over that sample's rows. ``v_s`` is the response to a common offset of ``step σ_T`` on
+    every sample of the trial's tendon, one run per trial and tendon: each sample's own slope where the
+    response has no memory (a wrist loading along its superelastic curve), the slope to an offset where
+    friction remembers the history (an approximation there).
+
+    Parameters
+    ----------
+    pb : Problem
+        The fold's training problem; ``x`` its optimum.
+    J : ndarray (r, p)
+        Its whitened Jacobian at ``x`` (the prior's rows included).
+    C : ndarray (p, p)
+        ``(JᵀJ + P)⁻¹`` (:func:`~notchfit.analysis.estimation.bands.gauss_newton_covariance`).
+    step : float
+        The offset, in load-cell σ.
+    """
+    r0, rows = pb.residuals(x), pb.clusters()
+    seen = rows >= 0
+    extra = np.zeros_like(C)
+    for side in ("left", "right"):
+        moved = tuple(dataclasses.replace(o, **{f"tension_{side}": getattr(o, f"tension_{side}") + step * o.tension_sigma})
+                      if side in o.geom.tendons and o.tension_sigma > 0 else o for o in pb.obs)
+        if all(m is o for m, o in zip(moved, pb.obs)):
+            continue
+        v = (dataclasses.replace(pb, obs=moved).residuals(x) - r0) / step       # whitened, per σ_T
+        g = np.zeros((int(rows.max()) + 1, J.shape[1]))
+        np.add.at(g, rows[seen], J[seen] * v[seen, None])
+        extra += g.T @ g
+    return C + C @ extra @ C
+
+
 def fold_band(train, cal: Calibration, test, *, cache: Simulations | None = None,
               scales: StudyScales | None = None, base: FrictionParams | None = None,
-              diff_step: float = 2e-3, bound_prior: bool = True) -> list[np.ndarray]:
+              diff_step: float = 2e-3, bound_prior: bool = True, tension_noise: bool = True) -> list[np.ndarray]:
     """The prediction variance of a baseline fold's held-out experiments, per sample [m² or rad²].
 
     The fold's fit knows its parameters ``x`` up to ``C = (JᵀJ)⁻¹``, ``J`` the whitened training
     residuals' Jacobian at the optimum (the known noise and the per-tube priors only: a model that
-    misfits does not widen its own band, :func:`~notchfit.analysis.estimation.bands.gauss_newton_covariance`);
+    misfits does not widen its own band, :func:`~notchfit.analysis.estimation.bands.gauss_newton_covariance`),
+    widened by the training trials' load-cell noise (``tension_noise``, :func:`_tension_sandwich`);
     a held-out prediction moves with ``x`` by ``J_h``, so its variance is ``diag(J_h C J_hᵀ)``
     (:func:`~notchfit.analysis.estimation.bands.linear_band`). Both Jacobians are the estimation core's
     forward differences (:func:`~notchfit.analysis.estimation.solve.forward_jacobian`) with its steps
@@ -351,6 +390,10 @@ def fold_band(train, cal: Calibration, test, *, cache: Simulations | None = None
         parameter the training trials do not move at all (``wrist_tip_first``'s E_se and strain_lower, whose
         plateau its lighter trials never reach) gets that spread instead of none (False: the data's own
         information only, the pseudo-inverse's zero for such a direction).
+    tension_noise : bool
+        The training trials' load-cell noise in ``C`` too (:func:`_tension_sandwich`): the fit weighs its
+        residuals by the point or angle σ alone, while on a wrist's superelastic snap the noise of the
+        measured tension moves a sample ten times more (False: the measurement noise only).
 
     Returns
     -------
@@ -366,7 +409,10 @@ def fold_band(train, cal: Calibration, test, *, cache: Simulations | None = None
     x = pb.x0                                        # the fold's optimum, as the fit's start
     h = pb.steps(x, diff_step)
     prior_sd = (pb.hi - pb.lo) / math.sqrt(12.0) if bound_prior else None
-    C = gauss_newton_covariance(forward_jacobian(pb, x, h), prior_sd)
+    J = forward_jacobian(pb, x, h)
+    C = gauss_newton_covariance(J, prior_sd)
+    if tension_noise:
+        C = _tension_sandwich(pb, x, J, C)
     # the held-out experiments under the same unknowns (a tube not trained on keeps its drawing's values)
     held = dataclasses.replace(pb, obs=tuple(test), prior=np.zeros((0, x.size)), prior_offset=None)
     Jh = forward_jacobian(held, x, h)
