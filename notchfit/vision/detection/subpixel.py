@@ -171,8 +171,8 @@ def ray_exits(poly, P, u, *, min_s: float = 1.0, margin: float = 1.0) -> np.ndar
     P, u = np.asarray(P, float), np.asarray(u, float)
     # signed distance of every vertex from every ray's line (n, N), as a filter only
     d = (u[:, 1:] * A[:, 0] - u[:, :1] * A[:, 1]) - (P[:, 0] * u[:, 1] - P[:, 1] * u[:, 0])[:, None]
-    dB = np.roll(d, -1, axis=1)
-    i, j = np.nonzero((np.minimum(d, dB) <= margin) & (np.maximum(d, dB) >= -margin))
+    hi, lo = d > -margin, d < margin                                  # not clearly below / above the line
+    i, j = np.nonzero((hi | np.roll(hi, -1, axis=1)) & (lo | np.roll(lo, -1, axis=1)))
     E = B[j] - A[j]                                                   # (m, 2)
     W = A[j] - P[i]
     cross = lambda a, b: a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
