@@ -107,6 +107,37 @@ def test_ray_exits_and_width_deficits_on_a_band():
     assert d[0] == pytest.approx(20.0)
 
 
+def _ray_exits_all_pairs(poly, P, u, min_s):
+    """Every ray against every side of the polygon: the straightforward reference."""
+    A = np.asarray(poly, float)
+    E = np.roll(A, -1, axis=0) - A
+    W = A[None] - P[:, None]
+    cross = lambda a, b: a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    den = cross(u[:, None], E[None])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s, r = cross(W, E[None]) / den, cross(W, u[:, None]) / den
+    hit = (np.abs(den) > 1e-12) & (r >= 0) & (r <= 1) & (s > min_s)
+    return np.where(hit, s, np.inf).min(axis=1)
+
+
+def test_ray_exits_equal_all_pairs_to_the_last_bit():
+    """Only the sides near a ray's line are intersected: the same distances as over all sides, also for
+    integer outlines whose vertices lie exactly on a ray."""
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        N, n = int(rng.integers(3, 600)), int(rng.integers(1, 40))
+        t = np.sort(rng.uniform(0, 2 * np.pi, N))
+        rad = 200 + 60 * rng.standard_normal(N) * (trial % 2)
+        poly = np.c_[500 + rad * np.cos(t), 400 + rad * np.sin(t)]
+        a = rng.uniform(0, 2 * np.pi, n)
+        u = np.c_[np.cos(a), np.sin(a)]
+        P = poly[rng.integers(0, N, n)] + rng.normal(0, 2, (n, 2))
+        if trial % 3 == 0:
+            poly, P = np.round(poly), np.round(P)
+            u = np.array([[1.0, 0.0], [0.0, -1.0], [np.sqrt(0.5), np.sqrt(0.5)]])[rng.integers(0, 3, n)]
+        np.testing.assert_array_equal(ray_exits(poly, P, u, min_s=20.0), _ray_exits_all_pairs(poly, P, u, 20.0))
+
+
 def test_unexplained_missing_width_widens_sigma_across_that_edge():
     """A silhouette 14 px narrower than the tube beside a corner whose outer edge search found 2 px: 14 - 2 x 2
     - 2 (the working copy's pixel) = 8 px of limb nobody saw; the edge may lie anywhere over them: variance

@@ -158,20 +158,32 @@ def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float,
     return out
 
 
-def ray_exits(poly, P, u, *, min_s: float = 1.0) -> np.ndarray:
+def ray_exits(poly, P, u, *, min_s: float = 1.0, margin: float = 1.0) -> np.ndarray:
     """Distance (n,) [px] from each point ``P`` (n, 2) along the unit direction ``u`` (n, 2) to the nearest
-    crossing of the closed polygon ``poly`` (N, 2) beyond ``min_s`` (inf: none)."""
+    crossing of the closed polygon ``poly`` (N, 2) beyond ``min_s`` (inf: none).
+
+    Only the sides whose ends are not both more than ``margin`` [px] on one side of a ray's line can cross
+    it; the crossings are computed for those (ray, side) pairs alone, with the same arithmetic as over all
+    pairs, so the distances are the same to the last bit.
+    """
     A = np.asarray(poly, float)
     B = np.roll(A, -1, axis=0)
-    E = B - A                                                         # (N, 2)
-    W = A[None, :, :] - P[:, None, :]                                 # (n, N, 2)
+    P, u = np.asarray(P, float), np.asarray(u, float)
+    # signed distance of every vertex from every ray's line (n, N), as a filter only
+    d = (u[:, 1:] * A[:, 0] - u[:, :1] * A[:, 1]) - (P[:, 0] * u[:, 1] - P[:, 1] * u[:, 0])[:, None]
+    hi, lo = d > -margin, d < margin                                  # not clearly below / above the line
+    i, j = np.nonzero((hi | np.roll(hi, -1, axis=1)) & (lo | np.roll(lo, -1, axis=1)))
+    E = B[j] - A[j]                                                   # (m, 2)
+    W = A[j] - P[i]
     cross = lambda a, b: a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    den = cross(u[:, None, :], E[None])                               # (n, N)
+    den = cross(u[i], E)
     with np.errstate(invalid="ignore", divide="ignore"):
-        s = cross(W, E[None]) / den
-        r = cross(W, u[:, None, :]) / den
+        s = cross(W, E) / den
+        r = cross(W, u[i]) / den
     hit = (np.abs(den) > 1e-12) & (r >= 0) & (r <= 1) & (s > min_s)
-    return np.where(hit, s, np.inf).min(axis=1)
+    out = np.full(len(P), np.inf)
+    np.minimum.at(out, i[hit], s[hit])
+    return out
 
 
 def width_deficits(sp: CornerSpecs, sgn, outline_px, diameter_px: float, *, min_frac: float = 0.3) -> np.ndarray:
