@@ -293,7 +293,10 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
         loose[0, 0, :, 1] = False
         loose[:, M - 2, C - 1, M - 1] = False
         held = _best(loose, allowed, wgt, start=allowed, end=allowed).score < best.score - 1e-6
-    out = dict(unique) if held or len(unique) == M - 2 == K else {}
+    # a complete side stands without an end next to its slots only when no base corner found disagrees (a
+    # mirrored view: the other side's slots fit the chain as a whole, and the base lies off their first slot)
+    complete = len(unique) == M - 2 == K and (cands.base is None or base_ok)
+    out = dict(unique) if held or complete else {}
     # an end that joins a matching of its own next to its first (last) slot disputes the numbers it gives
     # otherwise (a loose join is weak evidence: it disputes nothing)
     tight = feas.copy()
