@@ -11,6 +11,7 @@ import pandas as pd
 from notchfit.analysis.diagnosis import Calibration, Diagnosis, Gain
 from notchfit.analysis.fitting import StudyFit
 from notchfit.analysis.identify import Identification, TubeFit
+from notchfit.figures.summary import candidates_figure
 from notchfit.units import DEG
 
 
@@ -64,3 +65,15 @@ def test_study_fit_summary_over_successful_fits():
     assert "0.0900 mm over 2 samples" in lines[0]
     assert lines[2].split()[:7] == ["linear", "rms", "0.300", "deg,", "max", "0.500", "deg"]
     assert lines[-1] == "fit: 3 of 4 experiments fitted in 1.2 s"
+
+
+def test_the_regime_bars_show_an_extended_model_only_when_a_cause_is_named():
+    """With no cause named there is no extended model: the regime panel draws the baseline alone (it used
+    to draw an 'extended' bar equal to the baseline beside it)."""
+    cands = pd.DataFrame({"model": ["baseline", "external_load"], "heldout_rms_deg": [0.55, 0.54]})
+    regimes = pd.DataFrame({"regime": ["I", "II"], "baseline": [0.5, 0.6], "extended": [0.5, 0.6]})
+    none = candidates_figure(cands, 0.5, named=(), regimes=regimes, unit="deg")
+    named = candidates_figure(cands, 0.5, named=("external_load",), regimes=regimes, unit="deg")
+    assert len(none.axes[1].patches) == 2
+    assert [t.get_text() for t in none.axes[1].get_legend().get_texts()] == ["baseline"]
+    assert len(named.axes[1].patches) == 4

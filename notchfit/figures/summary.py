@@ -176,8 +176,11 @@ def candidates_figure(candidates: pd.DataFrame, noise: float, named=(), regimes:
     axes[0].legend(fontsize=8, loc="lower right")
     if len(axes) > 1:
         x = np.arange(len(regimes))
-        axes[1].bar(x - 0.2, regimes["baseline"], 0.4, color=SERIES["baseline"], label="baseline")
-        axes[1].bar(x + 0.2, regimes["extended"], 0.4, color=SERIES["extended"], label="extended")
+        if named:       # an extended model exists only when a cause is named
+            axes[1].bar(x - 0.2, regimes["baseline"], 0.4, color=SERIES["baseline"], label="baseline")
+            axes[1].bar(x + 0.2, regimes["extended"], 0.4, color=SERIES["extended"], label="extended")
+        else:
+            axes[1].bar(x, regimes["baseline"], 0.4, color=SERIES["baseline"], label="baseline")
         axes[1].axhline(noise, color="k", ls=":")
         axes[1].set_xticks(x, [f"regime {r}" for r in regimes["regime"]])
         axes[1].set_ylabel(f"held-out {what} error, rms [{unit}]")
