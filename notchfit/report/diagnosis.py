@@ -210,7 +210,7 @@ def _diagnosis_figures(inp, d) -> list:
         reg = pd.DataFrame([{"regime": r, "baseline": g.baseline, "extended": g.extended}
                             for r, g in d.per_regime.items()])
         parts.append(figure(candidates_figure(nio.read_diagnosis_csv(out / "diagnosis_candidates.csv"),
-                                              d.noise_rms, named={*d.causes, "+".join(d.causes)},
+                                              d.noise_rms, named={*d.causes, "+".join(d.causes)} - {""},
                                               regimes=reg if len(reg) else None, unit=u),
                             f"Held-out {what_of(d)} error of the calibrated baseline (red) and of each candidate "
                             "extension (green: named), and by regime: the named cause must beat the baseline clearly "
