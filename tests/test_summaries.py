@@ -77,3 +77,12 @@ def test_the_regime_bars_show_an_extended_model_only_when_a_cause_is_named():
     assert len(none.axes[1].patches) == 2
     assert [t.get_text() for t in none.axes[1].get_legend().get_texts()] == ["baseline"]
     assert len(named.axes[1].patches) == 4
+
+
+def test_the_candidates_figure_draws_the_floor_with_the_folds_band_above_the_noise():
+    """The verdict compares with the noise and the baseline folds' prediction band together: that floor is
+    drawn (dashed) beside the noise floor when it is higher, and not at all when it is not."""
+    cands = pd.DataFrame({"model": ["baseline", "external_load"], "heldout_rms_mm": [0.05, 0.04]})
+    labels = [t.get_text() for t in candidates_figure(cands, 0.03, floor=0.045).axes[0].get_legend().get_texts()]
+    assert labels == ["noise floor 0.03 mm", "with the folds' band 0.045 mm"]
+    assert len(candidates_figure(cands, 0.03, floor=0.03).axes[0].get_legend().get_texts()) == 1

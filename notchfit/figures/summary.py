@@ -147,7 +147,7 @@ def simulation_figure(cmp: pd.DataFrame):
 
 
 def candidates_figure(candidates: pd.DataFrame, noise: float, named=(), regimes: pd.DataFrame | None = None,
-                      *, unit: str = "mm"):
+                      *, unit: str = "mm", floor: float | None = None):
     """Held-out error of the baseline and of each candidate extension; and by regime.
 
     Parameters
@@ -162,6 +162,9 @@ def candidates_figure(candidates: pd.DataFrame, noise: float, named=(), regimes:
         ``regime, baseline, extended`` [unit].
     unit : {"mm", "deg"}
         Notch-point errors [mm] or joint-angle errors [deg].
+    floor : float, optional
+        The floor the verdict compares with [unit] (the noise and the baseline folds' prediction band),
+        drawn dashed where it is above the noise floor.
     """
     what = "point" if unit == "mm" else "joint-angle"
     col = f"heldout_rms_{unit}"
@@ -171,6 +174,8 @@ def candidates_figure(candidates: pd.DataFrame, noise: float, named=(), regimes:
     colours = ["tab:red" if m == "baseline" else ("tab:green" if m in named else "0.7") for m in c["model"]]
     axes[0].barh(c["model"], c[col], color=colours)
     axes[0].axvline(noise, color="k", ls=":", label=f"noise floor {noise:.3g} {unit}")
+    if floor is not None and floor > noise:
+        axes[0].axvline(floor, color="k", ls="--", lw=0.8, label=f"with the folds' band {floor:.3g} {unit}")
     axes[0].set_xlabel(f"held-out {what} error, rms [{unit}]")
     axes[0].set_title("shorter is better; green: named", fontsize=10)
     axes[0].legend(fontsize=8, loc="lower right")

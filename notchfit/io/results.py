@@ -176,6 +176,13 @@ class DiagnosisRecord:
     protocol_text: str
     skipped_signatures: dict
     extended_model_file: str
+    floor_rms: float = math.nan
+
+    @property
+    def floor(self) -> float:
+        """The floor the ``none`` rule compared with: the noise and the baseline folds' prediction band
+        (``floor_rms_<unit>``), the noise alone in files written before the band."""
+        return self.floor_rms if math.isfinite(self.floor_rms) else self.noise_rms
 
     @property
     def named(self) -> tuple[str, ...]:
@@ -234,7 +241,8 @@ def read_diagnosis_record(path) -> DiagnosisRecord:
         protocol_source={k: str(v) for k, v in proto.values("source").items()},
         protocol_ramp_s=proto.numbers("ramp_time_s"), protocol_text=proto.text("text"),
         skipped_signatures={k: str(v) for k, v in (sk.data if sk else {}).items()},
-        extended_model_file=f.text("extended_model_file", "extended_model.toml"))
+        extended_model_file=f.text("extended_model_file", "extended_model.toml"),
+        floor_rms=f.num(f"floor_rms_{unit}"))
 
 
 # ----------------------------------------------------------------------------- identify.json

@@ -95,9 +95,11 @@ def _misses_from_diagnosis(inp, d) -> str:
              f"study's measurement noise ({'angles' if u == 'deg' else 'points'} and load cells), the one noise "
              "floor of this page")
     ratio = b.heldout_rms / d.noise_rms if d.noise_rms > 0 else math.nan
+    band = (f" With the baseline folds' own prediction uncertainty the floor the verdict compares with is "
+            f"{quantity(d.floor, u)}." if d.floor > d.noise_rms else "")
     if d.cause == "none":
         return (f"Nothing beyond the noise: {which}, calibrated, predicts the held-out {_measured_of(u)} with "
-                f"{quantity(b.heldout_rms, u)} rms, {num(ratio, 2)}× the noise floor; {noise}.")
+                f"{quantity(b.heldout_rms, u)} rms, {num(ratio, 2)}× the noise floor; {noise}.{band}")
     worst = max(d.per_regime.items(), key=lambda kv: kv[1].baseline if math.isfinite(kv[1].baseline) else -1,
                 default=None)
     regime = (f"{REGIMES.get(worst[0], 'in regime ' + worst[0])} (regime {worst[0]}: {quantity(worst[1].baseline, u)})"
@@ -106,7 +108,7 @@ def _misses_from_diagnosis(inp, d) -> str:
     most = [p for p in (regime, f"at {where}" if where else "") if p]
     text = (f"{which[0].upper()}{which[1:]}, calibrated, misses the held-out {_measured_of(u)} by "
             f"**{quantity(b.heldout_rms, u)} rms**, {num(ratio, 2)}× the noise floor"
-            + (f"; most {' and '.join(most)}" if most else "") + f"; {noise}.")
+            + (f"; most {' and '.join(most)}" if most else "") + f"; {noise}.{band}")
     if inp.identify is not None:
         ident = _misses_from_identify(inp, inp.identify, noise=False)
         text += f" {ident[0].upper()}{ident[1:]}"
@@ -211,7 +213,7 @@ def _diagnosis_figures(inp, d) -> list:
                             for r, g in d.per_regime.items()])
         parts.append(figure(candidates_figure(nio.read_diagnosis_csv(out / "diagnosis_candidates.csv"),
                                               d.noise_rms, named={*d.causes, "+".join(d.causes)} - {""},
-                                              regimes=reg if len(reg) else None, unit=u),
+                                              regimes=reg if len(reg) else None, unit=u, floor=d.floor),
                             f"Held-out {what_of(d)} error of the calibrated baseline (red) and of each candidate "
                             "extension (green: named), and by regime: the named cause must beat the baseline clearly "
                             "and come close to the noise floor (dotted).", "held-out error of the candidates"))
