@@ -39,7 +39,9 @@ def _draws(obs: Observations, rng, draws: int, matched: bool | None) -> np.ndarr
     a tube with one tendon) each sample's noise rescaled so that its mean square over the draws is ``σ_T²``
     exactly."""
     e = rng.normal(0.0, obs.tension_sigma, (draws, 2, len(obs.time)))
-    if len(obs.geom.tendons) == 1 if matched is None else matched:
+    if matched is None:
+        matched = len(obs.geom.tendons) == 1
+    if matched:
         rms = np.sqrt(np.mean(e**2, axis=0))
         e = e * (obs.tension_sigma / np.where(rms > 0, rms, 1.0))
     return e
@@ -58,19 +60,13 @@ def noise_floor(obs: Observations, params: FrictionParams, sims: Simulations | N
     stick and changes the friction history.
 
     On a tube with one tendon each sample's noise is moment-matched over the draws (``matched``): rescaled
-    so that its mean square is ``σ_T²`` exactly. Where the response is smooth over the noise and driven by the sample's own
-    tension (one tendon, no friction history: a wrist loading along its superelastic curve) the squared
-    change of a sample is ``‖J_s‖² ε_s²``, so the floor is then exact with any number of draws: the
-    linearised propagation ``σ_T² ‖J_s‖²`` without its ``S`` extra runs. Independent draws are not: on a wrist's superelastic snap, where a few samples carry
-    the floor (the tip moves 0.08 mm per 0.01 N there, 0.007 mm elsewhere), four of them put one
-    trial's floor anywhere from 0.024 to 0.045 mm rms (the propagation's 0.035 mm), and, one noise
-    vector serving every experiment of a length (before each experiment drew its own), every trial
-    of a study low at the same samples (docs/diagnosis.md). On the one-tendon wrists (loading and unloading,
-    with friction) the matched draws' floor is that of 200 independent draws within 2 % in rms. With two
-    tendons, whose noise meets in every sample and whose cables stick and slip against each other (the
-    seed tube's 0.11 N load cells), they are not exact and were not unbiased: 7 % below 300 independent
-    draws in rms on the small demo's baseline (four or eight matched draws alike; four independent
-    draws 3 % below, within their scatter), so two tendons keep independent draws.
+    so that its mean square is ``σ_T²`` exactly. Where the response is smooth over the noise and driven by
+    the sample's own tension (one tendon, no friction history: a wrist loading along its superelastic curve)
+    the squared change of a sample is ``‖J_s‖² ε_s²``, so the floor is then the linearised propagation
+    ``σ_T² ‖J_s‖²`` with any number of draws, where a few independent draws scatter widely on the few
+    samples of a superelastic snap that carry the floor. With two tendons, whose noise meets in every sample
+    and whose cables stick and slip against each other, matching is not exact and was found biased low, so
+    two tendons keep independent draws (measurements: docs/diagnosis.md and docs/history.md).
 
     Parameters
     ----------
