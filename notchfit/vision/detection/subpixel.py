@@ -75,6 +75,14 @@ def _outward(sp: CornerSpecs, sgn) -> np.ndarray:
     return sgn * np.stack([trav[:, 1], -trav[:, 0]], axis=1)
 
 
+def _edge_normals(nrm: np.ndarray, k: int, *, min_det: float = 0.5):
+    """Corner ``k``'s two edge normals as the rows of a (2, 2) matrix (``nrm`` from :func:`_outward`), which
+    maps a corner's move to its edges' offsets; None where the edges are too nearly parallel for the corner
+    to follow them (|det| ≤ ``min_det``: less than 30° apart)."""
+    A = np.stack([nrm[k], nrm[len(nrm) // 2 + k]])
+    return A if abs(np.linalg.det(A)) > min_det else None
+
+
 def limb_edges(sp: CornerSpecs) -> np.ndarray:
     """(2K,) bool: the corners' outer edges along the tube: not slot faces (their backdrop is the slot) nor
     a holder's face."""
@@ -219,8 +227,8 @@ def outer_starts(sp: CornerSpecs, offsets, sgn, *, min_move: float, deficit=None
     d = np.where(offsets > min_move, offsets, 0.0)
     C = sp.C.copy()
     for k in np.nonzero((d[:K] > 0) | (d[K:] > 0))[0]:
-        A = np.stack([nrm[k], nrm[K + k]])
-        if abs(np.linalg.det(A)) > 0.5:                               # edges at least 30 deg apart
+        A = _edge_normals(nrm, k)
+        if A is not None:
             C[k] = sp.C[k] + np.linalg.solve(A, np.array([d[k], d[K + k]]))
     return C
 
@@ -242,8 +250,8 @@ def unexplained_cov(sp: CornerSpecs, sgn, offsets, deficit, *, resolution: float
     out = np.zeros((K, 2, 2))
     nrm = _outward(sp, sgn)
     for k in np.nonzero((var[:K] > 0) | (var[K:] > 0))[0]:
-        A = np.stack([nrm[k], nrm[K + k]])
-        if abs(np.linalg.det(A)) > 0.5:
+        A = _edge_normals(nrm, k)
+        if A is not None:
             J = np.linalg.inv(A)
             out[k] = J @ np.diag([var[k], var[K + k]]) @ J.T
     return out
