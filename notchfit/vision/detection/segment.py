@@ -310,8 +310,9 @@ def fill_holes(region, *, keep_area=(0.0, 0.0)) -> np.ndarray:
 
 def local_difference(small, radius_px: float, *, contrast: float, highlight=None) -> np.ndarray:
     """How far each pixel of the working copy lies toward the object from its local background (h, w) float32
-    (object positive): the background is a grey closing (a dark object; an opening for a bright one) by a disk
-    of radius ``radius_px``, wider than the tube's half-width, so the tube and its slots drop out of it while
+    (object positive): the background is a grey opening of the image turned object-bright, by an octagon
+    (:func:`octagon_opening`, a disk within 8 %) of radius ``radius_px``, wider than the tube's half-width, so
+    the tube and its slots drop out of it while
     what varies more slowly stays, such as a soft cast shadow, whose penumbra is as wide as the light source
     seen from the backdrop. A shadow as dark as the tube joins the tube on a threshold of the image; on this
     difference it is near 0 where its penumbra is wider than the disk, and the tube's sharp-edged band keeps
