@@ -22,6 +22,7 @@ import numpy as np
 from ._kernels import profile_crossings, profile_levels, profile_maps
 from .edges import Crossings, Profiles, choose_edges
 from .lines import arcs_allowed, group_median, robust_group_lines, unit
+from .mouth import MouthView, shut_mouths
 from .view import DiameterScale
 
 __all__ = ["CornerLines", "CornerSpecs", "PassResult", "ProfileLayout", "Profiles", "corner_lines",
@@ -91,6 +92,9 @@ class CornerLines:
         Edges with enough points for a line.
     s2 : ndarray (2K,)
         Residual variance of each line before the noise floor [px²].
+    cov_view : ndarray (K, 2, 2), optional
+        What the view adds to a corner's covariance beyond its lines' fits (not the fit's quality): the
+        gap a slot bent shut leaves unresolved at its mouth (:func:`curved_face_corners`) [px²].
     """
 
     X: np.ndarray
@@ -100,6 +104,7 @@ class CornerLines:
     dd: np.ndarray
     good_e: np.ndarray
     s2: np.ndarray
+    cov_view: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -431,7 +436,7 @@ def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor:
 def curved_face_corners(pts, grp, lines: CornerLines, curved, *, radius_px: float, s2_floor: float = 0.0,
                         min_points: int = 5, significance: float = 16.0, start_px: float = 0.0,
                         max_start: float = 0.1, max_sin: float = 0.7, partner=None, lone_sigma: float = 6.0,
-                        max_bulge_px: float = 1.0, fit=None):
+                        max_bulge_px: float = 1.0, fit=None, view=None):
     """Corners where a circular face meets the outer edge, the face seen a little from the side.
 
     A slot or tip face is a circle of radius ``R`` about the tube's axis. Seen
@@ -475,6 +480,12 @@ def curved_face_corners(pts, grp, lines: CornerLines, curved, *, radius_px: floa
     fit : ndarray (2K,) bool, optional
         The curved edges worth an arc fit (default all); every curved edge is
         checked for being seen only far from its corner.
+    view : :class:`.mouth.MouthView`, optional
+        The image: where the oblique view withholds both corners of a slot
+        (both faces seen only far from the limb: a slot bent shut), both are
+        measured at its mouth, where the two links' limbs meet; the widest
+        gap the image allows there goes to the returned ``cov_view``
+        (:func:`.mouth.shut_mouths`).
     """
     c, dd = lines.c, lines.dd
     X, cov, okc = lines.X.copy(), lines.cov.copy(), lines.ok.copy()
@@ -503,6 +514,14 @@ def curved_face_corners(pts, grp, lines: CornerLines, curved, *, radius_px: floa
     # from its corner cannot be extrapolated to it, by a line or an arc: that corner is not found
     if far and used and float(np.median(used)) * radius_px > max_bulge_px:
         okc[far] = False
+        if view is not None and partner is not None:
+            mouths = shut_mouths(pts, grp, lines, far, partner, curved, view, radius_px=radius_px,
+                                 sin_view=float(np.median(used)), s2_floor=s2_floor, min_points=min_points,
+                                 max_start=start_px + max_start * radius_px)
+            cov_view = np.zeros_like(cov)
+            for k, mouth in mouths.items():
+                X[k], cov[k], cov_view[k], okc[k] = mouth.X, mouth.cov, mouth.cov_gap, True
+            return replace(lines, X=X, cov=cov, ok=okc, cov_view=cov_view)
     return replace(lines, X=X, cov=cov, ok=okc)
 
 
@@ -775,8 +794,11 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
     if curved is not None and np.isfinite(radius_px) and sp.curved.any():
         X_line = X
         arcs = curved_face_corners(und, pr.edge[valid], lines, sp.curved, fit=curved, radius_px=radius_px,
-                                   s2_floor=s2_floor, min_points=min_points, start_px=s0, partner=sp.partner)
+                                   s2_floor=s2_floor, min_points=min_points, start_px=s0, partner=sp.partner,
+                                   view=MouthView(img, off, camera, blur))
         X, cov, okc = arcs.X, arcs.cov, arcs.ok
+        if arcs.cov_view is not None:
+            cov_sys = cov_sys + arcs.cov_view
         # a face left straight meets the limb off its corner by about half its arc's bulge, which the
         # camera's view of the plane tells (without a camera file, the view DiameterScale assumes)
         on_line = okc & np.all(X == X_line, axis=1)
