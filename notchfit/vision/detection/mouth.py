@@ -6,10 +6,12 @@ A slot bent shut closes about its backbone until its two faces touch at the mout
 mouth. Near the kink the gap is narrower than the image resolves, so a face is seen only far from its corner
 and cannot be extrapolated to it (:func:`.refine.curved_face_corners`). The kink itself is measured: the two
 limbs are straight edges seen up to the mouth, and they meet there (:func:`limb_meeting`). The gap is
-measured too, from the light the backdrop sends through it (:func:`gap_width`): inside the tube, along a line
-across the mouth, the gap is the integral of the image's step toward the backdrop divided by the contrast,
-whatever the blur. Each corner lies half the gap from the kink along the limb, toward its own link; the
-kink is reported for both with that half-gap in its covariance (nothing is placed by a model).
+bounded too, from the light the backdrop sends through it (:func:`gap_width`): inside the tube, along the
+limbs' inward offset across the mouth, the gap is the integral of the image's step toward the backdrop
+divided by the contrast, whatever the blur (in a view a little from the side the tube's material hides
+part of it, which the bound allows for). Each corner lies half the gap from the kink along the limb, toward
+its own link; the kink is reported for both with that half-gap in its covariance (nothing is placed by a
+model).
 """
 
 from __future__ import annotations
@@ -201,7 +203,7 @@ def shut_mouth(pa, pb, toward, view: MouthView, *, radius_px: float, sin_view: f
     # wider than at the mouth
     opening = 2.0 * math.tan(0.5 * math.acos(float(np.clip(-d[0] @ d[1], -1.0, 1.0))))
     g_min = min(max(float(np.max(g - 2.0 * sd - opening * u)), 0.0), g_max)
-    if g_min > max_resolved * view.blur:
+    if g_min > max_resolved * (view.blur if np.isfinite(view.blur) else 1.0):
         return None
     along = np.array([-into[1], into[0]])
     # either corner lies g / 2 from the kink, g anywhere between the bounds: the mean square of g / 2
