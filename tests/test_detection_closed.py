@@ -134,15 +134,14 @@ def test_a_shut_mouth_is_measured_where_the_limbs_meet():
         img, X, d, into = _shut_mouth_image(gap, rng=rng)
         s = np.arange(4.0, 16.0, 1.0)[:, None]
         pa, pb = X + s * d[0] + rng.normal(0, 0.03, (len(s), 2)), X + s * d[1] + rng.normal(0, 0.03, (len(s), 2))
-        m = shut_mouth(pa, pb, X + 10 * into, MouthView(img, np.zeros(2), _Ideal(), 1.0), radius_px=40.0,
-                       sin_view=0.0, max_start=6.0)
+        m = shut_mouth(pa, pb, X + 10 * into, MouthView(img, np.zeros(2), _Ideal(), 1.0, 40.0), max_start=6.0)
         assert np.linalg.norm(m.X - X) < 0.1, m.X
         assert m.gap_min - 0.1 <= gap <= m.gap_max + 0.1, (gap, m.gap_min, m.gap_max)
         assert np.sqrt(m.cov_gap[0, 0]) >= gap / (2 * np.sqrt(3)) and abs(m.cov_gap[1, 1]) < 0.01 * m.cov_gap[0, 0]
     img, X, d, into = _shut_mouth_image(3.0, rng=rng)
     s = np.arange(4.0, 16.0, 1.0)[:, None]
-    assert shut_mouth(X + s * d[0], X + s * d[1], X + 10 * into, MouthView(img, np.zeros(2), _Ideal(), 1.0),
-                      radius_px=40.0, sin_view=0.0, max_start=6.0) is None
+    assert shut_mouth(X + s * d[0], X + s * d[1], X + 10 * into, MouthView(img, np.zeros(2), _Ideal(), 1.0, 40.0),
+                      max_start=6.0) is None
 
 
 @pytest.mark.parametrize("frac", [0.99, 0.9])

@@ -17,14 +17,14 @@ model).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
 from .lines import robust_group_lines
 
-__all__ = ["Mouth", "MouthView", "gap_width", "limb_meeting", "shut_mouth", "shut_mouths"]
+__all__ = ["Mouth", "MouthView", "gap_width", "limb_meeting", "shut_mouth", "shut_mouths", "with_mouths"]
 
 
 @dataclass(frozen=True)
@@ -39,12 +39,18 @@ class MouthView:
         Maps ideal pixels to raw ones (``distort_pixels``).
     blur : float
         The edges' Gaussian σ [px].
+    radius_px : float
+        The tube's radius [ideal px].
+    sin_view : float
+        How far from the side the slots' faces are seen (``sin β``, from their arcs).
     """
 
     img: np.ndarray
     off: np.ndarray
     camera: object
     blur: float
+    radius_px: float = math.nan
+    sin_view: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -158,15 +164,15 @@ def gap_width(view: MouthView, X, d, into, *, depths=None, reach: float = 3.0, s
     return u, g, sd
 
 
-def shut_mouth(pa, pb, toward, view: MouthView, *, radius_px: float, sin_view: float, s2_floor: float = 0.0,
-               min_points: int = 5, max_start: float, max_resolved: float = 2.0) -> Mouth | None:
+def shut_mouth(pa, pb, toward, view: MouthView, *, s2_floor: float = 0.0, min_points: int = 5, max_start: float,
+               max_resolved: float = 2.0) -> Mouth | None:
     """The mouth of a slot bent shut from its two limbs' crossings ``pa``, ``pb`` [ideal px] and the image:
     where the limbs meet (:func:`limb_meeting`), each limb seen within ``max_start`` px of that point (a limb
     is not extrapolated from afar either), and how wide the gap there can be.
 
     The gap is at most what shows at a depth ``u`` (:func:`gap_width`, plus two standard errors) plus what
-    the tube's material hides there when its faces are seen ``asin(sin_view)`` from the side (a ray
-    through the gap crosses the chord ``2 sqrt(u (2R - u))``: ``2 sin_view sqrt(u (2R - u))``), at the
+    the tube's material hides there when its faces are seen ``β`` from the side (``view.sin_view``; a ray
+    through the gap crosses the chord ``2 sqrt(u (2R - u))``: ``2 sin β sqrt(u (2R - u))``), at the
     depth that bounds it most tightly (the gap only widens inward). It is at least what shows (less two
     standard errors) less the faces' opening over that depth (a straight slot's faces open at the angle
     its links are bent by). Either corner lies half the gap from the kink along the limb, toward its own
@@ -175,8 +181,7 @@ def shut_mouth(pa, pb, toward, view: MouthView, *, radius_px: float, sin_view: f
     its two corners are apart in the image, and one point is not the measurement of both (None). None
     too where the limbs do not meet near both ends or the samples leave the image.
 
-    ``toward`` (2,): a point inside the tube beside the mouth (the faces' crossings' centre) [ideal px];
-    ``radius_px``: the tube's radius [ideal px].
+    ``toward`` (2,): a point inside the tube beside the mouth (the faces' crossings' centre) [ideal px].
     """
     met = limb_meeting(pa, pb, s2_floor=s2_floor, min_points=min_points)
     if met is None:
@@ -197,7 +202,7 @@ def shut_mouth(pa, pb, toward, view: MouthView, *, radius_px: float, sin_view: f
     if got is None:
         return None
     u, g, sd = got
-    hidden = 2.0 * abs(sin_view) * np.sqrt(np.clip(u * (2 * radius_px - u), 0.0, None))
+    hidden = 2.0 * abs(view.sin_view) * np.sqrt(np.clip(u * (2 * view.radius_px - u), 0.0, None))
     g_max = float(np.min(np.maximum(g, 0.0) + 2.0 * sd + hidden))
     # the faces of a straight slot open at the angle the links are bent by: at depth u the gap is that much
     # wider than at the mouth
@@ -211,8 +216,8 @@ def shut_mouth(pa, pb, toward, view: MouthView, *, radius_px: float, sin_view: f
     return Mouth(X, cov, ms * np.outer(along, along), g_min, g_max)
 
 
-def shut_mouths(pts, grp, lines, corners, partner, curved, view: MouthView, *, radius_px: float, sin_view: float,
-                s2_floor: float = 0.0, min_points: int = 5, max_start: float) -> dict:
+def shut_mouths(pts, grp, corners, partner, curved, view: MouthView, *, s2_floor: float = 0.0, min_points: int = 5,
+                max_start: float) -> dict:
     """{corner: :class:`Mouth`} for the ``corners`` (refinement indices 0..K-1) whose slot partner is among
     them too: both faces of the slot seen only far from the limb (:func:`shut_mouth`).
 
@@ -221,12 +226,10 @@ def shut_mouths(pts, grp, lines, corners, partner, curved, view: MouthView, *, r
     pts, grp : ndarray (P, 2), (P,)
         Undistorted crossings [px] and their edge 0..2K-1 (edge ``k`` corner k's incoming edge, ``K + k``
         its outgoing one).
-    lines : :class:`.refine.CornerLines`
-        Only ``X`` (its length K) is read.
     partner : ndarray (K,) int
         The slot's other corner (-1: none); ``curved`` (2K,) bool the face edges.
     """
-    K = len(lines.X)
+    K = len(partner)
     todo = set(int(k) for k in corners)
     out = {}
     for k in sorted(todo):
@@ -238,8 +241,19 @@ def shut_mouths(pts, grp, lines, corners, partner, curved, view: MouthView, *, r
         inner = pts[np.isin(grp, face)]
         if not len(inner):
             continue
-        got = shut_mouth(pts[grp == limb[0]], pts[grp == limb[1]], inner.mean(0), view, radius_px=radius_px,
-                         sin_view=sin_view, s2_floor=s2_floor, min_points=min_points, max_start=max_start)
+        got = shut_mouth(pts[grp == limb[0]], pts[grp == limb[1]], inner.mean(0), view, s2_floor=s2_floor,
+                         min_points=min_points, max_start=max_start)
         if got is not None:
             out[k] = out[q] = got
     return out
+
+
+def with_mouths(lines, mouths: dict):
+    """A copy of ``lines`` (:class:`.refine.CornerLines`) with the corners of ``mouths`` ({corner: :class:`Mouth`})
+    measured at their mouths: ``ok``, at the kink with its fit's covariance, and the unresolved gap in
+    ``cov_view``."""
+    X, cov, ok = lines.X.copy(), lines.cov.copy(), lines.ok.copy()
+    cov_view = np.zeros_like(cov) if lines.cov_view is None else lines.cov_view.copy()
+    for k, m in mouths.items():
+        X[k], cov[k], cov_view[k], ok[k] = m.X, m.cov, m.cov_gap, True
+    return replace(lines, X=X, cov=cov, ok=ok, cov_view=cov_view)

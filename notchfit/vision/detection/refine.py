@@ -22,7 +22,7 @@ import numpy as np
 from ._kernels import profile_crossings, profile_levels, profile_maps
 from .edges import Crossings, Profiles, choose_edges
 from .lines import arcs_allowed, group_median, robust_group_lines, unit
-from .mouth import MouthView, shut_mouths
+from .mouth import MouthView, shut_mouths, with_mouths
 from .view import DiameterScale
 
 __all__ = ["CornerLines", "CornerSpecs", "PassResult", "ProfileLayout", "Profiles", "corner_lines",
@@ -93,8 +93,7 @@ class CornerLines:
     s2 : ndarray (2K,)
         Residual variance of each line before the noise floor [px²].
     cov_view : ndarray (K, 2, 2), optional
-        What the view adds to a corner's covariance beyond its lines' fits (not the fit's quality): the
-        gap a slot bent shut leaves unresolved at its mouth (:func:`curved_face_corners`) [px²].
+        Beyond the fits: the gap a slot bent shut leaves unresolved at its mouth [px²] (:mod:`.mouth`).
     """
 
     X: np.ndarray
@@ -467,8 +466,8 @@ def curved_face_corners(pts, grp, lines: CornerLines, curved, *, radius_px: floa
     lines : CornerLines
         The straight-line fits of every edge and their corners; a copy with the corners, covariances and
         ok flags updated is returned (a corner whose face is seen only far from it, in a view where the
-        faces' arcs bulge by more than ``max_bulge_px``, is not ok: neither a line nor an arc extrapolates
-        to it).
+        faces' arcs bulge by more than ``max_bulge_px``, is not ok: no line or arc extrapolates to it; with
+        ``view``, the pass's :class:`.mouth.MouthView`, a slot with both so is measured at its mouth).
     curved : ndarray (2K,) bool
     radius_px : float
         Tube radius in ideal pixels.
@@ -480,12 +479,6 @@ def curved_face_corners(pts, grp, lines: CornerLines, curved, *, radius_px: floa
     fit : ndarray (2K,) bool, optional
         The curved edges worth an arc fit (default all); every curved edge is
         checked for being seen only far from its corner.
-    view : :class:`.mouth.MouthView`, optional
-        The image: where the oblique view withholds both corners of a slot
-        (both faces seen only far from the limb: a slot bent shut), both are
-        measured at its mouth, where the two links' limbs meet; the widest
-        gap the image allows there goes to the returned ``cov_view``
-        (:func:`.mouth.shut_mouths`).
     """
     c, dd = lines.c, lines.dd
     X, cov, okc = lines.X.copy(), lines.cov.copy(), lines.ok.copy()
@@ -515,13 +508,9 @@ def curved_face_corners(pts, grp, lines: CornerLines, curved, *, radius_px: floa
     if far and used and float(np.median(used)) * radius_px > max_bulge_px:
         okc[far] = False
         if view is not None and partner is not None:
-            mouths = shut_mouths(pts, grp, lines, far, partner, curved, view, radius_px=radius_px,
-                                 sin_view=float(np.median(used)), s2_floor=s2_floor, min_points=min_points,
-                                 max_start=start_px + max_start * radius_px)
-            cov_view = np.zeros_like(cov)
-            for k, mouth in mouths.items():
-                X[k], cov[k], cov_view[k], okc[k] = mouth.X, mouth.cov, mouth.cov_gap, True
-            return replace(lines, X=X, cov=cov, ok=okc, cov_view=cov_view)
+            return with_mouths(replace(lines, X=X, cov=cov, ok=okc), shut_mouths(
+                pts, grp, far, partner, curved, replace(view, sin_view=float(np.median(used))), s2_floor=s2_floor,
+                min_points=min_points, max_start=start_px + max_start * radius_px))
     return replace(lines, X=X, cov=cov, ok=okc)
 
 
@@ -795,10 +784,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
         X_line = X
         arcs = curved_face_corners(und, pr.edge[valid], lines, sp.curved, fit=curved, radius_px=radius_px,
                                    s2_floor=s2_floor, min_points=min_points, start_px=s0, partner=sp.partner,
-                                   view=MouthView(img, off, camera, blur))
+                                   view=MouthView(img, off, camera, blur, radius_px))
         X, cov, okc = arcs.X, arcs.cov, arcs.ok
-        if arcs.cov_view is not None:
-            cov_sys = cov_sys + arcs.cov_view
+        cov_sys = cov_sys if arcs.cov_view is None else cov_sys + arcs.cov_view
         # a face left straight meets the limb off its corner by about half its arc's bulge, which the
         # camera's view of the plane tells (without a camera file, the view DiameterScale assumes)
         on_line = okc & np.all(X == X_line, axis=1)
