@@ -109,9 +109,12 @@ def limb_meeting(pa, pb, *, s2_floor: float = 0.0, min_points: int = 5):
     return X, A_inv @ np.diag(var) @ A_inv.T, d
 
 
-def gap_width(view: MouthView, X, d, into, *, depths=None, reach: float = 3.0, step: float = 0.25):
+def gap_width(view: MouthView, X, d, into, *, depths=None, reach: float = 3.0, step: float = 0.25,
+              min_snr: float = 4.0):
     """The light the backdrop sends through a slot's gap at its mouth, as a width [px] at each depth inside
-    the tube: (depths (J,), widths (J,), their standard error), or None where the samples leave the image.
+    the tube: (depths (J,), widths (J,), their standard error), or None where the samples leave the image
+    or the backdrop outside the mouth is not ``min_snr`` times the tube's own scatter brighter (or darker)
+    than the tube.
 
     At depth ``u`` the image is sampled along the limbs' inward offset by ``u`` (a line parallel to each
     limb, the two meeting on the bisector), from ``reach`` blur σ beyond the wedge on one link to as far on
@@ -156,7 +159,7 @@ def gap_width(view: MouthView, X, d, into, *, depths=None, reach: float = 3.0, s
         coef = np.polyfit(pos[ends], prof[j, ends], 1)
         res = prof[j, ends] - np.polyval(coef, pos[ends])
         contrast = bg - float(np.mean(prof[j, ends]))
-        if abs(contrast) < 1e-9:
+        if abs(contrast) < min_snr * max(float(np.std(res)), 1e-6):      # no backdrop to see through it
             return None
         g[j] = float(np.sum(prof[j] - np.polyval(coef, pos))) * step / contrast
         # the baseline's noise over the summed samples (independent within a blur σ)
