@@ -39,6 +39,14 @@ def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
     return out
 
 
+def _found(p: Parsed) -> tuple:
+    """How much a parse numbered: (slots numbered from slot-sized gaps and the tip, all slots and the tip). A
+    sliver numbered is weaker evidence than a slot (a fillet next to the holder can be one): a parse with the
+    holder in that numbers every slot from slot-sized gaps wins over one whose last slot is a sliver."""
+    slivers = sum(1 for s, _ in p.num.right + p.num.left if s in p.ol.sliver_ids)
+    return p.n_found - slivers, p.n_found
+
+
 def _joined(pieces: dict, mouths: dict, rawc: dict, pos):
     """The mouths and unbridged outer corners with every slot numbered from its pieces (label -> the labels of
     its pieces, ``numbering.Numbering.pieces``) spanning them: from the first corner of the piece first along
@@ -177,9 +185,9 @@ def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True) -> 
         if isinstance(got, Detection):
             fail = fail or got                   # the first failure, where no variant parses
             continue
-        if res is None or got.n_found > res.n_found:
+        if res is None or _found(got) > _found(res):
             res = got
-        if got.n_found == geom.n_joints + 1:
+        if _found(got)[0] == geom.n_joints + 1:
             break
     if res is None:
         return fail

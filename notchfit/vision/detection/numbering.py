@@ -213,39 +213,66 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dis
     if not cut and len(right_j) != len(left_j) and n_r == len(left_j) and n_l == len(right_j):
         return Numbering([], [], tip, status, msg, mirror_conflict=True)
     sides = {+1: right, -1: left[::-1]}                                  # each ordered from the base
-    pieces = {}
     joints = {+1: right_j, -1: left_j}
-    strong = {sd: [lab for lab in sides[sd] if lab not in weak] for sd in sides}
-    pairs = {sd: _side_numbers(strong[sd], sd, chain, geom, tip, msg) if joints[sd] else [] for sd in sides}
-    two = bool(right_j and left_j and (tip is not None or tube_border))
-    if two:
+    ctx = _Reading(chain, geom, tip, frozenset(weak), mouths, pos)
+    pairs = {sd: _side_numbers(ctx.strong(sides[sd]), sd, chain, geom, tip, msg) if joints[sd] else [] for sd in sides}
+    cross = None
+    if right_j and left_j and (tip is not None or tube_border):
         arcs = _arcs(chain.outline_plane, i_br, L_tube, pos, tip, tube_border)
         margin = 0.5 * _shortest_solid(geom) / chain.scale
         cross = lambda sd, labels: _cross_ranges(labels, pairs[-sd], chain, arcs[0 if sd < 0 else 1], -sd, margin,
                                                  geom.n_joints)
-        for sd in sides:
-            if len(pairs[sd]) < len(strong[sd]) and pairs[-sd]:
-                pairs[sd] = _only_added(pairs[sd], _side_numbers(strong[sd], sd, chain, geom, tip, None,
-                                                                 cross(sd, strong[sd])),
-                                        msg, "slots between the other side's numbered slots")
+    pieces = _bounded_readings(sides, joints, pairs, cross, ctx, msg)
+    return Numbering(pairs[+1], pairs[-1], tip, status, msg, tipless=tipless, pieces=pieces)
+
+
+@dataclass(frozen=True)
+class _Reading:
+    """What a side's further readings need: the chain input, the geometry, the tip, the sliver labels, the
+    mouths and the outline position from the base (``pos``: index -> position)."""
+
+    chain: ChainInput
+    geom: object
+    tip: tuple | None
+    weak: frozenset
+    mouths: dict
+    pos: object
+
+    def strong(self, labels) -> list:
+        """The slot-sized gaps among ``labels``."""
+        return [lab for lab in labels if lab not in self.weak]
+
+
+def _bounded_readings(sides: dict, joints: dict, pairs: dict, cross, ctx: _Reading, msg: list) -> dict:
+    """Each side read again where its slots are not all numbered, its numbers (``pairs``, side -> list of
+    (label, joint), updated in place) kept: first the slot-sized gaps bounded by the other side's numbered
+    slots (``cross``: (side, labels) -> ranges, :func:`_cross_ranges`; None for a one-sided tube or no tip),
+    then with the slivers that the numbered slots around them (this side's, the other side's) pin to one joint,
+    pieces of one slot joined (:func:`_join_pieces`). Returns the joined pieces (label -> labels)."""
+    geom, tip = ctx.geom, ctx.tip
     for sd in sides:
-        # the slivers: only where the numbered slots around them (this side's, the other side's) leave one joint
-        if not joints[sd] or len(strong[sd]) == len(sides[sd]):
+        strong = ctx.strong(sides[sd])
+        if cross is not None and len(pairs[sd]) < len(strong) and pairs[-sd]:
+            pairs[sd] = _only_added(pairs[sd], _side_numbers(strong, sd, ctx.chain, geom, tip, None,
+                                                             cross(sd, strong)),
+                                    msg, "slots between the other side's numbered slots")
+    pieces = {}
+    for sd in sides:
+        if not joints[sd] or len(ctx.strong(sides[sd])) == len(sides[sd]):
             continue
         rng = _own_ranges(sides[sd], pairs[sd], geom.n_joints)
-        if two and pairs[-sd]:
+        if cross is not None and pairs[-sd]:
             other = cross(sd, sides[sd])
             rng = {lab: (max(rng[lab][0], other[lab][0]), min(rng[lab][1], other[lab][1])) for lab in rng}
-        keep = [lab for lab in sides[sd]
-                if lab not in weak or sum(rng[lab][0] < j < rng[lab][1] for j in joints[sd]) == 1]
-        if len(keep) > len(strong[sd]):
-            at = lambda lab: [j for j in joints[sd] if rng[lab][0] < j < rng[lab][1]]
-            with_pieces, groups = _join_pieces(keep, at, mouths, pos, chain, geom)
+        at = lambda lab: [j for j in joints[sd] if rng[lab][0] < j < rng[lab][1]]
+        keep = [lab for lab in sides[sd] if lab not in ctx.weak or len(at(lab)) == 1]
+        if len(keep) > len(ctx.strong(sides[sd])):
+            with_pieces, groups = _join_pieces(keep, at, ctx.mouths, ctx.pos, ctx.chain, geom)
             got = _only_added(pairs[sd], _side_numbers([g[0] for g in groups], sd, with_pieces, geom, tip, None, rng),
                               msg, "slivers of slot mouths seen from the side")
             pieces.update({g[0]: g for g in groups if len(g) > 1 and g[0] in dict(got)})
             pairs[sd] = got
-    return Numbering(pairs[+1], pairs[-1], tip, status, msg, tipless=tipless, pieces=pieces)
+    return pieces
 
 
 def _join_pieces(labels, at, mouths, pos, chain: ChainInput, geom):
