@@ -359,11 +359,9 @@ def test_each_side_from_the_silhouette_that_numbers_it_and_no_number_wrong(extra
         assert not ok[[12, 13]].any()
 
 
-def test_a_tendon_loop_hiding_the_tip_of_a_rendered_wrist_costs_no_slot():
-    """The physically based gallery's ``tendon_b`` (tests/data/pbr): a tendon loop hides the tip, the only
-    convex pair 2R apart is the loop's, the base is inside the chuck. All five slots are found and fit the
-    chain: the count numbers them (before: the loop's corners disagreed and the side was refused, 0 of 11
-    visible corners ok)."""
+def _gallery(name):
+    """A physically based gallery scene (tests/data/pbr) detected with its camera file: (Detection, truth,
+    score)."""
     import json
     from pathlib import Path
 
@@ -371,11 +369,19 @@ def test_a_tendon_loop_hiding_the_tip_of_a_rendered_wrist_costs_no_slot():
     from notchfit.vision.render.pbr import PbrTruth, score_detection
 
     root = Path(__file__).resolve().parent.parent
-    rec = json.loads((root / "tests" / "data" / "pbr" / "tendon_b.json").read_text())
+    rec = json.loads((root / "tests" / "data" / "pbr" / f"{name}.json").read_text())
     truth = PbrTruth.from_dict(rec)
     det = detect_notches(load_image(root / "tests" / "data" / "pbr" / rec["image"]), truth.camera,
                          load_geometry(root / rec["geometry"]), mirror=truth.pose.plane[3])
-    s = score_detection(det, truth, rec["px_per_mm"])
+    return det, truth, score_detection(det, truth, rec["px_per_mm"])
+
+
+def test_a_tendon_loop_hiding_the_tip_of_a_rendered_wrist_costs_no_slot():
+    """The physically based gallery's ``tendon_b`` (tests/data/pbr): a tendon loop hides the tip, the only
+    convex pair 2R apart is the loop's, the base is inside the chuck. All five slots are found and fit the
+    chain: the count numbers them (before: the loop's corners disagreed and the side was refused, 0 of 11
+    visible corners ok)."""
+    det, _, s = _gallery("tendon_b")
     assert s.wrong == 0 and s.invented == 0 and s.ok >= 4, det.message
 
 
@@ -464,21 +470,10 @@ def test_a_sliver_is_kept_apart_from_the_slots():
 
 def test_slivers_of_slot_mouths_seen_from_the_side_are_numbered_between_slots():
     """The gallery's ``printed_b`` (a printed tube on blue paper through a phone lens): joint 7's slot, on the
-    limb seen from above, shows the paper through a sliver of its mouth (11 working px², a tenth of a slot;
-    its face hides the rest). Between the numbered slots of joints 5 and 9... none: it is pinned by the other
-    side's numbered slots of joints 6 and 8, and its distal corner is reported within 2 px (before: not
-    located). No corner of the printed scenes is numbered wrongly."""
-    import json
-    from pathlib import Path
-
-    from notchfit.io import load_geometry, load_image
-    from notchfit.vision.render.pbr import PbrTruth, score_detection
-
-    root = Path(__file__).resolve().parent.parent
-    rec = json.loads((root / "tests" / "data" / "pbr" / "printed_b.json").read_text())
-    truth = PbrTruth.from_dict(rec)
-    det = detect_notches(load_image(root / "tests" / "data" / "pbr" / rec["image"]), truth.camera,
-                         load_geometry(root / rec["geometry"]), mirror=truth.pose.plane[3])
-    s = score_detection(det, truth, rec["px_per_mm"])
+    limb seen from above, shows the paper through a sliver of its mouth only (11 working px², a tenth of a
+    slot; its upper face hides the rest), so it was not located. The other side's numbered slots of joints 6
+    and 8 pin the sliver to joint 7, and its distal corner is reported within 2 px. No corner of the scene is
+    numbered wrongly or invented."""
+    det, truth, s = _gallery("printed_b")
     assert s.wrong == 0 and s.invented == 0, det.message
     assert det.status[21] == "ok" and np.linalg.norm(det.points_px[21] - truth.points_px[21]) < 2.0, det.message

@@ -258,8 +258,8 @@ def _bounded_readings(sides: dict, joints: dict, pairs: dict, cross, ctx: _Readi
                                     msg, "slots between the other side's numbered slots")
     pieces = {}
     for sd in sides:
-        if not joints[sd] or len(ctx.strong(sides[sd])) == len(sides[sd]):
-            continue
+        if len(pairs[sd]) == len(joints[sd]) or len(ctx.strong(sides[sd])) == len(sides[sd]):
+            continue                               # every joint numbered, or no sliver on this side
         rng = _own_ranges(sides[sd], pairs[sd], geom.n_joints)
         if cross is not None and pairs[-sd]:
             other = cross(sd, sides[sd])
