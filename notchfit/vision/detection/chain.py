@@ -24,7 +24,10 @@ found then disputes the numbers that a matching of its own (joined next to
 its first or last slot) gives otherwise (a mirrored view, a spurious gap
 next to a missing slot), and tip corners that do not fit the last slot
 dispute it (a tendon loop's corner); an end that fits nothing disputes
-nothing (a hidden tip, a holder's face). A spurious gap, a missing or split
+nothing (a hidden tip, a holder's face). A candidate pinned to one joint by
+the other side's numbered slots around it (``SideCandidates.joint_range``)
+holds the numbers like an end next to its slot: a shifted matching would
+move it out of its range. A spurious gap, a missing or split
 slot, a hidden end link cost only the slots they touch; a shift that the
 chain cannot tell apart numbers nothing: never a wrong number. The
 candidates keep their own measured corners: the chain decides identities

@@ -10,7 +10,12 @@ apart. Each side's slots (joints with ``slot_sides = +1`` on the right,
 (:mod:`.chain`), the base and tip corners as anchors where found: a missing
 slot, a spurious gap, a side cut off by the image border at either end cost
 only the slots they touch, and a slot whose number the chain does not fix
-gets none. Nothing is guessed.
+gets none. A side not fully numbered is read again with each slot bounded
+by the other side's numbered slots around it (each link is rigid between
+its two slots), and with the slivers of slot mouths seen from the side (gaps
+smaller than a slot) that the numbered slots pin to one joint; a new
+reading counts only where it keeps every number given before. Nothing is
+guessed.
 """
 
 from __future__ import annotations
