@@ -24,7 +24,10 @@ found then disputes the numbers that a matching of its own (joined next to
 its first or last slot) gives otherwise (a mirrored view, a spurious gap
 next to a missing slot), and tip corners that do not fit the last slot
 dispute it (a tendon loop's corner); an end that fits nothing disputes
-nothing (a hidden tip, a holder's face). A spurious gap, a missing or split
+nothing (a hidden tip, a holder's face). A candidate pinned to one joint by
+the other side's numbered slots around it (``SideCandidates.joint_range``)
+holds the numbers like an end next to its slot: a shifted matching would
+move it out of its range. A spurious gap, a missing or split
 slot, a hidden end link cost only the slots they touch; a shift that the
 chain cannot tell apart numbers nothing: never a wrong number. The
 candidates keep their own measured corners: the chain decides identities
@@ -84,6 +87,11 @@ class SideCandidates:
     slack : ndarray (K,), optional
         Extra tolerance for each candidate's corners (a closed mouth gives
         one point for both) [same unit].
+    joint_range : ndarray (K, 2) int, optional
+        Each candidate's joint lies strictly between these two joint numbers
+        (the other side's numbered slots it lies between along the tube,
+        :func:`~.numbering.number_slots`); a candidate whose range holds one
+        joint of this side is *pinned* to it.
     """
 
     side: int
@@ -92,6 +100,7 @@ class SideCandidates:
     base: np.ndarray | None = None
     tip: np.ndarray | None = None
     slack: np.ndarray | None = None
+    joint_range: np.ndarray | None = None
 
     def slack_of(self, k: int) -> float:
         """Candidate ``k``'s extra tolerance [unit]."""
@@ -231,6 +240,9 @@ def _feasible(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, scale:
     allowed[1:K + 1, 1:M - 1] = True
     allowed[0, 0] = cands.base is not None
     allowed[C - 1, M - 1] = cands.tip is not None
+    if cands.joint_range is not None and K:
+        lo, hi = np.asarray(cands.joint_range).reshape(-1, 2).T
+        allowed[1:K + 1] &= (joints[None, :] > lo[:, None]) & (joints[None, :] < hi[:, None])
     d = np.linalg.norm(far[:, None, :] - near[None, :, :], axis=2)          # (C, C) far of c' -> near of c
     limit = np.maximum(tol.rel_tol * d0, tol.abs_tol) + tol.per_joint * play
     slack = np.zeros(C)
@@ -288,6 +300,15 @@ def number_side(cands: SideCandidates, geom: Geometry, tol: ChainTolerance, *, s
     # its first (last) slot (beyond a missing slot the joints' play can reach a link's length), or every
     # joint of the side is matched (checked against the ends found below); ``loose``: no end joined next
     held = base_next or tip_next
+    if not held and cands.joint_range is not None:
+        # a candidate pinned to one joint by the other side's numbered slots around it (each link is rigid
+        # between its two slots, so the order along the tube holds whatever the joints' play): a matching
+        # shifted by a joint would move it out of its range
+        pinned = np.zeros(C, bool)
+        pinned[1:K + 1] = allowed[1:K + 1].sum(axis=1) == 1
+        free = allowed & ~pinned[:, None]
+        held = _best(feas & free[:, :, None, None] & free[None, None, :, :], free, wgt, start=free,
+                     end=free).score < best.score - 1e-6
     if not held:
         loose = feas.copy()
         loose[0, 0, :, 1] = False

@@ -39,6 +39,29 @@ def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
     return out
 
 
+def _found(p: Parsed) -> tuple:
+    """How much a parse numbered: (slots numbered from slot-sized gaps and the tip, all slots and the tip). A
+    sliver numbered is weaker evidence than a slot (a fillet next to the holder can be one): a parse with the
+    holder in that numbers every slot from slot-sized gaps wins over one whose last slot is a sliver."""
+    slivers = sum(1 for s, _ in p.num.right + p.num.left if s in p.ol.sliver_ids)
+    return p.n_found - slivers, p.n_found
+
+
+def _joined(pieces: dict, mouths: dict, rawc: dict, pos):
+    """The mouths and unbridged outer corners with every slot numbered from its pieces (label -> the labels of
+    its pieces, ``numbering.Numbering.pieces``) spanning them: from the first corner of the piece first along
+    the outline (``pos``: outline index -> position from the base) to the last corner of the last."""
+    mouths, rawc = dict(mouths), dict(rawc)
+    for first, group in pieces.items():
+        a, b = min(group, key=lambda x: pos(mouths[x][0])), max(group, key=lambda x: pos(mouths[x][1]))
+        ra, rb = rawc.get(a), rawc.get(b)
+        mouths[first] = (mouths[a][0], mouths[b][1], True)
+        rawc.pop(first, None)
+        if ra is not None and rb is not None:
+            rawc[first] = (ra[0], rb[1])
+    return mouths, rawc
+
+
 def _chain_input(ol, mouths, rawc, raw, plane_px, setup: Setup, *, to_plane) -> ChainInput:
     """The slot candidates' outer corners and the base corners in the plane (low-res px), and the chain's
     tolerances (options ``chain_rel_tol``, ``chain_abs_w``, ``chain_abs_px``, ``chain_play``)."""
@@ -76,7 +99,7 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detect
     holder, strict = crop.holders
     ol = bridge_slots(crop.roi, crop.offset, small_shape, r_close=r_close, slot_area=crop.slot_area,
                       slot_area_range=opts.slot_area_range, sgn=sgn, holder=strict if exclude_holder else None,
-                      holder_strict=strict)
+                      holder_strict=strict, sliver_area=opts.sliver_area_px)
     if ol is None:
         return empty_detection(m, "no_manipulator", "no manipulator outline")
     X0, Y0 = ol.offset
@@ -86,13 +109,14 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detect
     plane_px = camera.pixel_to_plane(contour_px) / low_m
     dist = lambda i, j: float(np.linalg.norm(plane_px[i] - plane_px[j]))
     mouths = slot_mouths(ol, max_wall=0.5 * R_lo, gray=gray, dark=dark, reach=float(slot_depths(geom).max()) / low_m)
+    strong = {s: v for s, v in mouths.items() if s not in ol.sliver_ids}      # slot-sized gaps: the ends' evidence
     be, why = find_base(ol, (holder, strict), R_lo=R_lo, dist=dist, sgn=sgn, min_tube_run_R=opts.min_tube_run_R,
                         min_base_run_R=opts.min_base_run_R, corner_turn_deg=opts.corner_turn_deg,
-                        pair_tol=opts.pair_tol, base=setup.base, mouth_idx=[v[0] for v in mouths.values()])
+                        pair_tol=opts.pair_tol, base=setup.base, mouth_idx=[v[0] for v in strong.values()])
     if be is None:
         return empty_detection(m, "partial", why, contour_px)
     if be.kind == "corners":
-        be = orient_corner_pair(be, mouths, cnt)
+        be = orient_corner_pair(be, strong, cnt)
     if len(set(geom.slot_sides)) == 1:
         mouths = _one_sided_holes(ol, mouths, be, geom.slot_sides[0], max_wall=0.5 * R_lo)
     raw = None
@@ -118,7 +142,9 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detect
     rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
     chain = _chain_input(ol, mouths, rawc, raw, plane_px, setup,
                          to_plane=lambda p: camera.pixel_to_plane(full(p)) / low_m)
-    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, dist=dist, pair_tol=opts.pair_tol, chain=chain)
+    num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, dist=dist, pair_tol=opts.pair_tol, chain=chain,
+                       weak=set(ol.sliver_ids))
+    mouths, rawc = _joined(num.pieces, mouths, rawc, lambda i: (i - be.i_right) % len(cnt))
     if num.mirror_conflict:
         n_r = sum(1 for s in geom.slot_sides if s > 0)
         return empty_detection(
@@ -159,9 +185,9 @@ def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True) -> 
         if isinstance(got, Detection):
             fail = fail or got                   # the first failure, where no variant parses
             continue
-        if res is None or got.n_found > res.n_found:
+        if res is None or _found(got) > _found(res):
             res = got
-        if got.n_found == geom.n_joints + 1:
+        if _found(got)[0] == geom.n_joints + 1:
             break
     if res is None:
         return fail

@@ -10,7 +10,12 @@ apart. Each side's slots (joints with ``slot_sides = +1`` on the right,
 (:mod:`.chain`), the base and tip corners as anchors where found: a missing
 slot, a spurious gap, a side cut off by the image border at either end cost
 only the slots they touch, and a slot whose number the chain does not fix
-gets none. Nothing is guessed.
+gets none. A side not fully numbered is read again with each slot bounded
+by the other side's numbered slots around it (each link is rigid between
+its two slots), and with the slivers of slot mouths seen from the side (gaps
+smaller than a slot) that the numbered slots pin to one joint; a new
+reading counts only where it keeps every number given before. Nothing is
+guessed.
 """
 
 from __future__ import annotations
@@ -45,6 +50,9 @@ class Numbering:
         apart confirms that the silhouette is the whole tube (half of it, split
         along a highlight, has consistent corners on an inner edge), so each
         corner's link must be ``2R`` wide beside it (``subpixel.link_widths``).
+    pieces : dict
+        Slot label -> the labels of the pieces numbered as that one slot (the
+        label first), each open at the outline (:func:`_join_pieces`).
     """
 
     right: list
@@ -54,6 +62,7 @@ class Numbering:
     messages: list = field(default_factory=list)
     mirror_conflict: bool = False
     tipless: bool = False
+    pieces: dict = field(default_factory=dict)
 
 
 def orient_corner_pair(be: BaseEnd, mouths: dict, cnt) -> BaseEnd:
@@ -109,17 +118,22 @@ class ChainInput:
     tol: ChainTolerance
 
 
-def _side_numbers(labels, side, chain: ChainInput, geom, tip, msg):
-    """(label, joint) pairs of one side's slots (``labels`` ordered from the base) by the chain."""
+def _side_numbers(labels, side, chain: ChainInput, geom, tip, msg, ranges=None):
+    """(label, joint) pairs of one side's slots (``labels`` ordered from the base) by the chain; ``ranges``:
+    label -> (lo, hi), the joints the other side's numbered slots leave it (:func:`_cross_ranges`); ``msg``
+    None: no message."""
     name = "right" if side > 0 else "left"
     corners = [chain.mouth_corners[s] for s in labels]
     first = np.array([c[0] for c in corners]).reshape(-1, 2)
     last = np.array([c[1] for c in corners]).reshape(-1, 2)
     near, far = (first, last) if side > 0 else (last, first)      # the left side is traversed tip -> base
     tip_pt = None if tip is None else chain.outline_plane[tip[0] if side > 0 else tip[1]]
+    jr = None if ranges is None else np.array([ranges[s] for s in labels], int).reshape(-1, 2)
     cands = SideCandidates(side, near, far, chain.base[0 if side > 0 else 1], tip_pt,
-                           np.array([chain.slack.get(s, 0.0) for s in labels]))
+                           np.array([chain.slack.get(s, 0.0) for s in labels]), jr)
     res = number_side(cands, geom, chain.tol, scale=chain.scale)
+    if msg is None:
+        return [(labels[k], j) for k, j in sorted(res.joints.items())]
     n_side = sum(1 for v in geom.slot_sides if v == side)
     if labels and not res.joints:
         msg.append(f"the {name} side's {len(labels)} slots are not numbered: neither its base nor its tip corner "
@@ -135,7 +149,7 @@ def _side_numbers(labels, side, chain: ChainInput, geom, tip, msg):
 
 
 def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dist, pair_tol,
-                 chain: ChainInput) -> Numbering:
+                 chain: ChainInput, weak=frozenset()) -> Numbering:
     """Match the slots on the tube arc to joints and find the tip.
 
     Parameters
@@ -153,6 +167,14 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dis
     chain : ChainInput
         The candidates' corners: each side's slots are numbered by agreement
         with the rigid-link chain (:func:`~notchfit.vision.detection.chain.number_side`).
+    weak : set
+        Labels of ``mouths`` that are slivers (:attr:`~.outline.Outline.sliver_ids`): they are not
+        evidence for the tip or the sides, and they get numbers only where every slot-sized gap
+        keeps its own.
+
+    A side whose slots are not all numbered is read once more with the other
+    side's numbered slots as bounds (:func:`_cross_ranges`); its new numbers
+    stand only where every number given before is kept.
     """
     N = len(cnt)
     m = geom.n_points
@@ -163,11 +185,12 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dis
     pos = lambda i: apos(i, i_br)
     tube_border = [pos(i) for i in np.nonzero(on_border)[0] if 0 < pos(i) < L_tube]
     slots = sorted((pos(v[0]), s) for s, v in mouths.items() if 0 <= pos(v[0]) < L_tube)
+    strong = [(p_, s) for p_, s in slots if s not in weak]
     msg = []
     tip = None
     tipless = False
     if not tube_border:
-        tip = _tip(cnt, convex, slots, pos, L_tube, dist, two_R, pair_tol)
+        tip = _tip(cnt, convex, strong, pos, L_tube, dist, two_R, pair_tol)
         if tip is None:
             msg.append("tip corners not found")
     if tip is not None:
@@ -191,8 +214,169 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dis
     right_j = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == +1]
     left_j = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == -1]
     status = ["occluded"] * m
-    if not cut and len(right_j) != len(left_j) and len(right) == len(left_j) and len(left) == len(right_j):
+    n_r, n_l = (sum(1 for s in side if s not in weak) for side in (right, left))
+    if not cut and len(right_j) != len(left_j) and n_r == len(left_j) and n_l == len(right_j):
         return Numbering([], [], tip, status, msg, mirror_conflict=True)
-    right_pairs = _side_numbers(right, +1, chain, geom, tip, msg) if right_j else []
-    left_pairs = _side_numbers(left[::-1], -1, chain, geom, tip, msg) if left_j else []
-    return Numbering(right_pairs, left_pairs, tip, status, msg, tipless=tipless)
+    sides = {+1: right, -1: left[::-1]}                                  # each ordered from the base
+    joints = {+1: right_j, -1: left_j}
+    ctx = _Reading(chain, geom, tip, frozenset(weak), mouths, pos)
+    pairs = {sd: _side_numbers(ctx.strong(sides[sd]), sd, chain, geom, tip, msg) if joints[sd] else [] for sd in sides}
+    cross = None
+    if right_j and left_j and (tip is not None or tube_border):
+        arcs = _arcs(chain.outline_plane, i_br, L_tube, pos, tip, tube_border)
+        margin = 0.5 * _shortest_solid(geom) / chain.scale
+        cross = lambda sd, labels: _cross_ranges(labels, pairs[-sd], chain, arcs[0 if sd < 0 else 1], -sd, margin,
+                                                 geom.n_joints)
+    pieces = _bounded_readings(sides, joints, pairs, cross, ctx, msg)
+    return Numbering(pairs[+1], pairs[-1], tip, status, msg, tipless=tipless, pieces=pieces)
+
+
+@dataclass(frozen=True)
+class _Reading:
+    """What a side's further readings need: the chain input, the geometry, the tip, the sliver labels, the
+    mouths and the outline position from the base (``pos``: index -> position)."""
+
+    chain: ChainInput
+    geom: object
+    tip: tuple | None
+    weak: frozenset
+    mouths: dict
+    pos: object
+
+    def strong(self, labels) -> list:
+        """The slot-sized gaps among ``labels``."""
+        return [lab for lab in labels if lab not in self.weak]
+
+
+def _bounded_readings(sides: dict, joints: dict, pairs: dict, cross, ctx: _Reading, msg: list) -> dict:
+    """Each side read again where its slots are not all numbered, its numbers (``pairs``, side -> list of
+    (label, joint), updated in place) kept: first the slot-sized gaps bounded by the other side's numbered
+    slots (``cross``: (side, labels) -> ranges, :func:`_cross_ranges`; None for a one-sided tube or no tip),
+    then with the slivers that the numbered slots around them (this side's, the other side's) pin to one joint,
+    pieces of one slot joined (:func:`_join_pieces`). Returns the joined pieces (label -> labels)."""
+    geom, tip = ctx.geom, ctx.tip
+    for sd in sides:
+        strong = ctx.strong(sides[sd])
+        if cross is not None and len(pairs[sd]) < len(strong) and pairs[-sd]:
+            pairs[sd] = _only_added(pairs[sd], _side_numbers(strong, sd, ctx.chain, geom, tip, None,
+                                                             cross(sd, strong)),
+                                    msg, "slots between the other side's numbered slots")
+    pieces = {}
+    for sd in sides:
+        if len(pairs[sd]) == len(joints[sd]) or len(ctx.strong(sides[sd])) == len(sides[sd]):
+            continue                               # every joint numbered, or no sliver on this side
+        rng = _own_ranges(sides[sd], pairs[sd], geom.n_joints)
+        if cross is not None and pairs[-sd]:
+            other = cross(sd, sides[sd])
+            rng = {lab: (max(rng[lab][0], other[lab][0]), min(rng[lab][1], other[lab][1])) for lab in rng}
+        at = lambda lab: [j for j in joints[sd] if rng[lab][0] < j < rng[lab][1]]
+        keep = [lab for lab in sides[sd] if lab not in ctx.weak or len(at(lab)) == 1]
+        if len(keep) > len(ctx.strong(sides[sd])):
+            with_pieces, groups = _join_pieces(keep, at, ctx.mouths, ctx.pos, ctx.chain, geom)
+            got = _only_added(pairs[sd], _side_numbers([g[0] for g in groups], sd, with_pieces, geom, tip, None, rng),
+                              msg, "slivers of slot mouths seen from the side")
+            pieces.update({g[0]: g for g in groups if len(g) > 1 and g[0] in dict(got)})
+            pairs[sd] = got
+    return pieces
+
+
+def _join_pieces(labels, at, mouths, pos, chain: ChainInput, geom):
+    """Consecutive candidates (``labels``, ordered from the base) pinned to one joint (``at``: label -> the
+    joints its range holds) are pieces of that joint's slot, split by shading or a bridge of texture, when
+    all are open at the outline and together no wider than the slot: one candidate, labelled by its first,
+    from the first corner of the piece first along the outline to the last corner of the last. Returns the
+    chain input with the joined corners and the groups (tuples of labels)."""
+    groups = []
+    for lab in labels:
+        j = at(lab)
+        prev = groups[-1] if groups else None
+        if prev is not None and len(j) == 1 and at(prev[0]) == j and all(mouths[x][2] for x in prev + (lab,)):
+            groups[-1] = prev + (lab,)
+        else:
+            groups.append((lab,))
+    corners = dict(chain.mouth_corners)
+    out = []
+    for g in groups:
+        if len(g) > 1:
+            a, b = min(g, key=lambda x: pos(mouths[x][0])), max(g, key=lambda x: pos(mouths[x][1]))
+            span = (corners[a][0], corners[b][1])
+            wide = float(np.asarray(geom.slot_widths)[at(g[0])[0] - 1]) / chain.scale + chain.tol.abs_tol
+            if np.linalg.norm(np.subtract(span[1], span[0])) > wide:
+                out += [(x,) for x in g]
+                continue
+            corners[g[0]] = span
+        out.append(g)
+    return dataclasses.replace(chain, mouth_corners=corners), out
+
+
+def _own_ranges(labels, pairs, n_joints: int) -> dict:
+    """Label -> (lo, hi): the joints between which each of one side's slots (``labels``, ordered from the base)
+    lies, from that side's numbered slots before and after it along the outline (a numbered slot: its own
+    joint)."""
+    num = dict(pairs)
+    out = {}
+    for q, lab in enumerate(labels):
+        if lab in num:
+            out[lab] = (num[lab] - 1, num[lab] + 1)
+            continue
+        before = [num[x] for x in labels[:q] if x in num]
+        after = [num[x] for x in labels[q + 1:] if x in num]
+        out[lab] = (max(before, default=0), min(after, default=n_joints + 1))
+    return out
+
+
+def _shortest_solid(geom) -> float:
+    """The shortest stretch of tube between two consecutive slots, whichever sides they open on [m]."""
+    z, w = np.asarray(geom.joint_z), np.asarray(geom.slot_widths)
+    return float(np.min(np.diff(z) - 0.5 * (w[1:] + w[:-1]))) if len(z) > 1 else np.inf
+
+
+def _arcs(plane, i_br, L_tube, pos, tip, tube_border):
+    """The right and the left side's stretch of the bridged outline: (points (K, 2) [plane], their arc
+    length from the base end along the outline (K,)) each; the tip (or the image border) between them."""
+    N = len(plane)
+    idx = (i_br + np.arange(L_tube + 1)) % N
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(plane[idx], axis=0), axis=1))])
+    end_r = pos(tip[0]) if tip is not None else min(tube_border)
+    start_l = pos(tip[1]) if tip is not None else max(tube_border)
+    return (plane[idx[:end_r + 1]], s[:end_r + 1]), (plane[idx[start_l:]], s[start_l:])
+
+
+def _cross_ranges(labels, other_pairs, chain: ChainInput, other_arc, other_side: int, margin: float,
+                  n_joints: int) -> dict:
+    """Label -> (lo, hi): the joints between which each slot of one side lies along the tube, from the other
+    side's numbered slots (``other_pairs``, on ``other_arc``). A slot's corners and the corners of the other
+    side's slot before (after) it lie on one rigid link, its solid part between the two slots long: each
+    corner is taken across the tube to the nearest point of the other side's edge, and a numbered slot
+    bounds a candidate only where all its corners are beyond all the candidate's by ``margin`` along that
+    edge (half the shortest solid stretch: the bend of the joint between them and the corners' own errors
+    are left that much)."""
+    pts, s = other_arc
+    if not len(pts):
+        return {c: (0, n_joints + 1) for c in labels}
+    along = lambda xy: s[np.argmin(np.sum((pts - xy) ** 2, axis=1))]
+    span = lambda lab: sorted(along(p) for p in chain.mouth_corners[lab])
+    other = [(span(x), j) for x, j in other_pairs]
+    out = {}
+    for c in labels:
+        c0, c1 = span(c)
+        lo, hi = 0, n_joints + 1
+        for (x0, x1), j in other:
+            # along the other side's arc: the right side runs base -> tip, the left side tip -> base
+            beyond, before = c0 > x1 + margin, c1 < x0 - margin
+            if (beyond and other_side > 0) or (before and other_side < 0):
+                lo = max(lo, j)
+            elif beyond or before:
+                hi = min(hi, j)
+        out[c] = (lo, hi)
+    return out
+
+
+def _only_added(first: list, second: list, msg: list, what: str) -> list:
+    """A side's numbers read again with more evidence (``second``), where they keep every number given before
+    (``first``); where they change or drop one, the two readings dispute it and the first stands."""
+    before, after = dict(first), dict(second)
+    if any(after.get(lab) != j for lab, j in before.items()) or len(after) <= len(before):
+        return first
+    msg.append(f"{len(after) - len(before)} more numbered: {what}")
+    return second

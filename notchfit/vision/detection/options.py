@@ -44,6 +44,11 @@ class DetectorOptions:
         Radius of the disk that bridges slot mouths, in slot widths.
     slot_area_range : (float, float)
         Accepted area of one bridged slot, relative to ``w d``.
+    sliver_area_px : float
+        Smallest smaller gap kept as a sliver of a slot's mouth seen from the
+        side [working px², where the narrowest slot is about ``work_slot_px``
+        wide]: a weak candidate that is numbered only where the slot-sized
+        gaps' numbers all stand; smaller gaps are the outline's pixel noise.
     holder_width_factor : float
         The holder is the part of the silhouette that a disk of radius
         ``holder_width_factor * R`` fits into (an opening): the tube (``2R``
@@ -154,6 +159,7 @@ class DetectorOptions:
     area_range: tuple = (0.2, 3.0)
     close_slot_factor: float = 1.25
     slot_area_range: tuple = (0.15, 4.0)
+    sliver_area_px: float = 3.0
     holder_width_factor: float = 1.15
     min_tube_run_R: float = 2.0
     min_base_run_R: float = 2.0

@@ -49,6 +49,12 @@ class Outline:
         Outer outline of ``region`` (unbridged), same orientation.
     r_close : int
         Radius of the bridging disk [low-res px].
+    sliver_ids : tuple of int
+        Gap labels smaller than a slot but not smaller than ``sliver_area``:
+        a slot seen from the side shows the backdrop only through a sliver of
+        its mouth (its faces hide the rest). Weak candidates: a sliver gets a
+        number only where the slot-sized gaps' numbers all stand
+        (:func:`~.numbering.number_slots`).
     """
 
     offset: tuple
@@ -62,6 +68,7 @@ class Outline:
     on_border: np.ndarray
     raw_contour: np.ndarray
     r_close: int
+    sliver_ids: tuple = ()
 
 
 def oriented_contour(mask, sgn: float) -> np.ndarray:
@@ -88,7 +95,7 @@ def crop_region(region, box, image_shape, pad: int, keep_holes=(0.0, 0.0)):
 
 
 def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, slot_area_range, sgn: float,
-                 holder=None, holder_strict=None):
+                 holder=None, holder_strict=None, sliver_area: float = np.inf):
     """Bridge the slot mouths of a region and find the slot-sized gaps.
 
     Parameters
@@ -112,6 +119,9 @@ def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, sl
         tube meets it are not filled (their fillets would reach the first slot).
     holder_strict : ndarray (h, w) uint8, optional
         The holder's strict opening: gaps touching it are not slots.
+    sliver_area : float
+        Smallest gap kept as a sliver of a slot's mouth (:attr:`Outline.sliver_ids`) [low-res px²];
+        none by default.
 
     Returns
     -------
@@ -124,7 +134,8 @@ def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, sl
     gaps = (closed & (1 - roi)).astype(np.uint8)
     ng, glab, gst, gcen = cv2.connectedComponentsWithStats(gaps, connectivity=8)
     lo, hi = slot_area_range
-    slot_ids = [k for k in range(1, ng) if lo * slot_area <= gst[k, cv2.CC_STAT_AREA] <= hi * slot_area]
+    least = min(sliver_area, lo * slot_area)
+    slot_ids = [k for k in range(1, ng) if least <= gst[k, cv2.CC_STAT_AREA] <= hi * slot_area]
     if holder_strict is not None and holder_strict.any() and slot_ids:
         # a concavity of the holder's outline (a chuck's stepped jaws) is no slot: most of the object
         # around it is holder, where a slot has the tube's faces
@@ -141,8 +152,9 @@ def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, sl
         return None
     ax_, ay_ = cnt[:, 0] + X0, cnt[:, 1] + Y0
     on_border = (ax_ <= 0) | (ay_ <= 0) | (ax_ >= ws - 1) | (ay_ >= hs - 1)
-    return Outline((X0, Y0), roi, closed, glab, gst, gcen, slot_ids, cnt, on_border,
-                   oriented_contour(roi, sgn), int(r_close))
+    slivers = tuple(k for k in slot_ids if gst[k, cv2.CC_STAT_AREA] < lo * slot_area)
+    return Outline((X0, Y0), roi, closed, glab, gst, gcen, [k for k in slot_ids if k not in slivers], cnt, on_border,
+                   oriented_contour(roi, sgn), int(r_close), slivers)
 
 
 def turn_angles(cnt, k: int, sgn: float) -> np.ndarray:
@@ -232,8 +244,10 @@ def slot_mouths(ol: Outline, *, max_wall: float = np.inf, gray=None, dark: bool 
     cnt_i = cnt.astype(np.intp)
     lab_on = ol.gap_labels[cnt_i[:, 1], cnt_i[:, 0]]
     mouths = {}
-    for s in ol.slot_ids:
+    for s in list(ol.slot_ids) + list(ol.sliver_ids):
         idx = np.nonzero(lab_on == s)[0]
+        if s in ol.sliver_ids and not len(idx):
+            continue                                       # a sliver is a mouth on the outline, not a hole
         if len(idx):
             if idx[-1] - idx[0] > len(idx) + 2:            # the run wraps around index 0
                 g = int(np.argmax(np.diff(idx)))
