@@ -1,12 +1,16 @@
-"""The width check beside a refined slot corner (``subpixel.link_widths``) on a polished tube whose silhouette
-misses the far limb."""
+"""A polished tube's limbs and faces in the refinement: the width check beside a refined slot corner
+(``subpixel.link_widths``) where the silhouette misses the far limb, and the view term of a face beside a
+limb that mirrors the backdrop (``refine.face_view_cov``)."""
 
+import math
 from types import SimpleNamespace
 
 import cv2
 import numpy as np
 import pytest
 
+from notchfit.vision.camera import CameraModel
+from notchfit.vision.detection.refine import face_view_cov
 from notchfit.vision.detection.subpixel import link_widths
 from notchfit.vision.detection.view import DiameterScale
 
@@ -59,3 +63,31 @@ def test_a_matte_tube_as_wide_as_its_silhouette_keeps_the_silhouettes_width():
     args = (mask, f, DiameterScale(m_per_px, (200, 200)), 1.0 / m_per_px, R_px * m_per_px)
     w = link_widths(SimpleNamespace(C=C, specs=specs, img=img, off=np.zeros(2)), *args)
     assert w[0] == link_widths(SimpleNamespace(C=C, specs=specs), *args)[0]
+
+
+def test_a_face_beside_a_mirroring_limb_may_be_off_by_its_whole_bulge():
+    """A corner 500 px off the optical axis along the tube (focal 1000 px, the plane facing the camera): its
+    face bulges by b = R sin β, sin β ≈ 0.45, R = 40 px. Beside a limb that mirrors the backdrop
+    (``assume``), with the camera file's view, the face mirrors it too and the slot's visible boundary may
+    be its far rim: σ along the outer edge is the whole bulge b (was b / 2). Without ``assume`` and without
+    a camera file (an assumed view, already an upper bound) the term stays b / 2."""
+    cam = CameraModel.synthetic(focal_px=1000.0, tilt_deg=(0.0, 0.0), dist=(0.0, 0.0, 0.0, 0.0, 0.0))
+    K_ = cam.camera_matrix
+    R, X = 40.0, np.array([[K_[0, 2] + 500.0, K_[1, 2]]])
+    dd = np.array([[1.0, 0.0], [0.0, 1.0]])                            # limb along x (incoming), face across
+    u = np.arange(3.0, 70.0)
+    pts = X[0] + np.stack([np.zeros_like(u), u], 1)                    # the mirror image's straight boundary
+    args = (X, dd, np.array([False, True]), np.array([True]), pts, np.ones(len(u), int))
+    on = np.array([True])
+    mirrored = face_view_cov(cam, *args, radius_px=R, assume=on)[0, 0, 0]
+    half = face_view_cov(cam, *args, radius_px=R, assume=on, mirror_factor=0.5)[0, 0, 0]
+    assert 0.4 < math.sqrt(half) / (0.5 * R) < 0.5                     # b / 2 with sin β in (0.4, 0.5)
+    assert mirrored == pytest.approx(4.0 * half, rel=1e-9)
+    H, W = 1200, 1600
+    scale = DiameterScale(1e-5, (W, H))
+    Xs = np.array([[(W - 1) / 2 + 400.0, (H - 1) / 2]])
+    ps = Xs[0] + np.stack([np.zeros_like(u), u], 1)
+    args_s = (Xs, dd, np.array([False, True]), np.array([True]), ps, np.ones(len(u), int))
+    sin_b = 400.0 / math.hypot(400.0, math.hypot(W, H))
+    assert face_view_cov(scale, *args_s, radius_px=R, assume=on)[0, 0, 0] == pytest.approx((0.5 * R * sin_b) ** 2,
+                                                                                            rel=1e-9)

@@ -558,7 +558,8 @@ def _corner_arcs(pts, grp, lines: CornerLines, curved, *, radius_px, max_u0, fit
 
 
 def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, factor: float = 0.5,
-                  significance: float = 9.0, shrink: tuple = (0.5, 0.25, 0.125), assume=None) -> np.ndarray:
+                  significance: float = 9.0, shrink: tuple = (0.5, 0.25, 0.125), assume=None,
+                  mirror_factor: float = 1.0) -> np.ndarray:
     """Covariance (K, 2, 2) [ideal px²] along the outer edge of corners whose circular face was fitted as a
     straight line, from how far the camera sees that face from the side.
 
@@ -602,6 +603,12 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
         The tube's radius [ideal px].
     assume : ndarray (K,) bool, optional
         Corners whose face's crossings are not asked (``CornerSpecs.outside``): the arc is assumed.
+    mirror_factor : float
+        Those corners' bias in units of ``b`` where a camera file gives the view: their limb mirrors the
+        backdrop, so does their face (the same polished surface), so the slot's visible boundary lies up
+        to the face's far rim and the line meets the limb up to the whole bulge off (0.7-1.0 ``b`` on the
+        physically based polished wrists). Without a camera file the assumed view's ``sin β`` already
+        bounds it from above (a normal lens sees the faces more from the side): ``factor`` is kept.
     """
     K = len(X)
     out = np.zeros((K, 2, 2))
@@ -629,7 +636,9 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
                 break
             ok = retry & arcs_allowed(pts, grp, X[ks], fe, d_limb, f * assumed, radius_px, significance)
             sin_b, allowed = np.where(ok, f * assumed, sin_b), allowed | ok
-    var = np.where(np.isfinite(sin_b) & allowed, (factor * radius_px * sin_b) ** 2, 0.0)
+    mirror = assume is not None and not isinstance(camera, DiameterScale)
+    fac = np.where(assume[ks], mirror_factor, factor) if mirror else factor    # a mirroring face: to its far rim
+    var = np.where(np.isfinite(sin_b) & allowed, (fac * radius_px * sin_b) ** 2, 0.0)
     out[ks] = var[:, None, None] * d_limb[:, :, None] * d_limb[:, None, :]
     return out
 
