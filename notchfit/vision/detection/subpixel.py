@@ -340,15 +340,25 @@ def statuses(ref: Refinement, m, status, shape, opts):
     return status, pts_px, ideal, cov
 
 
-def link_widths(ref: Refinement, mask, f: int, camera, px_per_m: float, radius: float) -> np.ndarray:
-    """The tube's width [m] beside each refined slot corner, across its outer edge, on a working-copy mask
-    (K,); NaN for other corners.
+def link_widths(ref: Refinement, mask, f: int, camera, px_per_m: float, radius: float, *,
+                far_reach_R: float = 0.4, far_half_R: float = 0.15) -> np.ndarray:
+    """The tube's width [m] beside each refined slot corner, across its outer edge (K,); NaN for other corners.
 
     From the point ``0.3 R`` along the corner's outer edge away from its
-    slot, along the normal into the object, to where the mask ends; mapped to
-    the plane. A link is ``2R`` wide there: a corner whose outer edge is an
-    edge inside the tube (the boundary of a highlight, where the limb mirrors
-    the backdrop) finds it narrower.
+    slot, along the normal into the object, to where the working-copy
+    ``mask`` ends; mapped to the plane. A link is ``2R`` wide there: a
+    corner whose outer edge is an edge inside the tube (the boundary of a
+    highlight, where the limb mirrors the backdrop) finds it narrower.
+
+    The check is of the corner's own edge, not of the silhouette's far side:
+    where the mask ends more than a working-copy pixel short of ``2R``, the
+    far end is looked for in the image (``ref.img``, ``ref.off``) as the
+    refinement looks for a polished or shaded limb (:func:`outer_offsets`:
+    the mean of the profiles ``far_half_R`` R either side of the far end, up
+    to ``far_reach_R`` R outward): a limb that mirrors the backdrop is left
+    out of the silhouette on the far side as on the near one, and the width
+    runs to where the tube is seen to end. A corner on an edge inside the
+    tube stays as much short of ``2R`` as it lies inside.
     """
     sp = ref.specs
     K = len(ref.C)
@@ -358,6 +368,7 @@ def link_widths(ref: Refinement, mask, f: int, camera, px_per_m: float, radius: 
     lo = lambda P: np.rint((np.asarray(P) - (f - 1) / 2.0) / f).astype(int)
     inside = lambda q: bool(0 <= q[0] < w and 0 <= q[1] < h and mask[q[1], q[0]])
     t = np.arange(0.3 * R_px, 3.0 * R_px, 0.5 * f)
+    ends = {}
     for k in range(K):
         if sp.face[k] == sp.face[K + k] or not np.all(np.isfinite(ref.C[k])):
             continue
@@ -369,10 +380,31 @@ def link_widths(ref: Refinement, mask, f: int, camera, px_per_m: float, radius: 
             ray = lo(P[None, :] + t[:, None] * n[None, :])
             hit = [j for j, q in enumerate(ray) if not inside(q)]
             if hit:
-                ends = camera.pixel_to_plane(np.array([P, P + t[hit[0]] * n]))
-                out[k] = float(np.linalg.norm(ends[1] - ends[0]))
+                ends[k] = (P, n, float(t[hit[0]]))
             break
+    far = _far_limbs(ref, ends, 2.0 * R_px - f, reach_px=far_reach_R * R_px, half_px=far_half_R * R_px)
+    for k, (P, n, s) in ends.items():
+        pts = camera.pixel_to_plane(np.array([P, P + (s + far.get(k, 0.0)) * n]))
+        out[k] = float(np.linalg.norm(pts[1] - pts[0]))
     return out
+
+
+def _far_limbs(ref: Refinement, ends: dict, short_px: float, *, reach_px: float, half_px: float) -> dict:
+    """{corner: how far outside the mask's far end the tube is seen to end [px]} for the corners of ``ends``
+    ({corner: (start (2,), unit normal into the tube (2,), distance to the mask's far end [px])}) whose
+    distance is below ``short_px``; from :func:`outer_offsets` on a short edge through each far end."""
+    img, off = getattr(ref, "img", None), getattr(ref, "off", None)
+    ks = [k for k, (_, _, s) in ends.items() if s < short_px]
+    if img is None or not ks or reach_px < 3.0:
+        return {}
+    n = np.array([ends[k][1] for k in ks])
+    Pf = np.array([ends[k][0] + ends[k][2] * ends[k][1] for k in ks])
+    # an incoming edge through each far end, along the link, its profiles' normal (sgn = 1) along n
+    D = np.stack([-n[:, 1], n[:, 0]], axis=1)
+    L = np.full(len(ks), 2.0 * half_px)
+    sub = CornerSpecs(Pf + half_px * D, D, D, L, np.zeros(len(ks)), np.zeros(2 * len(ks), bool))
+    offs = outer_offsets(img, off, sub, 1.0, reach_px=reach_px, s0=0.0, s_end=0.0)
+    return {k: float(o) for k, o in zip(ks, offs[:len(ks)])}
 
 
 def edge_stations(ref, n_per_edge, sgn):

@@ -1,0 +1,273 @@
+"""The faces of slots and tip seen a little from the side (part of stage 5, the refinement).
+
+A slot or tip face is a circle of radius ``R`` about the tube's axis: straight
+when seen exactly from the side, an arc of an ellipse tangent to the limb at
+the corner when the view looks a little along the tube. Here the faces'
+robust fits with and without that arc (:func:`curved_face_corners`), and the
+covariance a face's unseen arc adds to its corner (:func:`face_view_cov`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from .lines import arcs_allowed, group_median
+from .mouth import shut_mouths, with_mouths
+from .view import DiameterScale
+
+__all__ = ["curved_face_corners", "face_view_cov"]
+
+def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 0.15, n_iter: int = 3):
+    """Robust least squares ``v = v0 + c u (+ b g(u))``, ``g(u) = sqrt(u (2 radius - u))``, for G groups at once.
+
+    Returns coefficients (G, p), their covariance (G, p, p), residual variance (G,), kept count (G,);
+    NaN coefficients for groups with too few points.
+    """
+    cols = [np.ones_like(u), u] + ([np.sqrt(np.clip(u * (2 * radius - u), 0, None))] if curved else [])
+    A = np.stack(cols, 1)
+    p = A.shape[1]
+    keep = np.ones(len(u), bool)
+    for it in range(n_iter + 1):
+        w = keep.astype(float)
+        M = np.stack([np.stack([np.bincount(gid, w * A[:, i] * A[:, j], G) for j in range(p)], -1)
+                      for i in range(p)], -2)
+        rhs = np.stack([np.bincount(gid, w * A[:, i] * v, G) for i in range(p)], -1)
+        n = np.bincount(gid, w, G)
+        good = n > p + 2
+        Mg = np.where(good[:, None, None], M, np.eye(p)) + 1e-12 * np.eye(p)
+        coef = np.linalg.solve(Mg, np.where(good[:, None], rhs, 0.0)[..., None])[..., 0]
+        r = v - np.sum(A * coef[gid], axis=1)
+        if it == n_iter:
+            break
+        mad = 1.4826 * group_median(np.where(keep, np.abs(r), np.nan), gid, G)
+        new = np.abs(r) <= np.maximum(k_mad * np.nan_to_num(mad, nan=np.inf), floor)[gid]
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    w = keep.astype(float)
+    s2 = np.bincount(gid, w * r * r, G) / np.maximum(n - p, 1)
+    cov = s2[:, None, None] * np.linalg.inv(Mg)
+    coef[~good] = np.nan
+    return coef, cov, s2, n
+
+
+def curved_face_corners(pts, grp, lines, curved, *, radius_px: float, s2_floor: float = 0.0,
+                        min_points: int = 5, significance: float = 16.0, start_px: float = 0.0,
+                        max_start: float = 0.1, max_sin: float = 0.7, partner=None, lone_sigma: float = 6.0,
+                        max_bulge_px: float = 1.0, fit=None, view=None):
+    """Corners where a circular face meets the outer edge, the face seen a little from the side.
+
+    A slot or tip face is a circle of radius ``R`` about the tube's axis. Seen
+    exactly from the side it is a straight edge; when the view looks a little
+    along the tube (the tube tilted out of the image plane, or off the lens's
+    axis) it is an arc of an ellipse: ``R`` across the tube, ``R sin β``
+    along it, tangent to the outer edge (the limb) at the corner. A straight
+    line fitted to such an arc meets the limb up to ``0.3 R sin β`` off (0.01
+    mm at 3° on a 1.62 mm tube). In the limb's frame (``u`` across the tube
+    from the limb, ``v`` along it) the face is ``v = v0 + c u + b sqrt(u (2R -
+    u))``; the corner is the limb's point at ``v0``. The arc term is kept only
+    where it reduces the residual sum of squares by more than
+    ``significance`` times the residual variance (else the straight line's
+    intersection stands), where the face's crossings start within
+    ``max_start`` R of where the profiles start (``start_px`` from the
+    corner; the arc cannot be extrapolated from a face seen only far from
+    its corner, as next to a nearly closed mouth) and
+    ``|b| ≤ max_sin`` (a view within about 44° of the side). A face whose arc
+    is significant with ``|b|`` beyond that leaves its corner not ok: a
+    straight line would meet the limb about ``0.5 R |b|`` off, on the face's
+    far rim (a phone lens seeing a thick tube's slots 20° from the side puts
+    a slot's corner nearer its partner's true position than its own).
+
+    Parameters
+    ----------
+    pts : ndarray (P, 2)
+        Undistorted 50 % crossings; ``grp`` (P,) their edge 0..2K-1.
+    lines : refine.CornerLines
+        The straight-line fits of every edge and their corners; a copy with the corners, covariances and
+        ok flags updated is returned (a corner whose face is seen only far from it, in a view where the
+        faces' arcs bulge by more than ``max_bulge_px``, is not ok: no line or arc extrapolates to it; with
+        ``view``, the pass's :class:`.mouth.MouthView`, a slot with both so is measured at its mouth).
+    curved : ndarray (2K,) bool
+    radius_px : float
+        Tube radius in ideal pixels.
+    partner : ndarray (K,) int, optional
+        The corner whose face is seen from about the same side (the slot's
+        other corner, the tip's other corner; -1: none): an arc is kept only
+        where the partner's arc agrees with it, or, where the partner has
+        none, when it is ``lone_sigma`` standard errors from zero.
+    fit : ndarray (2K,) bool, optional
+        The curved edges worth an arc fit (default all); every curved edge is
+        checked for being seen only far from its corner.
+    """
+    c, dd = lines.c, lines.dd
+    X, cov, okc = lines.X.copy(), lines.cov.copy(), lines.ok.copy()
+    fits, far, steep = _corner_arcs(pts, grp, lines, curved, radius_px=radius_px, s2_floor=s2_floor,
+                                    min_points=min_points, significance=significance, max_sin=max_sin,
+                                    max_u0=start_px + max_start * radius_px, fit=curved if fit is None else fit)
+    okc[steep] = False
+    used = []
+    for k, ((v0, var_v0, b, sd_b), limb_e) in fits.items():
+        q = -1 if partner is None else int(partner[k])
+        if q >= 0:
+            # the partner (the slot's other face, the tip face's other end) is seen from about the same
+            # side: its arc must agree (a JPEG block or a streak makes a spurious one on one face); an arc
+            # without a partner's must be clear by itself
+            if q not in fits and abs(b) < lone_sigma * sd_b:
+                continue
+            if q in fits and abs(abs(b) - abs(fits[q][0][2])) > 3 * math.hypot(sd_b, fits[q][0][3]) + 0.25 * abs(b):
+                continue
+        d = dd[limb_e]
+        nrm = np.array([-d[1], d[0]])
+        X[k] = c[limb_e] + v0 * d
+        var_n = float(np.dot(nrm, cov[k] @ nrm))        # across the limb: the limb's own uncertainty
+        cov[k] = var_v0 * np.outer(d, d) + var_n * np.outer(nrm, nrm)
+        used.append(abs(b))
+    # where the view is oblique (the faces' arcs bulge by more than ``max_bulge_px``), a face seen only far
+    # from its corner cannot be extrapolated to it, by a line or an arc: that corner is not found
+    if far and used and float(np.median(used)) * radius_px > max_bulge_px:
+        okc[far] = False
+        if view is not None and partner is not None:
+            return with_mouths(replace(lines, X=X, cov=cov, ok=okc), shut_mouths(
+                pts, grp, far, partner, curved, replace(view, sin_view=float(np.median(used))), s2_floor=s2_floor,
+                min_points=min_points, max_start=start_px + max_start * radius_px))
+    return replace(lines, X=X, cov=cov, ok=okc)
+
+
+def _corner_arcs(pts, grp, lines, curved, *, radius_px, max_u0, fit, s2_floor: float = 0.0,
+                 min_points: int = 5, significance: float = 16.0, max_sin: float = 0.7):
+    """The arc model of every curved face in its limb's frame (``u`` across from the limb, ``v`` along it),
+    all faces in one batched fit: {corner: ((v0, var v0, b, sd b), limb edge)} where the arc is significant,
+    the corners whose face's crossings start beyond ``max_u0`` from the limb, and the corners whose arc is
+    significant but seen more than ``max_sin`` from the side (the tolerances of :func:`curved_face_corners`)."""
+    K, c, dd, okc = len(lines.X), lines.c, lines.dd, lines.ok
+    cand = [(k, fe, le) for k in range(K) for fe, le in ((k, K + k), (K + k, k))
+            if curved[fe] and not curved[le] and okc[k]]
+    us, vs, gs, far = [], [], [], []
+    order = np.argsort(grp, kind="stable")
+    first = np.searchsorted(grp[order], np.arange(2 * K + 1))
+    faces = []
+    for g, (k, fe, le) in enumerate(cand):
+        rel = pts[order[first[fe]:first[fe + 1]]] - c[le]
+        if len(rel) >= min_points + 3:
+            d = dd[le]
+            faces.append((g, k, fe, rel @ np.array([-d[1], d[0]]), rel @ d))
+    # u measured from the limb into the tube: its median is positive (all faces' medians in one call)
+    med_u = group_median(np.concatenate([f[3] for f in faces]), np.repeat(np.arange(len(faces)),
+                                                                          [len(f[3]) for f in faces]),
+                         len(faces)) if faces else np.zeros(0)
+    for (g, k, fe, u, v), m_u in zip(faces, med_u):
+        u = u * (1.0 if m_u >= 0 else -1.0)
+        near = u <= radius_px            # the half of a face next to this corner (the tip face is 2R long)
+        if not near.any() or u[near].min() > max_u0:
+            far.append(k)                # a face seen only far from the corner (a nearly closed mouth)
+            continue
+        if not fit[fe]:
+            continue
+        us.append(u[near])
+        vs.append(v[near])
+        gs.append(np.full(int(near.sum()), g))
+    if not us:
+        return {}, far, []
+    u, v, gid = np.concatenate(us), np.concatenate(vs), np.concatenate(gs)
+    G = len(cand)
+    line = _face_fits(u, v, gid, G, radius_px, curved=False)
+    ell = _face_fits(u, v, gid, G, radius_px, curved=True)
+    gain = line[2] * (line[3] - 2) - ell[2] * (ell[3] - 3)
+    sig = np.isfinite(ell[0][:, 0]) & np.isfinite(line[0][:, 0]) & (gain > significance * np.maximum(ell[2], s2_floor))
+    ok = sig & (np.abs(ell[0][:, 2]) <= max_sin)
+    steep = [cand[g][0] for g in np.nonzero(sig & ~ok)[0]]
+    fits = {}
+    for g in np.nonzero(ok)[0]:
+        k, _, le = cand[g]
+        fits[k] = ((ell[0][g, 0], max(ell[1][g, 0, 0], s2_floor / ell[3][g]), ell[0][g, 2],
+                    math.sqrt(max(ell[1][g, 2, 2], 0.0))), le)
+    return fits, far, steep
+
+
+def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, factor: float = 0.5,
+                  significance: float = 9.0, shrink: tuple = (0.5, 0.25, 0.125), assume=None,
+                  mirror_factor: float = 1.0) -> np.ndarray:
+    """Covariance (K, 2, 2) [ideal px²] along the outer edge of corners whose circular face was fitted as a
+    straight line, from how far the camera sees that face from the side.
+
+    The face is a circle of radius ``R`` about the tube's axis; a view ray at
+    angle β to its plane sees it as an ellipse ``b = R sin β`` wide along the
+    axis, tangent to the outer edge at the corner. A straight line through
+    the visible part of that arc meets the outer edge about ``factor b`` off
+    the corner (0.46-0.54 measured on the physically based printed tube,
+    whose faces are too short for the arc to be told from a line), to one
+    side or the other as the face is seen from its front or its back: a
+    standard deviation of ``factor b`` along the edge. ``sin β`` is the view
+    ray's component along the tube's axis (the outer edge's direction taken
+    to the plane, then to the camera's frame). The term is given only where
+    the face's crossings allow that arc: where the arc ``v = v0 + c u ± b
+    sqrt(u (2R - u))`` fits them worse than the straight line by more than
+    ``significance`` times their residual variance (a flat outline, as a
+    silhouette drawn in the plane, is a straight line along its whole
+    length), the face is straight and the line's corner stands. Without a
+    camera file (:class:`~.view.DiameterScale`) the view is an assumption
+    (a normal lens facing the plane), so ``sin β`` is only bounded by it: a
+    face whose crossings refuse the assumed arc is tried with the arc
+    narrowed by each of ``shrink`` in turn, and the widest arc they allow
+    gives the term (a longer focal length than assumed sees the face less
+    from the side; refusing the assumed arc does not make the face straight).
+
+    Parameters
+    ----------
+    camera : CameraModel or DiameterScale
+        With the plane's pose (``camera_matrix``, ``plane_rotation``, ``plane_homography``).
+    X : ndarray (K, 2)
+        Ideal corners [px].
+    dd : ndarray (2K, 2)
+        Unit directions of every corner's incoming (0..K-1) and outgoing (K..2K-1) edge [ideal px].
+    curved : ndarray (2K,) bool
+        The edges that are circular faces.
+    use : ndarray (K,) bool
+        The corners to consider.
+    pts, grp : ndarray (P, 2), (P,)
+        Undistorted edge crossings [px] and their edge 0..2K-1.
+    radius_px : float
+        The tube's radius [ideal px].
+    assume : ndarray (K,) bool, optional
+        Corners whose face's crossings are not asked (``CornerSpecs.outside``): the arc is assumed.
+    mirror_factor : float
+        Those corners' bias in units of ``b`` where a camera file gives the view: their limb mirrors the
+        backdrop, so does their face (the same polished surface), so the slot's visible boundary lies up
+        to the face's far rim and the line meets the limb up to the whole bulge off (0.7-1.0 ``b`` on the
+        physically based polished wrists). Without a camera file the assumed view's ``sin β`` already
+        bounds it from above (a normal lens sees the faces more from the side): ``factor`` is kept.
+    """
+    K = len(X)
+    out = np.zeros((K, 2, 2))
+    ks = np.nonzero(use & (curved[:K] != curved[K:]))[0]    # one face (not two: the tip seen end-on)
+    if not len(ks):
+        return out
+    fe = np.where(curved[ks], ks, K + ks)
+    d_limb = np.where(curved[ks][:, None], dd[K + ks], dd[ks])
+    # the outer edge's direction in the plane, then in the camera's frame; the view ray at the corner
+    ends = np.concatenate([X[ks], X[ks] + 5.0 * d_limb])
+    pl = np.c_[ends, np.ones(len(ends))] @ np.linalg.inv(camera.plane_homography).T
+    pl = pl[:, :2] / pl[:, 2:]
+    axis = (pl[len(ks):] - pl[:len(ks)]) @ camera.plane_rotation[:, :2].T
+    ray = np.c_[X[ks], np.ones(len(ks))] @ np.linalg.inv(camera.camera_matrix).T
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sin_b = np.abs(np.sum(ray * axis, 1)) / (np.linalg.norm(ray, axis=1) * np.linalg.norm(axis, axis=1))
+    allowed = arcs_allowed(pts, grp, X[ks], fe, d_limb, sin_b, radius_px, significance)
+    if assume is not None:
+        allowed |= assume[ks]
+    if isinstance(camera, DiameterScale):
+        assumed = sin_b
+        for f in shrink:
+            retry = ~allowed & np.isfinite(assumed)
+            if not retry.any():
+                break
+            ok = retry & arcs_allowed(pts, grp, X[ks], fe, d_limb, f * assumed, radius_px, significance)
+            sin_b, allowed = np.where(ok, f * assumed, sin_b), allowed | ok
+    mirror = assume is not None and not isinstance(camera, DiameterScale)
+    fac = np.where(assume[ks], mirror_factor, factor) if mirror else factor    # a mirroring face: to its far rim
+    var = np.where(np.isfinite(sin_b) & allowed, (fac * radius_px * sin_b) ** 2, 0.0)
+    out[ks] = var[:, None, None] * d_limb[:, :, None] * d_limb[:, None, :]
+    return out
