@@ -1,7 +1,8 @@
 """The detector's faster implementations give the same outputs as the straightforward numpy / OpenCV
 formulations they replace (issue 25), bit for bit: the compiled loops over the refinement's edge profiles,
-the working copy of an 8-bit image, the segmentation's one-pass threshold, the distance transforms cut to
-the box they are needed in; and the grouped median is each group's median."""
+the working copy of an 8-bit image, the segmentation's one-pass threshold and its background fit, the
+distance transforms cut to the box they are needed in, the disk closing by rectangles, the ridge radii's
+histogram; and the grouped median is each group's median."""
 
 import cv2
 import numpy as np
@@ -307,3 +308,70 @@ def test_width_edges_equal_the_numpy_formulation(sign, rising):
     for obj_win, bg_win in (((4.0, 10.0), (-10.0, -4.0)), ((-10.0, -4.0), (4.0, 10.0)), ((4.0, 4.2), (-1.0, -0.9))):
         np.testing.assert_array_equal(_edges(t, prof, t0, obj_win, bg_win, sign, rising),
                                       _edges_numpy(t, prof, t0, obj_win, bg_win, sign, rising))
+
+
+def test_disk_closing_by_rectangles_equals_the_elliptic_kernel():
+    """The closing by the union of rectangles equals OpenCV's closing by its elliptic kernel, bit for bit,
+    on 0/1 masks and on gray images, radius 1 to 40."""
+    from notchfit.vision.detection.segment import close_disk, disk_rectangles
+
+    rng = np.random.default_rng(8)
+    for r in range(1, 41):
+        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)
+        union = np.zeros_like(ker)
+        for a, b in disk_rectangles(r):
+            union[r - b:r + b + 1, r - a:r + a + 1] = 1
+        np.testing.assert_array_equal(union, ker)
+        for img in ((rng.random((40 + r, 90)) < 0.2).astype(np.uint8), rng.integers(0, 256, (50, 70), dtype=np.uint8)):
+            pad = r + 2
+            big = cv2.copyMakeBorder(img, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+            ref = cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)[pad:-pad, pad:-pad]
+            np.testing.assert_array_equal(close_disk(img, r), ref)
+
+
+def test_background_surface_gathered_by_index_equals_the_boolean_formulation():
+    """The background surface's fit from rows gathered by index equals the boolean-mask formulation to the
+    last bit (the same BLAS product: a matrix times a copy of itself)."""
+    from notchfit.vision.detection.segment import _surface
+
+    rng = np.random.default_rng(9)
+    for _ in range(20):
+        n = int(rng.integers(60, 7000))
+        A, vals = rng.normal(size=(n, 6)), rng.normal(100, 30, n)
+        sel = rng.random(n) < rng.uniform(0.05, 1.0)
+        As = A[sel]
+        ref = np.linalg.solve(As.T @ A[sel] + 1e-9 * np.eye(6), As.T @ vals[sel])
+        np.testing.assert_array_equal(_surface(A, vals, sel), ref)
+
+
+def test_ridge_peaks_equal_the_histogram_formulation():
+    """The ridge radii from unit-bin counts equal those from ``np.histogram`` over the same edges (random
+    bands and blobs, closings 1 to 12 px)."""
+    import math
+
+    from notchfit.vision.detection import width
+
+    def reference(region, close_px, min_radius_px=2.0, peak_fraction=0.3):
+        closed, pad = width._close_disk(region, max(int(close_px), 1))
+        dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)[pad:-pad, pad:-pad]
+        v = dt[width._ridge(dt) & (dt >= min_radius_px)]
+        if len(v) < 10:
+            return []
+        h, edges = np.histogram(v, bins=np.arange(0, int(math.ceil(v.max())) + 3, 1.0))
+        h = np.convolve(h, [0.25, 0.5, 0.25], mode="same")
+        peaks = [i for i in range(1, len(h) - 1) if h[i] >= h[i - 1] and h[i] >= h[i + 1] and h[i] > 0]
+        top = max((h[i] for i in peaks), default=0)
+        return [float(np.median(v[(v >= edges[max(i - 1, 0)]) & (v < edges[min(i + 2, len(edges) - 1)])])) + 0.5
+                for i in peaks if h[i] >= peak_fraction * top]
+
+    rng = np.random.default_rng(10)
+    for k in range(30):
+        h, w = (int(v) for v in rng.integers(40, 160, 2))
+        m = np.zeros((h, w), np.uint8)
+        for _ in range(rng.integers(1, 4)):
+            p0, p1 = rng.integers(0, [w, h]), rng.integers(0, [w, h])
+            cv2.line(m, (int(p0[0]), int(p0[1])), (int(p1[0]), int(p1[1])), 1, int(rng.integers(3, 25)))
+        cv2.circle(m, (int(rng.integers(w)), int(rng.integers(h))), int(rng.integers(2, 20)), 1, -1)
+        for c in (1, 3, 7, 12):
+            assert width.ridge_peaks(m, c, peak_fraction=0.05 if k % 2 else 0.3) == \
+                reference(m, c, peak_fraction=0.05 if k % 2 else 0.3)

@@ -19,7 +19,7 @@ import numpy as np
 from ._kernels import block_mean_u8, surface_threshold
 from .lines import otsu, poly2
 
-__all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "downsample", "fill_holes",
+__all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "disk_rectangles", "downsample", "fill_holes",
            "fill_thin_lines", "grow_over_sharp_edges", "largest_region", "local_difference", "local_segmentation",
            "octagon_opening", "remove_thin", "segment"]
 
@@ -52,14 +52,14 @@ class Segmentation:
 def downsample(gray, factor: int) -> np.ndarray:
     """Block average by an integer ``factor`` (float32; the trailing rows/columns that do not fill a block are
     dropped); a colour image (H, W, C) channel by channel. An 8-bit gray image is averaged from its 8-bit
-    pixels from a factor of 3 up (the same values, without a float copy of the whole file)."""
+    pixels (:func:`._kernels.block_mean_u8`: the same values, without a float copy of the whole file)."""
     f = int(factor)
     H, W = gray.shape[:2]
     hs, ws = H // f, W // f
     g = gray[:hs * f, :ws * f]
     if f == 1:
         return np.asarray(g, np.float32)
-    if g.dtype == np.uint8 and g.ndim == 2 and f >= 3:
+    if g.dtype == np.uint8 and g.ndim == 2 and f <= 256:
         return block_mean_u8(g, f)
     return cv2.resize(np.asarray(g, np.float32), (ws, hs), interpolation=cv2.INTER_AREA)
 
@@ -181,9 +181,10 @@ def _otsu_background(sub):
 
 def _surface(A, vals, sel):
     """Coefficients of the quadratic background surface fitted to the samples ``sel`` (lightly regularised)."""
-    As = A[sel]
+    idx = np.flatnonzero(sel)
+    As = A.take(idx, axis=0)                  # ``A[sel]``, gathered by index (about three times faster)
     # a second copy for the product's other side: numpy multiplies a matrix by its own transpose differently
-    return np.linalg.solve(As.T @ A[sel] + 1e-9 * np.eye(6), As.T @ vals[sel])
+    return np.linalg.solve(As.T @ As.copy() + 1e-9 * np.eye(6), As.T @ vals.take(idx))
 
 
 def _trimmed_background(A, vals, keep: float = 0.5, rounds: int = 4):
@@ -205,13 +206,14 @@ def _refit(A, vals, inl, small, step, shape, rounds):
         res = vals - A @ coef
         if it in (0, rounds):
             noise = _noise(small, step, inl.reshape(shape))
-        far = np.abs(res) > max(5 * noise, 0.3 * float(np.percentile(np.abs(res), 99.5)))
+        ares = np.abs(res)
+        far = ares > max(5 * noise, 0.3 * float(np.percentile(ares, 99.5)))
         if far.sum() < 10:
             return coef, 0.0, noise
         dark = np.sum(res[far] < 0) >= np.sum(res[far] > 0)
         contrast = float(np.median(res[far & ((res < 0) if dark else (res > 0))]))
         if it < rounds:
-            inl = np.abs(res) <= 0.25 * abs(contrast)
+            inl = ares <= 0.25 * abs(contrast)
     return coef, contrast, noise
 
 
@@ -410,12 +412,31 @@ def remove_thin(mask, *, thin_px: float, max_length_px: float) -> np.ndarray:
 
 
 def close_disk(mask, r: int):
-    """Morphological closing of a 0/1 uint8 mask by a disk of radius ``r`` [px], with zero padding so
-    that the closing never reaches the image border."""
-    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    """Morphological closing of a 0/1 uint8 mask by a disk of radius ``r`` [px] (OpenCV's elliptic
+    structuring element), with zero padding so that the closing never reaches the image border.
+
+    The disk is the union of the rectangles :func:`disk_rectangles` gives, so the dilation is the largest of
+    the dilations by each and the erosion the smallest of the erosions by each (the same pixels as ``cv2.morphologyEx(..., MORPH_CLOSE, ellipse)``); OpenCV's rectangles are separable, about a
+    third faster than the disk's own kernel at ``r`` = 10 and ``r`` = 18."""
     pad = r + 2
     big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
-    return cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)[pad:-pad, pad:-pad]
+    kers = [cv2.getStructuringElement(cv2.MORPH_RECT, (2 * a + 1, 2 * b + 1)) for a, b in disk_rectangles(r)]
+    dil = cv2.dilate(big, kers[0])
+    for k in kers[1:]:
+        np.maximum(dil, cv2.dilate(big, k), out=dil)
+    out = cv2.erode(dil, kers[0])
+    for k in kers[1:]:
+        np.minimum(out, cv2.erode(dil, k), out=out)
+    return out[pad:-pad, pad:-pad]
+
+
+def disk_rectangles(r: int) -> list:
+    """The half-sizes (a, b) of the centred rectangles ``|dx| <= a, |dy| <= b`` whose union is OpenCV's
+    elliptic structuring element of radius ``r`` [px] (``2r + 1`` square): one per row offset where the
+    row's half-width drops, the widest first."""
+    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    half = [int(ker[r + dy].sum()) // 2 for dy in range(r + 1)]            # row half-widths, centre out
+    return [(half[dy], dy) for dy in range(r + 1) if dy == r or half[dy + 1] < half[dy]]
 
 
 def band_directions(mask, bridge_px: float, radius_px: float, min_coherence: float = 0.8) -> np.ndarray:

@@ -71,7 +71,9 @@ def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fract
     if len(v) < 10:
         return []
     hi = int(math.ceil(v.max())) + 2
-    h, edges = np.histogram(v, bins=np.arange(0, hi + 1, 1.0))
+    # the histogram of unit bins from 0 (``np.histogram(v, bins=edges)``): v >= 0 lies in bin floor(v)
+    edges = np.arange(0, hi + 1, 1.0)
+    h = np.bincount(np.floor(v).astype(np.intp), minlength=hi)
     h = np.convolve(h, [0.25, 0.5, 0.25], mode="same")
     peaks = [i for i in range(1, len(h) - 1) if h[i] >= h[i - 1] and h[i] >= h[i + 1] and h[i] > 0]
     if not peaks:
