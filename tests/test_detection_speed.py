@@ -72,9 +72,17 @@ def _ragged(prof, kp, n_t):
     return values, np.cumsum(n_w) - n_w
 
 
+@pytest.mark.parametrize("short", [False, True])
 @pytest.mark.parametrize("cs", [1.0, -1.0])
-def test_profile_levels_equal_the_numpy_formulation(cs):
-    prof, kp, n_t, t = _profiles(np.random.default_rng(1))
+def test_profile_levels_equal_the_numpy_formulation(cs, short):
+    """Bit for bit; ``short``: windows of 1 to 3 samples each side (the 3-sample means reach the NaN
+    outside them), some as long as the axis (its ends replicated)."""
+    rng = np.random.default_rng(1)
+    prof, kp, n_t, t = _profiles(rng)
+    if short:
+        kp = np.where(rng.random(len(kp)) < 0.8, np.minimum(kp, rng.integers(1, 4, len(kp))), n_t)
+        prof = prof.copy()
+        prof[np.abs(np.arange(-n_t, n_t + 1))[None, :] > kp[:, None]] = np.nan
     values, start = _ragged(prof, kp, n_t)
     for got, want in zip(profile_levels(values, start, kp, n_t, len(t), cs), _levels_numpy(prof, kp, n_t, cs)):
         assert got.dtype == want.dtype

@@ -40,12 +40,12 @@ def profile_maps(base, nrm, t, kp, n_t, width):
 
 
 @njit(cache=True, nogil=True)
-def _row(row, values, start, k, n_t):
-    """One profile on the full axis, written into ``row`` (T,) float64: its window's samples from
-    ``values``, NaN outside."""
-    row[:] = np.nan
-    for j in range(2 * k + 1):
-        row[n_t - k + j] = values[start + j]
+def _sample(values, s0, k, n_t, c):
+    """The sample at axis position ``c`` of a profile whose window ``n_t ± k`` is stored from ``values[s0]``
+    (float64; NaN outside the window)."""
+    if c < n_t - k or c > n_t + k:
+        return np.nan
+    return np.float64(values[s0 + c - (n_t - k)])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -54,27 +54,29 @@ def profile_levels(values, start, kp, n_t, T, cs):
     outside it): the mean of the two outermost object-side and background-side samples (Np,) x 2, and the
     largest and the smallest ``cs`` times the 3-sample mean (float32; NaN counted as 0; the axis' ends
     replicated) over the object side (``n_t - kp`` to ``n_t - 1``), -inf and +inf where it is empty (Np,)
-    float32 x 2."""
+    float32 x 2. The samples are read from the window directly (NaN outside it), each mean added in the
+    same order as on the full axis."""
     n = len(kp)
     lo_v = np.empty(n)
     hi_v = np.empty(n)
     ext = np.empty(n, np.float32)
     least = np.empty(n, np.float32)
     third = 1.0 / 3.0
-    prof = np.empty(T)
+    z = np.empty(T + 2)
     for i in range(n):
         k = kp[i]
-        _row(prof, values, start[i], k, n_t)
-        lo_v[i] = 0.5 * (prof[n_t - k] + prof[n_t - k + 1])
-        hi_v[i] = 0.5 * (prof[n_t + k] + prof[n_t + k - 1])
+        s0 = start[i]
+        lo_v[i] = 0.5 * (_sample(values, s0, k, n_t, n_t - k) + _sample(values, s0, k, n_t, n_t - k + 1))
+        hi_v[i] = 0.5 * (_sample(values, s0, k, n_t, n_t + k) + _sample(values, s0, k, n_t, n_t + k - 1))
+        # z[c + 1]: the sample at axis position c (clamped to the axis), 0 for NaN, for c = n_t - k - 1 .. n_t
+        for c in range(n_t - k - 1, n_t + 1):
+            v = np.float32(_sample(values, s0, k, n_t, min(max(c, 0), T - 1)))
+            z[c + 1] = 0.0 if np.isnan(v) else np.float64(v)
+        a = n_t - k
         big = np.float32(-np.inf)
         small = np.float32(np.inf)
-        for c in range(n_t - k, n_t):
-            s = 0.0
-            for cc in (c - 1, c, c + 1):
-                cc = min(max(cc, 0), T - 1)
-                v = np.float32(prof[cc])
-                s += 0.0 if np.isnan(v) else np.float64(v)
+        for c in range(a, n_t):
+            s = ((0.0 + z[c]) + z[c + 1]) + z[c + 2]
             m = np.float32(cs) * np.float32(s * third)
             big = max(big, m)
             small = min(small, m)
