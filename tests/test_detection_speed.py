@@ -2,7 +2,8 @@
 formulations they replace (issue 25), bit for bit: the compiled loops over the refinement's edge profiles,
 the working copy of an 8-bit image, the segmentation's one-pass threshold and its background fit, the
 distance transforms cut to the box they are needed in, the disk closing by rectangles, the ridge radii's
-histogram; and the grouped median is each group's median."""
+histogram, the parts' areas and boxes counted from their labels; and the grouped median is each group's
+median."""
 
 import cv2
 import numpy as np
@@ -383,3 +384,61 @@ def test_ridge_peaks_equal_the_histogram_formulation():
         for c in (1, 3, 7, 12):
             assert width.ridge_peaks(m, c, peak_fraction=0.05 if k % 2 else 0.3) == \
                 reference(m, c, peak_fraction=0.05 if k % 2 else 0.3)
+
+
+def test_largest_region_equals_the_statistics_formulation():
+    """The largest region from labels and counted areas equals the one from OpenCV's statistics pass, and
+    the labels of the two OpenCV calls are the same (masks of many parts, ties in area included)."""
+    from notchfit.vision.detection.segment import largest_region
+
+    def reference(mask):
+        ext, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        x0, y0, bw, bh = cv2.boundingRect(max(ext, key=cv2.contourArea))
+        _, lab, st, _ = cv2.connectedComponentsWithStats(np.ascontiguousarray(mask[y0:y0 + bh, x0:x0 + bw]),
+                                                         connectivity=8)
+        out = np.zeros_like(mask)
+        out[y0:y0 + bh, x0:x0 + bw] = lab == 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
+        return out, (x0, y0, bw, bh)
+
+    rng = np.random.default_rng(11)
+    for k in range(60):
+        h, w = (int(v) for v in rng.integers(20, 700, 2))
+        m = (rng.random((h, w)) < rng.uniform(0.05, 0.6)).astype(np.uint8)
+        if k % 2:
+            m = cv2.morphologyEx(m, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        if not m.any():
+            continue
+        n, lab, st, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        n2, lab2 = cv2.connectedComponents(m, connectivity=8)
+        assert n == n2
+        np.testing.assert_array_equal(lab, lab2)
+        np.testing.assert_array_equal(np.bincount(lab2.ravel(), minlength=n2), st[:, cv2.CC_STAT_AREA])
+        got, want = largest_region(m), reference(m)
+        np.testing.assert_array_equal(got[0], want[0])
+        assert got[1] == want[1]
+
+
+def test_remove_thin_with_boxes_from_labels_equals_the_statistics_formulation():
+    """Thin parts' boxes from their labels (``scipy.ndimage.find_objects``) remove the same parts as the
+    boxes of OpenCV's statistics pass (random lines 1 to 14 px wide)."""
+    from notchfit.vision.detection.segment import remove_thin
+
+    def reference(m, thin_px, max_length_px):
+        r = max(int(round(0.35 * thin_px)), 1)
+        opened = cv2.morphologyEx(m, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2))
+        n, lab, st, _ = cv2.connectedComponentsWithStats((m & (1 - opened)).astype(np.uint8), connectivity=8)
+        if n <= 1:
+            return m
+        long_ = np.hypot(st[:, cv2.CC_STAT_WIDTH], st[:, cv2.CC_STAT_HEIGHT]) > max_length_px
+        long_[0] = False
+        return (m & ~long_[lab]).astype(np.uint8)
+
+    rng = np.random.default_rng(12)
+    for _ in range(100):
+        h, w = (int(v) for v in rng.integers(20, 400, 2))
+        m = np.zeros((h, w), np.uint8)
+        for _ in range(rng.integers(1, 8)):
+            p0, p1 = rng.integers(0, [w, h]), rng.integers(0, [w, h])
+            cv2.line(m, (int(p0[0]), int(p0[1])), (int(p1[0]), int(p1[1])), 1, int(rng.integers(1, 15)))
+        thin, length = rng.uniform(2, 20), rng.uniform(3, 80)
+        np.testing.assert_array_equal(remove_thin(m, thin_px=thin, max_length_px=length), reference(m, thin, length))

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.ndimage import find_objects
 
 from ._kernels import block_mean_u8, surface_threshold
 from .lines import otsu, poly2
@@ -284,9 +285,9 @@ def largest_region(mask) -> tuple[np.ndarray, tuple]:
     if not ext:
         return np.zeros_like(mask), (0, 0, 0, 0)
     x0, y0, bw, bh = cv2.boundingRect(max(ext, key=cv2.contourArea))
-    _, lab, st, _ = cv2.connectedComponentsWithStats(np.ascontiguousarray(mask[y0:y0 + bh, x0:x0 + bw]),
-                                                     connectivity=8)
-    big = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
+    n, lab = cv2.connectedComponents(np.ascontiguousarray(mask[y0:y0 + bh, x0:x0 + bw]), connectivity=8)
+    # the areas counted from the labels (OpenCV's statistics pass costs three times the labelling)
+    big = 1 + int(np.argmax(np.bincount(lab.ravel(), minlength=n)[1:]))
     out = np.zeros_like(mask)
     out[y0:y0 + bh, x0:x0 + bw] = lab == big
     return out, (int(x0), int(y0), int(bw), int(bh))
@@ -403,10 +404,13 @@ def remove_thin(mask, *, thin_px: float, max_length_px: float) -> np.ndarray:
     m = np.asarray(mask, np.uint8)
     r = max(int(round(0.35 * thin_px)), 1)
     opened = cv2.morphologyEx(m, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2))
-    n, lab, st, _ = cv2.connectedComponentsWithStats((m & (1 - opened)).astype(np.uint8), connectivity=8)
+    n, lab = cv2.connectedComponents((m & (1 - opened)).astype(np.uint8), connectivity=8)
     if n <= 1:
         return m
-    long_ = np.hypot(st[:, cv2.CC_STAT_WIDTH], st[:, cv2.CC_STAT_HEIGHT]) > max_length_px
+    # each part's box from its labels (OpenCV's statistics pass costs three times the labelling)
+    boxes = find_objects(lab, max_label=n - 1)
+    size = np.array([[0, 0]] + [[b[1].stop - b[1].start, b[0].stop - b[0].start] for b in boxes], np.int32)
+    long_ = np.hypot(size[:, 0], size[:, 1]) > max_length_px
     long_[0] = False
     return (m & ~long_[lab]).astype(np.uint8)
 

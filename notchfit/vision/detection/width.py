@@ -172,16 +172,17 @@ def _slot_gaps(region, radius_px, *, slot_width, slot_depth, radius, close_facto
     k = int(round(streak * slot_width * s))
     if k >= 1:
         gaps = cv2.morphologyEx(gaps, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
-    n, lab, st, _ = cv2.connectedComponentsWithStats(gaps, connectivity=8)
+    n, lab = cv2.connectedComponents(gaps, connectivity=8)
     if n <= 1:
         return closed, lab, []
+    counts = np.bincount(lab.ravel(), minlength=n)         # the parts' areas [px]
     area = slot_width * slot_depth * s * s
     dtg = cv2.distanceTransform(gaps, cv2.DIST_L2, 5)
     sel = lab > 0
     widest = np.zeros(n)
     np.maximum.at(widest, lab[sel], dtg[sel])
     widest = 2 * widest[1:] + 1
-    ids = [k for k in range(1, n) if area_range[0] * area <= st[k, cv2.CC_STAT_AREA] <= area_range[1] * area
+    ids = [k for k in range(1, n) if area_range[0] * area <= counts[k] <= area_range[1] * area
            and width_range[0] * slot_width * s <= widest[k - 1] <= width_range[1] * slot_width * s]
     return closed, lab, ids
 
