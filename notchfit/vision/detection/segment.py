@@ -20,9 +20,9 @@ from scipy.ndimage import find_objects
 from ._kernels import block_mean_u8, surface_threshold
 from .lines import otsu, poly2
 
-__all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "disk_rectangles", "downsample", "fill_holes",
-           "fill_thin_lines", "grow_over_sharp_edges", "largest_region", "local_difference", "local_segmentation",
-           "octagon_opening", "remove_thin", "segment"]
+__all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "disk_rectangles", "downsample",
+           "fill_holes", "fill_thin_lines", "grow_over_sharp_edges", "largest_region", "local_difference",
+           "local_segmentation", "octagon_opening", "remove_thin", "segment"]
 
 
 @dataclass(frozen=True)
@@ -420,8 +420,9 @@ def close_disk(mask, r: int):
     structuring element), with zero padding so that the closing never reaches the image border.
 
     The disk is the union of the rectangles :func:`disk_rectangles` gives, so the dilation is the largest of
-    the dilations by each and the erosion the smallest of the erosions by each (the same pixels as ``cv2.morphologyEx(..., MORPH_CLOSE, ellipse)``); OpenCV's rectangles are separable, about a
-    third faster than the disk's own kernel at ``r`` = 10 and ``r`` = 18."""
+    the dilations by each and the erosion the smallest of the erosions by each: the same pixels as
+    ``cv2.morphologyEx(..., MORPH_CLOSE, ellipse)``, and OpenCV's rectangles are separable (about a third
+    faster than the disk's own kernel at ``r`` = 10 and ``r`` = 18)."""
     pad = r + 2
     big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
     kers = [cv2.getStructuringElement(cv2.MORPH_RECT, (2 * a + 1, 2 * b + 1)) for a, b in disk_rectangles(r)]
