@@ -426,12 +426,12 @@ def close_disk(mask, r: int):
     pad = r + 2
     big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
     kers = [cv2.getStructuringElement(cv2.MORPH_RECT, (2 * a + 1, 2 * b + 1)) for a, b in disk_rectangles(r)]
-    dil = cv2.dilate(big, kers[0])
+    dil, tmp = cv2.dilate(big, kers[0]), np.empty_like(big)
     for k in kers[1:]:
-        np.maximum(dil, cv2.dilate(big, k), out=dil)
-    out = cv2.erode(dil, kers[0])
+        np.maximum(dil, cv2.dilate(big, k, dst=tmp), out=dil)
+    out = cv2.erode(dil, kers[0], dst=big)
     for k in kers[1:]:
-        np.minimum(out, cv2.erode(dil, k), out=out)
+        np.minimum(out, cv2.erode(dil, k, dst=tmp), out=out)
     return out[pad:-pad, pad:-pad]
 
 
