@@ -129,13 +129,15 @@ def test_profile_maps_hold_each_window_as_the_numpy_formulation():
         assert (m.ravel()[n:] < -1).all()
 
 
+@pytest.mark.parametrize("channels", [0, 3])
 @pytest.mark.parametrize("f", [2, 3, 5, 8, 16])
-def test_working_copy_of_an_8bit_image_equals_the_float_one(f):
+def test_working_copy_of_an_8bit_image_equals_the_float_one(f, channels):
     """Block means read from the 8-bit pixels equal OpenCV's area resize of the float copy, bit for bit
-    (trailing rows and columns that fill no block dropped)."""
+    (trailing rows and columns that fill no block dropped), gray and colour."""
     from notchfit.vision.detection.segment import downsample
 
-    img = np.random.default_rng(f).integers(0, 256, (203 + f, 317 + 2 * f), dtype=np.uint8)
+    shape = (203 + f, 317 + 2 * f) + ((channels,) if channels else ())
+    img = np.random.default_rng(f).integers(0, 256, shape, dtype=np.uint8)
     got = downsample(img, f)
     assert got.dtype == np.float32
     np.testing.assert_array_equal(got, downsample(img.astype(np.float32), f))

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 from scipy.ndimage import find_objects
 
-from ._kernels import block_mean_u8, surface_threshold
+from ._kernels import block_mean_channels_u8, block_mean_u8, surface_threshold
 from .lines import otsu, poly2
 
 __all__ = ["Segmentation", "band_directions", "chroma_distance", "close_disk", "disk_rectangles", "downsample",
@@ -52,16 +52,20 @@ class Segmentation:
 
 def downsample(gray, factor: int) -> np.ndarray:
     """Block average by an integer ``factor`` (float32; the trailing rows/columns that do not fill a block are
-    dropped); a colour image (H, W, C) channel by channel. An 8-bit gray image is averaged from its 8-bit
-    pixels (:func:`._kernels.block_mean_u8`: the same values, without a float copy of the whole file)."""
+    dropped); a colour image (H, W, C) channel by channel. An 8-bit image is averaged from its 8-bit pixels
+    (:func:`._kernels.block_mean_u8`, a colour one channel by channel: the same values, without a float copy
+    of the whole file)."""
     f = int(factor)
     H, W = gray.shape[:2]
     hs, ws = H // f, W // f
     g = gray[:hs * f, :ws * f]
     if f == 1:
         return np.asarray(g, np.float32)
-    if g.dtype == np.uint8 and g.ndim == 2 and f <= 256:
+    if g.dtype == np.uint8 and f <= 256 and g.ndim == 2:
         return block_mean_u8(g, f)
+    if g.dtype == np.uint8 and f <= 256 and g.ndim == 3:
+        C = g.shape[2]
+        return block_mean_channels_u8(g.reshape(hs * f, ws * f * C), f, C).reshape(hs, ws, C)
     return cv2.resize(np.asarray(g, np.float32), (ws, hs), interpolation=cv2.INTER_AREA)
 
 
