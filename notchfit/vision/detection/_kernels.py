@@ -175,10 +175,6 @@ def block_mean_u8(img, f):
             line = img[r]
             for c in range(n):
                 rows[c] += line[c]
-        if f == 2:
-            for j in range(ws):
-                out[i, j] = np.float32(np.int32(rows[2 * j]) + np.int32(rows[2 * j + 1])) * scale
-            continue
         for j in range(ws):
             acc[j] = rows[j * f]
         for q in range(1, f):

@@ -53,15 +53,19 @@ class Segmentation:
 def downsample(gray, factor: int) -> np.ndarray:
     """Block average by an integer ``factor`` (float32; the trailing rows/columns that do not fill a block are
     dropped); a colour image (H, W, C) channel by channel. An 8-bit image is averaged from its 8-bit pixels
-    (:func:`._kernels.block_mean_u8`, a colour one channel by channel: the same values, without a float copy
-    of the whole file)."""
+    from a factor of 3 up (:func:`._kernels.block_mean_u8`, a colour one channel by channel: the same values,
+    without a float copy of the whole file). At a factor of 2 a gray image goes through the float copy: the
+    compiled means are faster by themselves, but the copy is a detection's largest array, and freeing it
+    raises glibc's dynamic mmap and trim thresholds, so the detection's later arrays stay on the heap
+    instead of being mapped and faulted in anew (about 1,800 page faults per 1920 x 1200 image without
+    it; docs/history.md)."""
     f = int(factor)
     H, W = gray.shape[:2]
     hs, ws = H // f, W // f
     g = gray[:hs * f, :ws * f]
     if f == 1:
         return np.asarray(g, np.float32)
-    if g.dtype == np.uint8 and f <= 256 and g.ndim == 2:
+    if g.dtype == np.uint8 and 3 <= f <= 256 and g.ndim == 2:
         return block_mean_u8(g, f)
     if g.dtype == np.uint8 and f <= 256 and g.ndim == 3:
         C = g.shape[2]
