@@ -355,6 +355,16 @@ def test_background_surface_gathered_by_index_equals_the_boolean_formulation():
         np.testing.assert_array_equal(_surface(A, vals, sel), ref)
 
 
+def _random_lines(rng, size, count, width):
+    """A 0/1 mask (h, w in ``size``) with ``count`` random straight lines ``width`` px wide (half-open ranges)."""
+    h, w = (int(v) for v in rng.integers(*size, 2))
+    m = np.zeros((h, w), np.uint8)
+    for _ in range(rng.integers(*count)):
+        p0, p1 = rng.integers(0, [w, h]), rng.integers(0, [w, h])
+        cv2.line(m, (int(p0[0]), int(p0[1])), (int(p1[0]), int(p1[1])), 1, int(rng.integers(*width)))
+    return m
+
+
 def test_ridge_peaks_equal_the_histogram_formulation():
     """The ridge radii from unit-bin counts equal those from ``np.histogram`` over the same edges (random
     bands and blobs, closings 1 to 12 px)."""
@@ -377,11 +387,8 @@ def test_ridge_peaks_equal_the_histogram_formulation():
 
     rng = np.random.default_rng(10)
     for k in range(30):
-        h, w = (int(v) for v in rng.integers(40, 160, 2))
-        m = np.zeros((h, w), np.uint8)
-        for _ in range(rng.integers(1, 4)):
-            p0, p1 = rng.integers(0, [w, h]), rng.integers(0, [w, h])
-            cv2.line(m, (int(p0[0]), int(p0[1])), (int(p1[0]), int(p1[1])), 1, int(rng.integers(3, 25)))
+        m = _random_lines(rng, (40, 160), (1, 4), (3, 25))
+        h, w = m.shape
         cv2.circle(m, (int(rng.integers(w)), int(rng.integers(h))), int(rng.integers(2, 20)), 1, -1)
         for c in (1, 3, 7, 12):
             assert width.ridge_peaks(m, c, peak_fraction=0.05 if k % 2 else 0.3) == \
@@ -437,10 +444,6 @@ def test_remove_thin_with_boxes_from_labels_equals_the_statistics_formulation():
 
     rng = np.random.default_rng(12)
     for _ in range(100):
-        h, w = (int(v) for v in rng.integers(20, 400, 2))
-        m = np.zeros((h, w), np.uint8)
-        for _ in range(rng.integers(1, 8)):
-            p0, p1 = rng.integers(0, [w, h]), rng.integers(0, [w, h])
-            cv2.line(m, (int(p0[0]), int(p0[1])), (int(p1[0]), int(p1[1])), 1, int(rng.integers(1, 15)))
+        m = _random_lines(rng, (20, 400), (1, 8), (1, 15))
         thin, length = rng.uniform(2, 20), rng.uniform(3, 80)
         np.testing.assert_array_equal(remove_thin(m, thin_px=thin, max_length_px=length), reference(m, thin, length))

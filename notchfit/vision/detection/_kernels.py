@@ -154,6 +154,20 @@ def profile_crossings(values, start, kp, lo_c, den, t, order, step, rise_step):
 
 
 @njit(cache=True, nogil=True)
+def _block_rows(img, i, f, rows):
+    """The sums of the ``f`` rows of block row ``i``, column by column, into ``rows`` (16-bit: at most
+    ``255 f``)."""
+    n = len(rows)
+    line = img[i * f]
+    for c in range(n):
+        rows[c] = line[c]
+    for r in range(i * f + 1, i * f + f):
+        line = img[r]
+        for c in range(n):
+            rows[c] += line[c]
+
+
+@njit(cache=True, nogil=True)
 def block_mean_u8(img, f):
     """Means of the ``f`` x ``f`` blocks of an 8-bit image (h // f, w // f) float32: the exact integer sum
     times ``float32(1 / f²)``, as ``cv2.resize(..., INTER_AREA)`` computes it for an integer factor.
@@ -168,13 +182,7 @@ def block_mean_u8(img, f):
     acc = np.empty(ws, np.int32)
     scale = np.float32(1.0 / (f * f))
     for i in range(hs):
-        line = img[i * f]
-        for c in range(n):
-            rows[c] = line[c]
-        for r in range(i * f + 1, i * f + f):
-            line = img[r]
-            for c in range(n):
-                rows[c] += line[c]
+        _block_rows(img, i, f, rows)
         for j in range(ws):
             acc[j] = rows[j * f]
         for q in range(1, f):
@@ -198,13 +206,7 @@ def block_mean_channels_u8(img, f, C):
     acc = np.empty(ws * C, np.int32)
     scale = np.float32(1.0 / (f * f))
     for i in range(hs):
-        line = img[i * f]
-        for c in range(n):
-            rows[c] = line[c]
-        for r in range(i * f + 1, i * f + f):
-            line = img[r]
-            for c in range(n):
-                rows[c] += line[c]
+        _block_rows(img, i, f, rows)
         for j in range(ws):
             for c in range(C):
                 acc[j * C + c] = rows[j * f * C + c]
