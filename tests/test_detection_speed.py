@@ -1,7 +1,9 @@
 """The detector's faster implementations give the same outputs as the straightforward numpy / OpenCV
 formulations they replace (issue 25), bit for bit: the compiled loops over the refinement's edge profiles,
-the working copy of an 8-bit image, the segmentation's one-pass threshold, the distance transforms cut to
-the box they are needed in; and the grouped median is each group's median."""
+the working copy of an 8-bit image, the segmentation's one-pass threshold and its background fit, the
+distance transforms cut to the box they are needed in, the disk closing by rectangles, the ridge radii's
+histogram, the parts' areas and boxes counted from their labels; and the grouped median is each group's
+median."""
 
 import cv2
 import numpy as np
@@ -71,9 +73,17 @@ def _ragged(prof, kp, n_t):
     return values, np.cumsum(n_w) - n_w
 
 
+@pytest.mark.parametrize("short", [False, True])
 @pytest.mark.parametrize("cs", [1.0, -1.0])
-def test_profile_levels_equal_the_numpy_formulation(cs):
-    prof, kp, n_t, t = _profiles(np.random.default_rng(1))
+def test_profile_levels_equal_the_numpy_formulation(cs, short):
+    """Bit for bit; ``short``: windows of 1 to 3 samples each side (the 3-sample means reach the NaN
+    outside them), some as long as the axis (its ends replicated)."""
+    rng = np.random.default_rng(1)
+    prof, kp, n_t, t = _profiles(rng)
+    if short:
+        kp = np.where(rng.random(len(kp)) < 0.8, np.minimum(kp, rng.integers(1, 4, len(kp))), n_t)
+        prof = prof.copy()
+        prof[np.abs(np.arange(-n_t, n_t + 1))[None, :] > kp[:, None]] = np.nan
     values, start = _ragged(prof, kp, n_t)
     for got, want in zip(profile_levels(values, start, kp, n_t, len(t), cs), _levels_numpy(prof, kp, n_t, cs)):
         assert got.dtype == want.dtype
@@ -119,13 +129,15 @@ def test_profile_maps_hold_each_window_as_the_numpy_formulation():
         assert (m.ravel()[n:] < -1).all()
 
 
+@pytest.mark.parametrize("channels", [0, 3])
 @pytest.mark.parametrize("f", [2, 3, 5, 8, 16])
-def test_working_copy_of_an_8bit_image_equals_the_float_one(f):
+def test_working_copy_of_an_8bit_image_equals_the_float_one(f, channels):
     """Block means read from the 8-bit pixels equal OpenCV's area resize of the float copy, bit for bit
-    (trailing rows and columns that fill no block dropped)."""
+    (trailing rows and columns that fill no block dropped), gray and colour."""
     from notchfit.vision.detection.segment import downsample
 
-    img = np.random.default_rng(f).integers(0, 256, (203 + f, 317 + 2 * f), dtype=np.uint8)
+    shape = (203 + f, 317 + 2 * f) + ((channels,) if channels else ())
+    img = np.random.default_rng(f).integers(0, 256, shape, dtype=np.uint8)
     got = downsample(img, f)
     assert got.dtype == np.float32
     np.testing.assert_array_equal(got, downsample(img.astype(np.float32), f))
@@ -307,3 +319,131 @@ def test_width_edges_equal_the_numpy_formulation(sign, rising):
     for obj_win, bg_win in (((4.0, 10.0), (-10.0, -4.0)), ((-10.0, -4.0), (4.0, 10.0)), ((4.0, 4.2), (-1.0, -0.9))):
         np.testing.assert_array_equal(_edges(t, prof, t0, obj_win, bg_win, sign, rising),
                                       _edges_numpy(t, prof, t0, obj_win, bg_win, sign, rising))
+
+
+def test_disk_closing_by_rectangles_equals_the_elliptic_kernel():
+    """The closing by the union of rectangles equals OpenCV's closing by its elliptic kernel, bit for bit,
+    on 0/1 masks and on gray images, radius 1 to 40."""
+    from notchfit.vision.detection.segment import close_disk, disk_rectangles
+
+    rng = np.random.default_rng(8)
+    for r in range(1, 41):
+        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)
+        union = np.zeros_like(ker)
+        for a, b in disk_rectangles(r):
+            union[r - b:r + b + 1, r - a:r + a + 1] = 1
+        np.testing.assert_array_equal(union, ker)
+        for img in ((rng.random((40 + r, 90)) < 0.2).astype(np.uint8), rng.integers(0, 256, (50, 70), dtype=np.uint8)):
+            pad = r + 2
+            big = cv2.copyMakeBorder(img, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+            ref = cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)[pad:-pad, pad:-pad]
+            np.testing.assert_array_equal(close_disk(img, r), ref)
+
+
+def test_background_surface_gathered_by_index_equals_the_boolean_formulation():
+    """The background surface's fit from rows gathered by index equals the boolean-mask formulation to the
+    last bit (the same BLAS product: a matrix times a copy of itself)."""
+    from notchfit.vision.detection.segment import _surface
+
+    rng = np.random.default_rng(9)
+    for _ in range(20):
+        n = int(rng.integers(60, 7000))
+        A, vals = rng.normal(size=(n, 6)), rng.normal(100, 30, n)
+        sel = rng.random(n) < rng.uniform(0.05, 1.0)
+        As = A[sel]
+        ref = np.linalg.solve(As.T @ A[sel] + 1e-9 * np.eye(6), As.T @ vals[sel])
+        np.testing.assert_array_equal(_surface(A, vals, sel), ref)
+
+
+def _random_lines(rng, size, count, width):
+    """A 0/1 mask (h, w in ``size``) with ``count`` random straight lines ``width`` px wide (half-open ranges)."""
+    h, w = (int(v) for v in rng.integers(*size, 2))
+    m = np.zeros((h, w), np.uint8)
+    for _ in range(rng.integers(*count)):
+        p0, p1 = rng.integers(0, [w, h]), rng.integers(0, [w, h])
+        cv2.line(m, (int(p0[0]), int(p0[1])), (int(p1[0]), int(p1[1])), 1, int(rng.integers(*width)))
+    return m
+
+
+def test_ridge_peaks_equal_the_histogram_formulation():
+    """The ridge radii from unit-bin counts equal those from ``np.histogram`` over the same edges (random
+    bands and blobs, closings 1 to 12 px)."""
+    import math
+
+    from notchfit.vision.detection import width
+
+    def reference(region, close_px, min_radius_px=2.0, peak_fraction=0.3):
+        closed, pad = width._close_disk(region, max(int(close_px), 1))
+        dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)[pad:-pad, pad:-pad]
+        v = dt[width._ridge(dt) & (dt >= min_radius_px)]
+        if len(v) < 10:
+            return []
+        h, edges = np.histogram(v, bins=np.arange(0, int(math.ceil(v.max())) + 3, 1.0))
+        h = np.convolve(h, [0.25, 0.5, 0.25], mode="same")
+        peaks = [i for i in range(1, len(h) - 1) if h[i] >= h[i - 1] and h[i] >= h[i + 1] and h[i] > 0]
+        top = max((h[i] for i in peaks), default=0)
+        return [float(np.median(v[(v >= edges[max(i - 1, 0)]) & (v < edges[min(i + 2, len(edges) - 1)])])) + 0.5
+                for i in peaks if h[i] >= peak_fraction * top]
+
+    rng = np.random.default_rng(10)
+    for k in range(30):
+        m = _random_lines(rng, (40, 160), (1, 4), (3, 25))
+        h, w = m.shape
+        cv2.circle(m, (int(rng.integers(w)), int(rng.integers(h))), int(rng.integers(2, 20)), 1, -1)
+        for c in (1, 3, 7, 12):
+            assert width.ridge_peaks(m, c, peak_fraction=0.05 if k % 2 else 0.3) == \
+                reference(m, c, peak_fraction=0.05 if k % 2 else 0.3)
+
+
+def test_largest_region_equals_the_statistics_formulation():
+    """The largest region from labels and counted areas equals the one from OpenCV's statistics pass, and
+    the labels of the two OpenCV calls are the same (masks of many parts, ties in area included)."""
+    from notchfit.vision.detection.segment import largest_region
+
+    def reference(mask):
+        ext, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        x0, y0, bw, bh = cv2.boundingRect(max(ext, key=cv2.contourArea))
+        _, lab, st, _ = cv2.connectedComponentsWithStats(np.ascontiguousarray(mask[y0:y0 + bh, x0:x0 + bw]),
+                                                         connectivity=8)
+        out = np.zeros_like(mask)
+        out[y0:y0 + bh, x0:x0 + bw] = lab == 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
+        return out, (x0, y0, bw, bh)
+
+    rng = np.random.default_rng(11)
+    for k in range(60):
+        h, w = (int(v) for v in rng.integers(20, 700, 2))
+        m = (rng.random((h, w)) < rng.uniform(0.05, 0.6)).astype(np.uint8)
+        if k % 2:
+            m = cv2.morphologyEx(m, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        if not m.any():
+            continue
+        n, lab, st, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        n2, lab2 = cv2.connectedComponents(m, connectivity=8)
+        assert n == n2
+        np.testing.assert_array_equal(lab, lab2)
+        np.testing.assert_array_equal(np.bincount(lab2.ravel(), minlength=n2), st[:, cv2.CC_STAT_AREA])
+        got, want = largest_region(m), reference(m)
+        np.testing.assert_array_equal(got[0], want[0])
+        assert got[1] == want[1]
+
+
+def test_remove_thin_with_boxes_from_labels_equals_the_statistics_formulation():
+    """Thin parts' boxes from their labels (``scipy.ndimage.find_objects``) remove the same parts as the
+    boxes of OpenCV's statistics pass (random lines 1 to 14 px wide)."""
+    from notchfit.vision.detection.segment import remove_thin
+
+    def reference(m, thin_px, max_length_px):
+        r = max(int(round(0.35 * thin_px)), 1)
+        opened = cv2.morphologyEx(m, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2))
+        n, lab, st, _ = cv2.connectedComponentsWithStats((m & (1 - opened)).astype(np.uint8), connectivity=8)
+        if n <= 1:
+            return m
+        long_ = np.hypot(st[:, cv2.CC_STAT_WIDTH], st[:, cv2.CC_STAT_HEIGHT]) > max_length_px
+        long_[0] = False
+        return (m & ~long_[lab]).astype(np.uint8)
+
+    rng = np.random.default_rng(12)
+    for _ in range(100):
+        m = _random_lines(rng, (20, 400), (1, 8), (1, 15))
+        thin, length = rng.uniform(2, 20), rng.uniform(3, 80)
+        np.testing.assert_array_equal(remove_thin(m, thin_px=thin, max_length_px=length), reference(m, thin, length))

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["block_mean_u8", "level_crossings", "line_levels", "nearest_crossings", "profile_crossings", "profile_levels", "profile_maps",
-           "surface_threshold"]
+__all__ = ["block_mean_channels_u8", "block_mean_u8", "level_crossings", "line_levels", "nearest_crossings",
+           "profile_crossings", "profile_levels", "profile_maps", "surface_threshold"]
 
 
 @njit(cache=True, nogil=True)
@@ -40,12 +40,12 @@ def profile_maps(base, nrm, t, kp, n_t, width):
 
 
 @njit(cache=True, nogil=True)
-def _row(row, values, start, k, n_t):
-    """One profile on the full axis, written into ``row`` (T,) float64: its window's samples from
-    ``values``, NaN outside."""
-    row[:] = np.nan
-    for j in range(2 * k + 1):
-        row[n_t - k + j] = values[start + j]
+def _sample(values, s0, k, n_t, c):
+    """The sample at axis position ``c`` of a profile whose window ``n_t ± k`` is stored from ``values[s0]``
+    (float64; NaN outside the window)."""
+    if c < n_t - k or c > n_t + k:
+        return np.nan
+    return np.float64(values[s0 + c - (n_t - k)])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -54,27 +54,29 @@ def profile_levels(values, start, kp, n_t, T, cs):
     outside it): the mean of the two outermost object-side and background-side samples (Np,) x 2, and the
     largest and the smallest ``cs`` times the 3-sample mean (float32; NaN counted as 0; the axis' ends
     replicated) over the object side (``n_t - kp`` to ``n_t - 1``), -inf and +inf where it is empty (Np,)
-    float32 x 2."""
+    float32 x 2. The samples are read from the window directly (NaN outside it), each mean added in the
+    same order as on the full axis."""
     n = len(kp)
     lo_v = np.empty(n)
     hi_v = np.empty(n)
     ext = np.empty(n, np.float32)
     least = np.empty(n, np.float32)
     third = 1.0 / 3.0
-    prof = np.empty(T)
+    z = np.empty(T + 2)
     for i in range(n):
         k = kp[i]
-        _row(prof, values, start[i], k, n_t)
-        lo_v[i] = 0.5 * (prof[n_t - k] + prof[n_t - k + 1])
-        hi_v[i] = 0.5 * (prof[n_t + k] + prof[n_t + k - 1])
+        s0 = start[i]
+        lo_v[i] = 0.5 * (_sample(values, s0, k, n_t, n_t - k) + _sample(values, s0, k, n_t, n_t - k + 1))
+        hi_v[i] = 0.5 * (_sample(values, s0, k, n_t, n_t + k) + _sample(values, s0, k, n_t, n_t + k - 1))
+        # z[c + 1]: the sample at axis position c (clamped to the axis), 0 for NaN, for c = n_t - k - 1 .. n_t
+        for c in range(n_t - k - 1, n_t + 1):
+            v = np.float32(_sample(values, s0, k, n_t, min(max(c, 0), T - 1)))
+            z[c + 1] = 0.0 if np.isnan(v) else np.float64(v)
+        a = n_t - k
         big = np.float32(-np.inf)
         small = np.float32(np.inf)
-        for c in range(n_t - k, n_t):
-            s = 0.0
-            for cc in (c - 1, c, c + 1):
-                cc = min(max(cc, 0), T - 1)
-                v = np.float32(prof[cc])
-                s += 0.0 if np.isnan(v) else np.float64(v)
+        for c in range(a, n_t):
+            s = ((0.0 + z[c]) + z[c + 1]) + z[c + 2]
             m = np.float32(cs) * np.float32(s * third)
             big = max(big, m)
             small = min(small, m)
@@ -152,25 +154,69 @@ def profile_crossings(values, start, kp, lo_c, den, t, order, step, rise_step):
 
 
 @njit(cache=True, nogil=True)
+def _block_rows(img, i, f, rows):
+    """The sums of the ``f`` rows of block row ``i``, column by column, into ``rows`` (16-bit: at most
+    ``255 f``)."""
+    n = len(rows)
+    line = img[i * f]
+    for c in range(n):
+        rows[c] = line[c]
+    for r in range(i * f + 1, i * f + f):
+        line = img[r]
+        for c in range(n):
+            rows[c] += line[c]
+
+
+@njit(cache=True, nogil=True)
 def block_mean_u8(img, f):
     """Means of the ``f`` x ``f`` blocks of an 8-bit image (h // f, w // f) float32: the exact integer sum
-    times ``float32(1 / f²)``, as ``cv2.resize(..., INTER_AREA)`` computes it for an integer factor."""
+    times ``float32(1 / f²)``, as ``cv2.resize(..., INTER_AREA)`` computes it for an integer factor.
+
+    The ``f`` rows of a block are added column by column (16-bit: at most ``255 f``, exact up to f = 257),
+    then the ``f`` columns of each block one offset at a time: contiguous loops the compiler vectorises.
+    The sums are integers below 2²⁴ (f ≤ 256), so their float32 values are exact in any order."""
     hs, ws = img.shape[0] // f, img.shape[1] // f
     n = ws * f
     out = np.empty((hs, ws), np.float32)
-    rows = np.empty(n, np.int32)
+    rows = np.empty(n, np.uint16)
+    acc = np.empty(ws, np.int32)
     scale = np.float32(1.0 / (f * f))
     for i in range(hs):
-        rows[:] = 0
-        for r in range(i * f, i * f + f):
-            line = img[r]
-            for c in range(n):
-                rows[c] += line[c]
+        _block_rows(img, i, f, rows)
         for j in range(ws):
-            s = 0
-            for c in range(j * f, j * f + f):
-                s += rows[c]
-            out[i, j] = np.float32(s) * scale
+            acc[j] = rows[j * f]
+        for q in range(1, f):
+            for j in range(ws):
+                acc[j] += rows[j * f + q]
+        for j in range(ws):
+            out[i, j] = np.float32(acc[j]) * scale
+    return out
+
+
+@njit(cache=True, nogil=True)
+def block_mean_channels_u8(img, f, C):
+    """:func:`block_mean_u8` of an 8-bit image of ``C`` interleaved channels seen as (h, w C) (a colour
+    image's rows without a copy), channel by channel: (h // f, (w // f) C) float32, the exact integer sums
+    times ``float32(1 / f²)`` as ``cv2.resize(..., INTER_AREA)`` computes them for an integer factor."""
+    hs = img.shape[0] // f
+    n = img.shape[1]
+    ws = n // (f * C)
+    out = np.empty((hs, ws * C), np.float32)
+    rows = np.empty(n, np.uint16)
+    acc = np.empty(ws * C, np.int32)
+    scale = np.float32(1.0 / (f * f))
+    for i in range(hs):
+        _block_rows(img, i, f, rows)
+        for j in range(ws):
+            for c in range(C):
+                acc[j * C + c] = rows[j * f * C + c]
+        for q in range(1, f):
+            for j in range(ws):
+                b = (j * f + q) * C
+                for c in range(C):
+                    acc[j * C + c] += rows[b + c]
+        for j in range(ws * C):
+            out[i, j] = np.float32(acc[j]) * scale
     return out
 
 

@@ -126,8 +126,9 @@ def locate_variants(seg: Segmentation, shape, setup: Setup, cache: dict, *, want
         if mask is None:
             continue
         region, box = largest_region(mask)
-        ratio = float(region.sum()) / exp_area
-        if ratio < opts.area_range[0] or region.mean() > 0.95:
+        area = np.count_nonzero(region)                  # a 0/1 mask: its sum; the fraction is its mean
+        ratio = area / exp_area
+        if ratio < opts.area_range[0] or area / region.size > 0.95:
             got = empty_detection(m, "no_manipulator", f"no manipulator found: the largest region is "
                                   f"{ratio:.2f} x the tube's silhouette area (wrong geometry or camera file?)")
         else:

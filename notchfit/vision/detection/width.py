@@ -71,7 +71,9 @@ def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fract
     if len(v) < 10:
         return []
     hi = int(math.ceil(v.max())) + 2
-    h, edges = np.histogram(v, bins=np.arange(0, hi + 1, 1.0))
+    # the histogram of unit bins from 0 (``np.histogram(v, bins=edges)``): v >= 0 lies in bin floor(v)
+    edges = np.arange(0, hi + 1, 1.0)
+    h = np.bincount(np.floor(v).astype(np.intp), minlength=hi)
     h = np.convolve(h, [0.25, 0.5, 0.25], mode="same")
     peaks = [i for i in range(1, len(h) - 1) if h[i] >= h[i - 1] and h[i] >= h[i + 1] and h[i] > 0]
     if not peaks:
@@ -170,16 +172,17 @@ def _slot_gaps(region, radius_px, *, slot_width, slot_depth, radius, close_facto
     k = int(round(streak * slot_width * s))
     if k >= 1:
         gaps = cv2.morphologyEx(gaps, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
-    n, lab, st, _ = cv2.connectedComponentsWithStats(gaps, connectivity=8)
+    n, lab = cv2.connectedComponents(gaps, connectivity=8)
     if n <= 1:
         return closed, lab, []
+    counts = np.bincount(lab.ravel(), minlength=n)         # the parts' areas [px]
     area = slot_width * slot_depth * s * s
     dtg = cv2.distanceTransform(gaps, cv2.DIST_L2, 5)
     sel = lab > 0
     widest = np.zeros(n)
     np.maximum.at(widest, lab[sel], dtg[sel])
     widest = 2 * widest[1:] + 1
-    ids = [k for k in range(1, n) if area_range[0] * area <= st[k, cv2.CC_STAT_AREA] <= area_range[1] * area
+    ids = [k for k in range(1, n) if area_range[0] * area <= counts[k] <= area_range[1] * area
            and width_range[0] * slot_width * s <= widest[k - 1] <= width_range[1] * slot_width * s]
     return closed, lab, ids
 
