@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .lines import arcs_allowed, group_median
+from .lines import arc_residuals, arcs_allowed, group_median
 from .mouth import shut_mouths, with_mouths
 from .view import DiameterScale
 
@@ -282,8 +282,7 @@ def view_sines(camera, X, d_limb, *, signed: bool = False) -> np.ndarray:
 
 
 def known_arc_corners(camera, lines, curved, use, pts, grp, *, radius_px: float, s2_floor: float = 0.0,
-                      significance: float = 9.0, min_points: int = 5, max_u0: float = np.inf,
-                      view_sd: float = 0.01):
+                      prefer: float = 0.0, min_points: int = 5, max_u0: float = np.inf, view_sd: float = 0.01):
     """Corners of faces left straight lines, measured again with the arc the camera's view gives them.
 
     With a camera file the face's ellipse is known, not a free parameter:
@@ -298,10 +297,12 @@ def known_arc_corners(camera, lines, curved, use, pts, grp, *, radius_px: float,
     intersection about ``0.5 R sin β`` off. The view is known to ``view_sd``
     [rad] (the plane's pose from a board, the tube lying in that plane): its
     effect on ``v0`` (the fit's response to the arc term) is returned as a
-    systematic covariance along the limb. Only faces whose crossings allow
-    that arc (:func:`.lines.arcs_allowed` with ``significance``: a flat
-    outline, as a silhouette drawn in the plane, keeps its line) and which
-    are seen within ``max_u0`` of their corner.
+    systematic covariance along the limb. Only faces whose crossings fit
+    that arc better than a straight line (by ``prefer`` times the line's
+    residual variance; both models have the same two free parameters, so
+    the better fit is the likelier one): a flat outline, as a silhouette
+    drawn in the plane, keeps its line. And only faces seen within
+    ``max_u0`` of their corner.
 
     Parameters
     ----------
@@ -333,7 +334,8 @@ def known_arc_corners(camera, lines, curved, use, pts, grp, *, radius_px: float,
     fe = np.where(curved[ks], ks, K + ks)
     le = np.where(curved[ks], K + ks, ks)
     sin_b = view_sines(camera, X[ks], dd[le], signed=True)
-    ok = np.isfinite(sin_b) & arcs_allowed(pts, grp, X[ks], fe, dd[le], np.abs(sin_b), radius_px, significance)
+    rss, s2, few = arc_residuals(pts, grp, X[ks], fe, dd[le], np.nan_to_num(sin_b), radius_px)
+    ok = np.isfinite(sin_b) & ~few & (rss[0] - rss[1] > prefer * s2)
     us, vs, gs, arcs = [], [], [], []
     for g in np.nonzero(ok)[0]:
         rel = pts[grp == fe[g]] - c[le[g]]
