@@ -3,8 +3,10 @@
 A slot or tip face is a circle of radius ``R`` about the tube's axis: straight
 when seen exactly from the side, an arc of an ellipse tangent to the limb at
 the corner when the view looks a little along the tube. Here the faces'
-robust fits with and without that arc (:func:`curved_face_corners`), and the
-covariance a face's unseen arc adds to its corner (:func:`face_view_cov`).
+robust fits with and without that arc (:func:`curved_face_corners`), the
+faces left straight measured with the arc a camera file's view gives them
+(:func:`known_arc_corners`), and the covariance a face's unseen arc adds to
+its corner (:func:`face_view_cov`).
 """
 
 from __future__ import annotations
@@ -287,11 +289,14 @@ def known_arc_corners(camera, lines, curved, use, pts, grp, *, radius_px: float,
 
     With a camera file the face's ellipse is known, not a free parameter:
     seen ``β`` from the side a circular face of radius ``R`` is ``v = v0 +
-    c u + s sin β sqrt(u (2R - u))`` in its limb's frame (``u`` across the
-    tube from the limb, ``v`` along it), where the tube beyond the face
-    (the material on the corner's side) projects over the slot: the
-    boundary bulges into the slot (``s`` = +1 along the incoming limb,
-    which travels into the corner, -1 along the outgoing one). Fitting that
+    c u + sin β sqrt(u (2R - u))`` in its limb's frame (``u`` across the
+    tube from the limb, ``v`` along it), ``sin β`` the view ray's signed
+    component along ``v`` (:func:`view_sines`): the visible boundary is the
+    face's front rim, the one nearer the camera (behind it the camera looks
+    into the hollow tube), which bulges into the slot where the ray runs
+    towards the slot and into the tube where it runs away from it (the
+    physically based printed tube's straight faces are off to the side this
+    gives on every face). Fitting that
     edge model (the arc subtracted, ``v0`` and ``c`` robustly fitted) puts
     the corner at the limb's point ``v0`` instead of the straight line's
     intersection about ``0.5 R sin β`` off. The view is known to ``view_sd``
