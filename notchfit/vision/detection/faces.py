@@ -3,8 +3,10 @@
 A slot or tip face is a circle of radius ``R`` about the tube's axis: straight
 when seen exactly from the side, an arc of an ellipse tangent to the limb at
 the corner when the view looks a little along the tube. Here the faces'
-robust fits with and without that arc (:func:`curved_face_corners`), and the
-covariance a face's unseen arc adds to its corner (:func:`face_view_cov`).
+robust fits with and without that arc (:func:`curved_face_corners`), the
+faces left straight measured with the arc a camera file's view gives them
+(:func:`known_arc_corners`), and the covariance a face's unseen arc adds to
+its corner (:func:`face_view_cov`).
 """
 
 from __future__ import annotations
@@ -14,11 +16,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from .lines import arcs_allowed, group_median
+from .lines import arc_residuals, arcs_allowed, group_median
 from .mouth import shut_mouths, with_mouths
 from .view import DiameterScale
 
-__all__ = ["curved_face_corners", "face_view_cov"]
+__all__ = ["curved_face_corners", "face_view_cov", "known_arc_corners", "straight_face_corners", "view_sines"]
 
 def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 0.15, n_iter: int = 3):
     """Robust least squares ``v = v0 + c u (+ b g(u))``, ``g(u) = sqrt(u (2 radius - u))``, for G groups at once.
@@ -247,14 +249,7 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
         return out
     fe = np.where(curved[ks], ks, K + ks)
     d_limb = np.where(curved[ks][:, None], dd[K + ks], dd[ks])
-    # the outer edge's direction in the plane, then in the camera's frame; the view ray at the corner
-    ends = np.concatenate([X[ks], X[ks] + 5.0 * d_limb])
-    pl = np.c_[ends, np.ones(len(ends))] @ np.linalg.inv(camera.plane_homography).T
-    pl = pl[:, :2] / pl[:, 2:]
-    axis = (pl[len(ks):] - pl[:len(ks)]) @ camera.plane_rotation[:, :2].T
-    ray = np.c_[X[ks], np.ones(len(ks))] @ np.linalg.inv(camera.camera_matrix).T
-    with np.errstate(invalid="ignore", divide="ignore"):
-        sin_b = np.abs(np.sum(ray * axis, 1)) / (np.linalg.norm(ray, axis=1) * np.linalg.norm(axis, axis=1))
+    sin_b = view_sines(camera, X[ks], d_limb)
     allowed = arcs_allowed(pts, grp, X[ks], fe, d_limb, sin_b, radius_px, significance)
     if assume is not None:
         allowed |= assume[ks]
@@ -271,3 +266,135 @@ def face_view_cov(camera, X, dd, curved, use, pts, grp, *, radius_px: float, fac
     var = np.where(np.isfinite(sin_b) & allowed, (fac * radius_px * sin_b) ** 2, 0.0)
     out[ks] = var[:, None, None] * d_limb[:, :, None] * d_limb[:, None, :]
     return out
+
+
+def view_sines(camera, X, d_limb, *, signed: bool = False) -> np.ndarray:
+    """(n,) ``sin β``: how far the camera sees a face at each corner ``X`` (n, 2) [ideal px] from the side,
+    the view ray's component along the tube's axis (the outer edge's direction ``d_limb`` (n, 2) taken to
+    the plane, then to the camera's frame); ``signed``: positive where the ray, from the camera into the
+    scene, runs along ``d_limb``."""
+    ends = np.concatenate([X, X + 5.0 * d_limb])
+    pl = np.c_[ends, np.ones(len(ends))] @ np.linalg.inv(camera.plane_homography).T
+    pl = pl[:, :2] / pl[:, 2:]
+    axis = (pl[len(X):] - pl[:len(X)]) @ camera.plane_rotation[:, :2].T
+    ray = np.c_[X, np.ones(len(X))] @ np.linalg.inv(camera.camera_matrix).T
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sin_b = np.sum(ray * axis, 1) / (np.linalg.norm(ray, axis=1) * np.linalg.norm(axis, axis=1))
+    return sin_b if signed else np.abs(sin_b)
+
+
+def known_arc_corners(camera, lines, curved, use, pts, grp, *, radius_px: float, s2_floor: float = 0.0,
+                      prefer: float = 0.0, min_points: int = 5, max_u0: float = np.inf, view_sd: float = 0.01):
+    """Corners of faces left straight lines, measured again with the arc the camera's view gives them.
+
+    With a camera file the face's ellipse is known, not a free parameter:
+    seen ``β`` from the side a circular face of radius ``R`` is ``v = v0 +
+    c u + sin β sqrt(u (2R - u))`` in its limb's frame (``u`` across the
+    tube from the limb, ``v`` along it), ``sin β`` the view ray's signed
+    component along ``v`` (:func:`view_sines`): the visible boundary is the
+    face's front rim, the one nearer the camera (behind it the camera looks
+    into the hollow tube), which bulges into the slot where the ray runs
+    towards the slot and into the tube where it runs away from it (the
+    physically based printed tube's straight faces are off to the side this
+    gives on every face). Fitting that
+    edge model (the arc subtracted, ``v0`` and ``c`` robustly fitted) puts
+    the corner at the limb's point ``v0`` instead of the straight line's
+    intersection about ``0.5 R sin β`` off. The view is known to ``view_sd``
+    [rad] (the plane's pose from a board, the tube lying in that plane): its
+    effect on ``v0`` (the fit's response to the arc term) is returned as a
+    systematic covariance along the limb. Only faces whose crossings fit
+    that arc better than a straight line (by ``prefer`` times the line's
+    residual variance; both models have the same two free parameters, so
+    the better fit is the likelier one): a flat outline, as a silhouette
+    drawn in the plane, keeps its line. And only faces seen within
+    ``max_u0`` of their corner.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        With the plane's pose (not :class:`~.view.DiameterScale`: there the view is only assumed).
+    lines : refine.CornerLines
+        The line fits and their corners [ideal px].
+    curved : ndarray (2K,) bool
+    use : ndarray (K,) bool
+        The corners to measure again (their face left a straight line).
+    pts, grp : ndarray (P, 2), (P,)
+        Undistorted crossings [px] and their edge 0..2K-1.
+
+    Returns
+    -------
+    X, cov : ndarray (K, 2), (K, 2, 2)
+        The corners [ideal px] and their covariance [px²] (unchanged where not measured again).
+    cov_view : ndarray (K, 2, 2)
+        The covariance the view's uncertainty adds [px²].
+    fixed : ndarray (K,) bool
+        The corners measured with the known arc.
+    """
+    K, c, dd = len(lines.X), lines.c, lines.dd
+    X, cov, fixed = lines.X.copy(), lines.cov.copy(), np.zeros(K, bool)
+    cov_view = np.zeros((K, 2, 2))
+    ks = np.nonzero(use & (curved[:K] != curved[K:]))[0]
+    if not len(ks):
+        return X, cov, cov_view, fixed
+    fe = np.where(curved[ks], ks, K + ks)
+    le = np.where(curved[ks], K + ks, ks)
+    sin_b = view_sines(camera, X[ks], dd[le], signed=True)
+    rss, s2, few = arc_residuals(pts, grp, X[ks], fe, dd[le], np.nan_to_num(sin_b), radius_px)
+    ok = np.isfinite(sin_b) & ~few & (rss[0] - rss[1] > prefer * s2)
+    us, vs, gs, arcs = [], [], [], []
+    for g in np.nonzero(ok)[0]:
+        rel = pts[grp == fe[g]] - c[le[g]]
+        d = dd[le[g]]
+        u, v = rel @ np.array([-d[1], d[0]]), rel @ d
+        u = u * (1.0 if np.median(u) >= 0 else -1.0)
+        near = u <= radius_px
+        if near.sum() < min_points + 3 or u[near].min() > max_u0:
+            continue
+        arcs.append(np.sqrt(np.clip(u[near] * (2 * radius_px - u[near]), 0, None)))
+        us.append(u[near])
+        vs.append(v[near] - sin_b[g] * arcs[-1])
+        gs.append(np.full(int(near.sum()), g))
+    if not us:
+        return X, cov, cov_view, fixed
+    u, gid = np.concatenate(us), np.concatenate(gs)
+    coef, cf, _, n = _face_fits(u, np.concatenate(vs), gid, len(ks), radius_px, curved=False)
+    # how far v0 moves per unit of the arc's coefficient: a line's intercept fitted to the arc itself
+    sens = _face_fits(u, np.concatenate(arcs), gid, len(ks), radius_px, curved=False, floor=np.inf)[0][:, 0]
+    for g in np.nonzero(np.isfinite(coef[:, 0]))[0]:
+        k, d = ks[g], dd[le[g]]
+        nrm = np.array([-d[1], d[0]])
+        var_n = float(np.dot(nrm, cov[k] @ nrm))     # across the limb: the limb's own uncertainty
+        X[k] = c[le[g]] + coef[g, 0] * d
+        cov[k] = max(cf[g, 0, 0], s2_floor / n[g]) * np.outer(d, d) + var_n * np.outer(nrm, nrm)
+        cov_view[k] = (sens[g] * view_sd) ** 2 * np.outer(d, d)
+        fixed[k] = True
+    return X, cov, cov_view, fixed
+
+
+def straight_face_corners(camera, lines, on_line, curved, pts, grp, *, radius_px: float, s2_floor: float = 0.0,
+                          min_points: int = 5, start_px: float = 0.0, view_bias: float = 0.5, outside=None,
+                          known_arc: bool = True, max_start: float = 0.1):
+    """The corners of curved faces left straight lines (``on_line`` (K,) bool): with a camera file measured
+    again with the arc its view gives (:func:`known_arc_corners`, not next to a mirroring limb,
+    ``outside``), the rest given the covariance of their unseen arc (:func:`face_view_cov`, ``view_bias``).
+
+    Returns the corners (K, 2) [ideal px], their fit covariance and the systematic covariance to add
+    (K, 2, 2) [px²].
+    """
+    X, cov = lines.X, lines.cov
+    cov_sys = np.zeros((len(X), 2, 2))
+    on_line = on_line.copy()
+    if on_line.any() and known_arc and not isinstance(camera, DiameterScale):
+        # with a camera file the face's arc is known: the face is measured with it, not as a line
+        # (not next to a mirroring limb: there the face's crossings are a mirror image's boundary)
+        use = on_line if outside is None else on_line & ~outside
+        X, cov, cov_sys, fixed = known_arc_corners(camera, lines, curved, use, pts, grp, radius_px=radius_px,
+                                                   s2_floor=s2_floor, min_points=min_points,
+                                                   max_u0=start_px + max_start * radius_px)
+        on_line &= ~fixed
+    if on_line.any():
+        # a face left straight meets the limb off its corner by about half its arc's bulge, which the
+        # camera's view of the plane tells (without a camera file, the view DiameterScale assumes)
+        cov_sys = cov_sys + face_view_cov(camera, X, lines.dd, curved, on_line, pts, grp, radius_px=radius_px,
+                                          factor=view_bias, assume=outside)
+    return X, cov, cov_sys

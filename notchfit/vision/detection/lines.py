@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-__all__ = ["arcs_allowed", "group_lines", "group_median", "intersect", "otsu", "pca_line", "poly2", "robust_group_lines", "unit"]
+__all__ = ["arc_residuals", "arcs_allowed", "group_lines", "group_median", "intersect", "otsu", "pca_line", "poly2",
+           "robust_group_lines", "unit"]
 
 
 def otsu(values, bins=256):
@@ -119,6 +120,15 @@ def arcs_allowed(pts, grp, X, fe, d_limb, sin_b, radius_px: float, significance:
     """(n,) bool: whether each face's crossings (edge ``fe``, corner ``X``) fit the arc of a face seen
     ``asin(sin_b)`` from the side, bulging either way, not significantly worse than a straight line: the
     residual sums of ``v = v0 + c u (± sin_b g(u))`` in closed form, all faces at once."""
+    rss, s2, few = arc_residuals(pts, grp, X, fe, d_limb, sin_b, radius_px, min_points=min_points)
+    return (np.minimum(rss[1], rss[2]) <= rss[0] + significance * s2) | few
+
+
+def arc_residuals(pts, grp, X, fe, d_limb, sin_b, radius_px: float, min_points: int = 6):
+    """The residual sums of squares (3, n) [px²] of each face's crossings (edge ``fe``, corner ``X``, limb
+    direction ``d_limb``, ``v`` along it, ``u`` across) to ``v = v0 + c u``, ``v = v0 + c u + sin_b g(u)``
+    and ``v = v0 + c u - sin_b g(u)`` (``g(u) = sqrt(u (2R - u))``, ``v0`` and ``c`` fitted), the line's
+    residual variance (n,) and the faces with too few crossings to tell (n,) bool."""
     n = len(fe)
     slot = np.full(max(int(grp.max()) + 1 if len(grp) else 0, int(fe.max()) + 1), -1)
     slot[fe] = np.arange(n)
@@ -140,5 +150,4 @@ def arcs_allowed(pts, grp, X, fe, d_limb, sin_b, radius_px: float, significance:
         with np.errstate(invalid="ignore", divide="ignore"):
             rss.append(Stt - (Suu * St * St - 2 * Su * St * Sut + N * Sut * Sut) / det)
     s2 = np.maximum(rss[0] / np.maximum(N - 2, 1), 1e-6)
-    ok = np.minimum(rss[1], rss[2]) <= rss[0] + significance * s2
-    return ok | (N < min_points) | ~(det > 0)
+    return np.array(rss), s2, (N < min_points) | ~(det > 0)

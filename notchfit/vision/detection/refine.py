@@ -21,7 +21,7 @@ import numpy as np
 
 from ._kernels import profile_crossings, profile_levels, profile_maps
 from .edges import Crossings, Profiles, choose_edges
-from .faces import curved_face_corners, face_view_cov
+from .faces import curved_face_corners, face_view_cov, straight_face_corners
 from .lines import group_median, robust_group_lines, unit
 from .mouth import MouthView
 
@@ -457,7 +457,8 @@ def _edge_offsets(und, edge, rises, lines: CornerLines, *, min_points, s2_floor,
 
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *, lim, min_points, contrast,
                 blur_prior=math.nan, radius_px=math.nan, curved_reach: float = 0.12,
-                arc_gate: float = 2.0, view_bias: float = 0.5, local_edges: bool = True, max_spread: float = 12.0):
+                arc_gate: float = 2.0, view_bias: float = 0.5, local_edges: bool = True, max_spread: float = 12.0,
+                known_arc: bool = True):
     """One pass of edge-profile line fits for all corners at once.
 
     Parameters
@@ -485,6 +486,8 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
         fitted again as arcs. A curved face left a straight line adds
         :func:`face_view_cov` (``view_bias``) to the returned systematic
         covariance when the camera knows the plane's pose.
+    known_arc : bool
+        With a camera file, faces left straight take their view's arc (:func:`.faces.straight_face_corners`).
     local_edges : bool
         Edges the image-wide levels do not describe take each profile's own step (:func:`.edges.choose_edges`).
     max_spread : float
@@ -537,18 +540,16 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
     noise2 = float(np.median(s2_line[straight])) if straight.any() else 0.0
     curved = None if sp.curved is None else sp.curved & (s2_line > arc_gate * max(noise2, s2_floor))
     if curved is not None and np.isfinite(radius_px) and sp.curved.any():
-        X_line = X
         arcs = curved_face_corners(und, pr.edge[valid], lines, sp.curved, fit=curved, radius_px=radius_px,
                                    s2_floor=s2_floor, min_points=min_points, start_px=s0, partner=sp.partner,
                                    view=MouthView(img, off, camera, blur, radius_px))
-        X, cov, okc = arcs.X, arcs.cov, arcs.ok
+        okc = arcs.ok
         cov_sys = cov_sys if arcs.cov_view is None else cov_sys + arcs.cov_view
-        # a face left straight meets the limb off its corner by about half its arc's bulge, which the
-        # camera's view of the plane tells (without a camera file, the view DiameterScale assumes)
-        on_line = okc & np.all(X == X_line, axis=1)
-        if on_line.any():
-            cov_sys = cov_sys + face_view_cov(camera, X, dd, sp.curved, on_line, und, pr.edge[valid],
-                                              radius_px=radius_px, factor=view_bias, assume=sp.outside)
+        X, cov, cov_face = straight_face_corners(camera, arcs, okc & np.all(arcs.X == X, axis=1), sp.curved,
+                                                 und, pr.edge[valid], radius_px=radius_px, s2_floor=s2_floor,
+                                                 min_points=min_points, start_px=s0, view_bias=view_bias,
+                                                 outside=sp.outside, known_arc=known_arc)
+        cov_sys = cov_sys + cov_face
     Cn = np.full((K, 2), np.nan)
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])
