@@ -361,15 +361,10 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
 def _decide(st: _Study, opts: _Options, held: dict, sigs, order, screen: dict, unscreened: tuple, score,
             lof_kw: dict) -> _First:
     """The first step's decision (:func:`_lack_of_fit_first`) on the single candidates of ``held`` so far:
-    those the screen left out and the second step later cross-validated alone take part; the others stay
-    listed as not cross-validated (``st.skipped["screened"]``)."""
+    those the screen left out (``unscreened``) and the second step later cross-validated alone take part."""
     preps, base = st.preps, held["baseline"]
     singles = {c: held[c] for c in order if c in held}
     left = tuple(c for c in unscreened if c not in singles)
-    if "screened" in st.skipped:
-        st.skipped["screened"] = {c: why for c, why in st.skipped["screened"].items() if c in left}
-        if not st.skipped["screened"]:
-            del st.skipped["screened"]
     noise, base_mse, band = _noise(base, singles, preps), base.sample_mse(preps), base.mean_band()
     cands = [score(c, singles) for c in order if c in singles]
     cause, lof = _lack_of_fit_first(cands, pooled_mse(base_mse), preps, base, lof_kw, noise + band,
@@ -380,13 +375,18 @@ def _decide(st: _Study, opts: _Options, held: dict, sigs, order, screen: dict, u
 def _both_steps(st: _Study, opts: _Options, held: dict, decide_first, run, single) -> tuple[_First, SecondStep]:
     """The first decision and the second-cause step, taken again from the better first cause while the
     second step displaces it (a candidate the screen left out, cross-validated alone for its pair:
-    :func:`~.pairs.second_step`); each round cross-validates at least one more candidate."""
+    :func:`~.pairs.second_step`); each round cross-validates at least one more candidate. A displacing
+    candidate leaves the list of those not cross-validated (``st.skipped["screened"]``)."""
     first = decide_first()
     second = _second(st, opts, held, first, run, single, partial(_rival, decide_first, first.cause))
     while second.displaced:
         opts.say(f"{second.displaced} cross-validated alone is the better first cause: the second step again")
         first = decide_first()
         second = _second(st, opts, held, first, run, single, partial(_rival, decide_first, first.cause))
+    if "screened" in st.skipped:
+        st.skipped["screened"] = {c: why for c, why in st.skipped["screened"].items() if c in first.unscreened}
+        if not st.skipped["screened"]:
+            del st.skipped["screened"]
     return first, second
 
 
