@@ -33,41 +33,41 @@ def _screen(second):
     return {"a": (None, 1.0, "first"), **{f"a+{c}": (None, 0.1 if c == "b" else 0.99, "first") for c in second}}
 
 
-def test_a_screened_out_candidate_is_cross_validated_alone_and_can_displace_the_first_cause():
+class _Stop(Exception):
+    """The pairs' cross-validation was reached."""
+
+
+def _step(alone_mse: float, rival):
+    """``second_step`` from ``a`` (held-out 1.0) with second candidates ``b`` and ``c``: the calls made to
+    cross-validate candidates alone and pairs, and the step's outcome (None when the pairs were reached)."""
     held, calls = {"a": _Held(1.0)}, []
 
     def single(causes):
         calls.append(("single", tuple(causes)))
-        return {c: _Held(0.05) for c in causes}
+        return {c: _Held(alone_mse) for c in causes}
 
     def run(models, starts):
         calls.append(("pairs", tuple(models)))
-        pytest.fail("the pairs are not cross-validated once the first cause is displaced")
+        raise _Stop
 
-    c2, hp, res, screened, displaced = second_step(
-        "a", held, [None], run, 0.01, ["b", "c"], Thresholds(), screen=_screen, single=single,
-        rival=lambda: "b" if held["b"].mse < held["a"].mse else "")
+    try:
+        out = second_step("a", held, [None], run, 0.01, ["b", "c"], Thresholds(), screen=_screen, single=single,
+                          rival=lambda: rival(held))
+    except _Stop:
+        out = None
+    return out, calls
+
+
+def test_a_screened_out_candidate_is_cross_validated_alone_and_can_displace_the_first_cause():
+    out, calls = _step(0.05, lambda held: "b" if held["b"].mse < held["a"].mse else "")
+    assert out is not None, "the pairs are not cross-validated once the first cause is displaced"
+    c2, hp, res, screened, displaced = out
     assert displaced == "b" and c2 is None and hp == {} and res == ()
     assert calls == [("single", ("b",))]          # only the pair the screen chose; its candidate alone
     assert "a+b" in screened
 
 
 def test_without_a_rival_the_candidate_alone_comes_before_its_pair():
-    held, calls = {"a": _Held(1.0)}, []
-
-    def single(causes):
-        calls.append(("single", tuple(causes)))
-        return {c: _Held(0.5) for c in causes}
-
-    def run(models, starts):
-        calls.append(("pairs", tuple(models)))
-        raise _Stop
-
-    with pytest.raises(_Stop):
-        second_step("a", held, [None], run, 0.01, ["b", "c"], Thresholds(), screen=_screen, single=single,
-                    rival=lambda: "")
+    out, calls = _step(0.5, lambda held: "")
+    assert out is None
     assert calls == [("single", ("b",)), ("pairs", (("a", "b"),))]
-
-
-class _Stop(Exception):
-    pass
