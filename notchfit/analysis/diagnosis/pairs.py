@@ -10,7 +10,10 @@ on the held-out per-sample errors and at least ``min_excess_removed`` of
 ``a``'s remaining excess over the noise floor. When even in-sample the best
 pair removes less than half that fraction, no pair is cross-validated (an
 in-sample gain overstates the held-out one). No second cause is tried when
-``a`` already explains the data within the noise.
+``a`` already explains the data within the noise. A second candidate the
+first step did not cross-validate (the candidates' screen left it out on one
+local fit) is cross-validated alone before its pair, and may displace ``a`` as
+the first cause (:func:`second_step`'s ``rival``).
 
 Each named cause's contribution is its Shapley share of the held-out mean
 squared discrepancy removed (the average, over both orders of adding the two
