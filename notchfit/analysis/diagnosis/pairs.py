@@ -214,7 +214,7 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
         found worth a cross-validation says the candidate moves the data), so it is given the held-out
         test the first step's decision rests on.
     rival : callable, optional
-        ``rival() -> str or None``: the first step's decision retaken with the candidates now in ``held``;
+        ``rival() -> str`` (empty: none): the first step's decision retaken with the candidates now in ``held``;
         when it names another cause than ``c1`` the step stops there (``displaced``) and the pairs are not
         cross-validated.
 
