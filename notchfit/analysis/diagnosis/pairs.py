@@ -10,7 +10,10 @@ on the held-out per-sample errors and at least ``min_excess_removed`` of
 ``a``'s remaining excess over the noise floor. When even in-sample the best
 pair removes less than half that fraction, no pair is cross-validated (an
 in-sample gain overstates the held-out one). No second cause is tried when
-``a`` already explains the data within the noise.
+``a`` already explains the data within the noise. A second candidate the
+first step did not cross-validate (the candidates' screen left it out on one
+local fit) is cross-validated alone before its pair, and may displace ``a`` as
+the first cause (:func:`second_step`'s ``rival``).
 
 Each named cause's contribution is its Shapley share of the held-out mean
 squared discrepancy removed (the average, over both orders of adding the two
@@ -59,6 +62,9 @@ class SecondStep:
         ``first`` alone explains the held-out data within the noise (no second cause tried).
     screened : dict
         The screen's ``{model key: (Calibration, in-sample mse, start)}`` (empty without one).
+    displaced : str
+        A candidate the first step had not cross-validated that, cross-validated alone for its pair, is the
+        better first cause (the step stopped before the pairs' cross-validation); else ``""``.
     """
 
     causes: tuple
@@ -66,6 +72,7 @@ class SecondStep:
     results: tuple = ()
     within_noise: bool = False
     screened: dict = field(default_factory=dict)
+    displaced: str = ""
 
 
 def second_candidates(c1: str, cands, *, max_second: int = 4) -> list[str]:
@@ -169,7 +176,7 @@ def _to_cross_validate(c1, second, screen, noise, min_excess_removed, screen_tol
 
 
 def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thresholds, *, against_baseline=None,
-                screen=None, screen_tol: float = 1.05, max_cv: int = 2, single=None):
+                screen=None, screen_tol: float = 1.05, max_cv: int = 2, single=None, rival=None):
     """Fit ``c1`` with each second candidate and name the best if it is significant.
 
     Parameters
@@ -202,8 +209,14 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
     single : callable, optional
         ``single(causes) -> {cause: HeldOut}``: cross-validates alone a second candidate that ``held``
         lacks (one the first step did not cross-validate, :func:`notchfit.analysis.diagnosis.diagnose`),
-        added to ``held``: before the pairs whose fold starts are union starts (its fold optima), and
-        once named (its contribution compares each cause alone).
+        added to ``held`` before its pair is cross-validated: the first step left it out on its fit on
+        all experiments, a local fit from where the baseline compensated its effect (a pair the screen
+        found worth a cross-validation says the candidate moves the data), so it is given the held-out
+        test the first step's decision rests on.
+    rival : callable, optional
+        ``rival() -> str`` (empty: none): the first step's decision retaken with the candidates now in ``held``;
+        when it names another cause than ``c1`` the step stops there (``displaced``) and the pairs are not
+        cross-validated.
 
     Returns
     -------
@@ -214,20 +227,25 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
         Each cross-validated pair scored against ``c1`` alone.
     screened : dict
         The screen's ``{model key: (Calibration, in-sample mse, start)}`` (empty without one).
+    displaced : str
+        The rival's first cause, or ``""``.
     """
     m1 = held[c1]
     mse1 = m1.sample_mse(preps)
     ms1 = pooled_mse(mse1)
     if ms1 <= noise * (1.0 + rule.none_tol) or not second:
-        return None, {}, (), {}
+        return None, {}, (), {}, ""
     screened = screen(second) if screen is not None else {}
     if screened:
         second = _to_cross_validate(c1, second, screened, noise, rule.min_excess_removed, screen_tol, max_cv)
         if not second:
-            return None, {}, (), screened
+            return None, {}, (), screened, ""
     models = [(c1, c2) for c2 in second]
     union = {m: screened.get(model_key(m), (None, None, "first"))[2] == "union" for m in models}
-    _cross_validate_alone([m[1] for m in models if union[m]], held, single)
+    if _cross_validate_alone(second, held, single) and rival is not None:
+        displaced = rival()
+        if displaced:
+            return None, {}, (), screened, displaced
     starts = {}
     for m in models:
         starts[model_key(m)] = [union_start(c.values, c1, held[m[1]].calibrations[k].values) if union[m]
@@ -242,16 +260,17 @@ def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thr
         ok = score_candidate(best.cause.split("+"), hp[best.cause], preps, base_mse, base_ms, base_ms - noise,
                              z_crit=rule.z_crit, min_excess_removed=rule.min_excess_removed).significant
     c2 = best.cause.split("+")[1] if ok else None
-    if c2 is not None:
-        _cross_validate_alone([c2], held, single)
-    return c2, hp, res, screened
+    return c2, hp, res, screened, ""
 
 
-def _cross_validate_alone(causes, held: dict, single) -> None:
-    """The causes ``held`` lacks cross-validated alone by ``single`` (:func:`second_step`), into ``held``."""
+def _cross_validate_alone(causes, held: dict, single) -> list[str]:
+    """The causes ``held`` lacks cross-validated alone by ``single`` (:func:`second_step`), into ``held``;
+    returns them."""
     missing = [c for c in causes if c not in held]
     if missing and single is not None:
         held.update(single(missing))
+        return missing
+    return []
 
 
 def _removes(cause: str, without: HeldOut, final: HeldOut, preps, noise: float, metric: str) -> str:

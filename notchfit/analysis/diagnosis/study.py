@@ -209,10 +209,12 @@ def _masked_first(st: _Study, opts: _Options, cands, held):
     return first, second, screened
 
 
-def _second(st: _Study, opts: _Options, held, step: _First, run, single) -> SecondStep:
+def _second(st: _Study, opts: _Options, held, step: _First, run, single, rival=None) -> SecondStep:
     """The second-cause step (:mod:`notchfit.analysis.diagnosis.pairs`). For ``unexplained`` (two strong
     effects can each keep the other's candidate from significance) every pair is screened and the best is
-    cross-validated from the candidate better alone; it must be significant against the baseline too."""
+    cross-validated from the candidate better alone; it must be significant against the baseline too.
+    ``rival()`` retakes the first decision once a candidate the screen left out is cross-validated alone
+    for its pair (:func:`~.pairs.second_step`); a different first cause ends the step (``displaced``)."""
     cause, cands, noise, base_mse = step.cause, step.cands, step.noise, step.base_mse
     base_ms = pooled_mse(base_mse)
     if not opts.second_cause or (cause not in CANDIDATES and cause != "unexplained"):
@@ -236,12 +238,13 @@ def _second(st: _Study, opts: _Options, held, step: _First, run, single) -> Seco
         if second:
             opts.say(f"screening {len(second)} second causes with {first} on all experiments")
     within = pooled_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + opts.rule.none_tol)
-    c2, hp, res, screened = second_step(first, held, st.preps, run, noise, second, opts.rule,
-                                        against_baseline=against, screen=screen, single=single)
+    c2, hp, res, screened, displaced = second_step(first, held, st.preps, run, noise, second, opts.rule,
+                                                   against_baseline=against, screen=screen, single=single,
+                                                   rival=rival if against is None else None)
     held.update(hp)
     if against is not None:
         return SecondStep((first, c2) if c2 else (), first, res, within, screened)
-    return SecondStep((first, c2) if c2 else (first,), first, res, within, screened)
+    return SecondStep((first, c2) if c2 else (first,), first, res, within, screened, displaced)
 
 
 def _extended(st: _Study, causes, held, screened, kw):
@@ -341,21 +344,56 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     order = [c for c, _, _ in rank_candidates(sigs, math.sqrt(base.mean_floor())) if c in st.order]
     say("fitting the baseline on all experiments")
     full_base = st.protocol_fit or calibrate(preps, None, base_start[0], scales=st.scales, base=st.base, **kw)
-    base_mse, band = base.sample_mse(preps), base.mean_band()
-    score, single = partial(_score, base, preps, base_mse, opts.rule), partial(_single, run, base_start)
+    score, single = partial(_score, base, preps, base.sample_mse(preps), opts.rule), partial(_single, run, base_start)
     singles, screen, unscreened = _singles(st, opts, order, full_base, single, score)
     held.update(singles)
-    noise, lof_kw = _noise(base, singles, preps), dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
-    cands = [score(c, singles) for c in order if c in singles]
-    cause, lof = _lack_of_fit_first(cands, pooled_mse(base_mse), preps, base, lof_kw, noise + band, none_tol)
-    first = _First(cause, sigs, cands, base_mse, noise, lof, band, screen, unscreened)
-    second = _second(st, opts, held, first, run, single)
+    lof_kw = dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
+    decide_first = partial(_decide, st, opts, held, sigs, order, screen, unscreened, score, lof_kw)
+    first, second = _both_steps(st, opts, held, decide_first, run, single)
     named = second.causes
     say(f"fitting the extended model ({model_key(named)}) on all experiments")
     fits = _Fits(full_base, _extended(st, named, held, second.screened, kw),
-                 held[model_key(named)].sample_mse(preps) if named else base_mse,
+                 held[model_key(named)].sample_mse(preps) if named else first.base_mse,
                  heldout_lack_of_fit(preps, held[model_key(named)].predicted, **lof_kw) if named else None)
     return _result(st, opts, held, first, second, fits)
+
+
+def _decide(st: _Study, opts: _Options, held: dict, sigs, order, screen: dict, unscreened: tuple, score,
+            lof_kw: dict) -> _First:
+    """The first step's decision (:func:`_lack_of_fit_first`) on the single candidates of ``held`` so far:
+    those the screen left out (``unscreened``) and the second step later cross-validated alone take part."""
+    preps, base = st.preps, held["baseline"]
+    singles = {c: held[c] for c in order if c in held}
+    left = tuple(c for c in unscreened if c not in singles)
+    noise, base_mse, band = _noise(base, singles, preps), base.sample_mse(preps), base.mean_band()
+    cands = [score(c, singles) for c in order if c in singles]
+    cause, lof = _lack_of_fit_first(cands, pooled_mse(base_mse), preps, base, lof_kw, noise + band,
+                                    opts.rule.none_tol)
+    return _First(cause, sigs, cands, base_mse, noise, lof, band, screen, left)
+
+
+def _both_steps(st: _Study, opts: _Options, held: dict, decide_first, run, single) -> tuple[_First, SecondStep]:
+    """The first decision and the second-cause step, taken again from the better first cause while the
+    second step displaces it (a candidate the screen left out, cross-validated alone for its pair:
+    :func:`~.pairs.second_step`); each round cross-validates at least one more candidate. A displacing
+    candidate leaves the list of those not cross-validated (``st.skipped["screened"]``)."""
+    first = decide_first()
+    second = _second(st, opts, held, first, run, single, partial(_rival, decide_first, first.cause))
+    while second.displaced:
+        opts.say(f"{second.displaced} cross-validated alone is the better first cause: the second step again")
+        first = decide_first()
+        second = _second(st, opts, held, first, run, single, partial(_rival, decide_first, first.cause))
+    if "screened" in st.skipped:
+        st.skipped["screened"] = {c: why for c, why in st.skipped["screened"].items() if c in first.unscreened}
+        if not st.skipped["screened"]:
+            del st.skipped["screened"]
+    return first, second
+
+
+def _rival(decide_first, cause: str) -> str:
+    """The first cause :func:`_decide` names now, when it is a candidate other than ``cause``; else ``""``."""
+    now = decide_first().cause
+    return now if now != cause and now in CANDIDATES else ""
 
 
 def _score(base, preps, base_mse, rule: Thresholds, c: str, singles: dict):
