@@ -10,7 +10,6 @@ candidate moves the data: that candidate is cross-validated alone before the pai
 decision is retaken with it.
 """
 import numpy as np
-import pytest
 
 from notchfit.analysis.diagnosis.pairs import second_step
 from notchfit.analysis.diagnosis.specs import Thresholds
