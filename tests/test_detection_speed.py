@@ -366,8 +366,10 @@ def _random_lines(rng, size, count, width):
 
 
 def test_ridge_peaks_equal_the_histogram_formulation():
-    """The ridge radii from unit-bin counts equal those from ``np.histogram`` over the same edges (random
-    bands and blobs, closings 1 to 12 px)."""
+    """The ridge radii from unit-bin counts, the closed band's transform cut to its box and the medians read
+    from the sorted values equal those from ``np.histogram``, the whole padded transform and boolean
+    selections (random bands and blobs, some touching the border, closings 1 to 30 px, the dilation's
+    distances shared or not)."""
     import math
 
     from notchfit.vision.detection import width
@@ -390,9 +392,34 @@ def test_ridge_peaks_equal_the_histogram_formulation():
         m = _random_lines(rng, (40, 160), (1, 4), (3, 25))
         h, w = m.shape
         cv2.circle(m, (int(rng.integers(w)), int(rng.integers(h))), int(rng.integers(2, 20)), 1, -1)
-        for c in (1, 3, 7, 12):
-            assert width.ridge_peaks(m, c, peak_fraction=0.05 if k % 2 else 0.3) == \
+        near = width._distance_to(m, 32) if k % 3 else None
+        for c in (1, 3, 7, 12, 21, 30):
+            assert width.ridge_peaks(m, c, peak_fraction=0.05 if k % 2 else 0.3, near=near) == \
                 reference(m, c, peak_fraction=0.05 if k % 2 else 0.3)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_sorted_median_equals_numpys(dtype):
+    """Odd and even counts, repeated values, one value."""
+    from notchfit.vision.detection.width import sorted_median
+
+    rng = np.random.default_rng(13)
+    for n in list(range(1, 40)) + [1001, 1002]:
+        v = np.sort(rng.normal(5, 3, n).astype(dtype) if n % 3 else np.round(rng.normal(5, 3, n)).astype(dtype))
+        got, want = sorted_median(v), np.median(v)
+        assert got.dtype == want.dtype and got == want
+
+
+def test_distance_in_box_equals_the_full_transform():
+    """Masks away from the border, touching it, and empty."""
+    from notchfit.vision.detection.width import _distance_in_box
+
+    rng = np.random.default_rng(14)
+    for k in range(40):
+        m = _random_lines(rng, (20, 200), (0 if k == 0 else 1, 4), (1, 20))
+        if k % 2:
+            m[:3], m[-3:], m[:, :3], m[:, -3:] = 0, 0, 0, 0
+        np.testing.assert_array_equal(_distance_in_box(m), cv2.distanceTransform(m, cv2.DIST_L2, 5))
 
 
 def test_largest_region_equals_the_statistics_formulation():
@@ -447,3 +474,48 @@ def test_remove_thin_with_boxes_from_labels_equals_the_statistics_formulation():
         m = _random_lines(rng, (20, 400), (1, 8), (1, 15))
         thin, length = rng.uniform(2, 20), rng.uniform(3, 80)
         np.testing.assert_array_equal(remove_thin(m, thin_px=thin, max_length_px=length), reference(m, thin, length))
+
+
+def test_centreline_from_the_scale_searchs_slots_equals_its_own():
+    """The band's slots that :func:`tube_band` found (in the region's trimmed box) give the same centreline
+    points as slots found again in the whole region (slotted bands at random places and angles, some cut by
+    the border, with a clamp's bar; the slots' labels in the box are the whole region's)."""
+    from notchfit.physics.geometry import Geometry
+    from notchfit.vision.detection import width
+
+    g = Geometry(n_joints=5, p=1.6e-3, outer_radius=1e-3, slot_width=0.8e-3, slot_depth=1.6e-3, slot_sides=(1,) * 5,
+                 mount_half_width=None, mount_bottom_z=None, name="t", inner_radius=0.7e-3, tendons=("right",),
+                 tendon_path="lumen", r_x=None, r_z=None, cable_radius=None, channel_radius=None)
+    rng = np.random.default_rng(15)
+    kw = dict(slot_width=0.8e-3, slot_depth=1.6e-3, radius=1e-3, close_factor=1.25, area_range=(0.3, 2.5))
+    found = 0
+    for k in range(16):
+        m = np.zeros((300, 420), np.uint8)
+        m[50:80, 180:420 if k % 2 else 380] = 1                          # a clamp's bar, to the border or not
+        tube = np.zeros((400, 400), np.uint8)
+        R = float(rng.uniform(8, 12))
+        tube[40:360 if k % 3 else 400, 200 - int(R):200 + int(R)] = 1
+        for j in range(5):
+            v = 100 + int(2.6 * R) * j
+            tube[v:v + int(0.8 * R), 200 + int(R) - int(1.6 * R):200 + int(R)] = 0
+        rot = cv2.getRotationMatrix2D((200, 200), float(rng.uniform(-40, 40)), 1.0)
+        rot[:, 2] += rng.uniform(-60, 60, 2) + [10, -50]
+        m |= cv2.warpAffine(tube, rot, (420, 300), flags=cv2.INTER_NEAREST)
+        region = m
+        r, n, gaps = width.tube_band(region, g, max_close_px=26, close_factor=1.25, area_range=(0.3, 2.5))
+        if gaps is None:
+            continue
+        found += 1
+        box = width.trim_box(region)
+        closed, lab, ids = width._slot_gaps(region, r, **kw)
+        assert ids == gaps.ids
+        np.testing.assert_array_equal(closed[box], gaps.closed)
+        np.testing.assert_array_equal(lab[box], gaps.lab)
+        outside = np.ones(region.shape, bool)
+        outside[box] = False
+        assert not closed[outside].any() and not lab[outside].any()
+        want = width.band_centreline(region, r, **kw)
+        got = width.band_centreline(region, r, gaps=gaps, **kw)
+        assert len(want) > 0
+        np.testing.assert_array_equal(got, want)
+    assert found >= 10

@@ -65,7 +65,7 @@ from .dims import slot_depths, slot_widths
 from .segment import Segmentation, band_directions, fill_holes, fill_thin_lines, largest_region
 from .subpixel import edge_stations as _stations
 from .view import DiameterScale, mirror_without_camera, view_orientation
-from .width import band_centreline, band_width, measure_diameter, plausible_radii, trim_box, tube_radius
+from .width import SlotGaps, band_centreline, band_width, measure_diameter, plausible_radii, trim_box, tube_band
 
 __all__ = ["STATUSES", "Detection", "DetectorOptions", "detect_notches", "detections_table", "draw_overlay",
            "mirror_without_camera", "overlay_with_crop", "work_factor"]
@@ -188,6 +188,8 @@ class RoughScale:
     directions : ndarray (h, w) float32 or None
         :func:`~.segment.band_directions` of ``region`` at ``radius_px`` where the scale search computed
         them already (the width profiles' directions); None: not computed.
+    gaps : SlotGaps or None
+        The band's slots as the scale search found them at ``radius_px`` (the centreline's); None: not found.
     """
 
     radius_px: float
@@ -197,6 +199,7 @@ class RoughScale:
     seg: Segmentation
     others: tuple = ()
     directions: np.ndarray | None = None
+    gaps: SlotGaps | None = None
 
     @property
     def px_per_m(self) -> float:
@@ -228,11 +231,11 @@ def _rough_scale(gray, geom, opts, cache):
 
     def radius(m_):
         reg = largest_region(m_)[0]
-        return (*tube_radius(reg, geom, max_close_px=max_close, close_factor=opts.close_slot_factor,
-                             area_range=opts.rough_slot_area_range, filled=fill_holes(reg),
-                             max_radius_px=0.25 * min(shape_c)), reg)
+        return (*tube_band(reg, geom, max_close_px=max_close, close_factor=opts.close_slot_factor,
+                           area_range=opts.rough_slot_area_range, filled=fill_holes(reg),
+                           max_radius_px=0.25 * min(shape_c)), reg)
 
-    R_lo, n_slots, reg = radius(mask)
+    R_lo, n_slots, gaps, reg = radius(mask)
     directions = None
     if np.isfinite(R_lo):
         # a streak splits the tube into two bands of half its width, each with the slots beside it: the
@@ -243,9 +246,10 @@ def _rough_scale(gray, geom, opts, cache):
         filled = mask.copy()
         filled[box] = fill_thin_lines(np.ascontiguousarray(mask[box]), _streak_length(geom, opts) / R * R_lo,
                                       across=across[box])
-        R2, n2, reg2 = radius(filled)
+        # nothing filled: the same silhouette, the same bands and slots (not searched again)
+        R2, n2, gaps2, reg2 = (R_lo, n_slots, gaps, reg) if np.array_equal(filled, mask) else radius(filled)
         if np.isfinite(R2) and (n2 > n_slots or (n2 == n_slots and R2 > R_lo)):
-            R_lo, reg = R2, reg2
+            R_lo, gaps, reg = R2, gaps2, reg2
         elif np.array_equal(reg, mask):
             directions = across            # the width profiles' directions: the same band, the same radius
     if not np.isfinite(R_lo):
@@ -253,7 +257,7 @@ def _rough_scale(gray, geom, opts, cache):
     others = () if n_slots else tuple(
         rc for rc in plausible_radii(fill_holes(reg), geom, max_close_px=max_close, min_slot_px=2.0,
                                      max_radius_px=0.25 * min(shape_c)) if rc != R_lo)
-    return RoughScale(float(R_lo), fc, reg, (x0, y0), seg_c, others, directions), ""
+    return RoughScale(float(R_lo), fc, reg, (x0, y0), seg_c, others, directions, gaps), ""
 
 
 def _band_widths(gray, geom, opts, rough: RoughScale):
@@ -262,7 +266,7 @@ def _band_widths(gray, geom, opts, rough: RoughScale):
     R_lo, fc, reg = rough.radius_px, rough.factor, rough.region
     w_, d_ = float(np.median(slot_widths(geom))), float(np.median(slot_depths(geom)))
     pts = band_centreline(reg, R_lo, slot_width=w_, slot_depth=d_, radius=geom.outer_radius,
-                          close_factor=opts.close_slot_factor, area_range=opts.rough_slot_area_range)
+                          close_factor=opts.close_slot_factor, area_range=opts.rough_slot_area_range, gaps=rough.gaps)
     if len(pts) < 3:
         return np.zeros(0)
     pts = pts[np.linspace(0, len(pts) - 1, min(len(pts), 4 * opts.width_stations)).astype(int)]
@@ -310,7 +314,7 @@ def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
     rough, why = _rough_scale(gray, geom, opts, cache)
     if rough is None:
         return empty_detection(m, "no_manipulator", why)
-    bands = [rough] + [dataclasses.replace(rough, radius_px=float(rc), directions=None) for rc in rough.others]
+    bands = [rough] + [dataclasses.replace(rough, radius_px=float(rc), directions=None, gaps=None) for rc in rough.others]
     dets = [_at_rough_scale(gray, geom, opts, band, sgn=sgn, base=base, cache=cache) for band in bands]
     return _unconfirmed_scale(_links_agree(_most_confirmed(dets), geom))
 

@@ -14,14 +14,15 @@ corner).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from ._kernels import level_crossings, line_levels, nearest_crossings
 
-__all__ = ["band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along", "trim_box",
-           "tube_radius"]
+__all__ = ["SlotGaps", "band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along", "trim_box",
+           "tube_band", "tube_radius"]
 
 
 def _close_disk(region, r: int, border=cv2.BORDER_REPLICATE, near=None):
@@ -65,12 +66,12 @@ def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fract
     """
     r = max(int(close_px), 1)
     closed, pad = _close_disk(region, r, near=near)
-    dt = cv2.distanceTransform(closed, cv2.DIST_L2, 5)[pad:-pad, pad:-pad]
+    dt = _distance_in_box(closed)[pad:-pad, pad:-pad]
     ridge = _ridge(dt) & (dt >= min_radius_px)
-    v = dt[ridge]
+    v = np.sort(dt[ridge])
     if len(v) < 10:
         return []
-    hi = int(math.ceil(v.max())) + 2
+    hi = int(math.ceil(v[-1])) + 2
     # the histogram of unit bins from 0 (``np.histogram(v, bins=edges)``): v >= 0 lies in bin floor(v)
     edges = np.arange(0, hi + 1, 1.0)
     h = np.bincount(np.floor(v).astype(np.intp), minlength=hi)
@@ -82,8 +83,27 @@ def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fract
     out = []
     for i0 in peaks:
         if h[i0] >= peak_fraction * top:
-            sel = (v >= edges[max(i0 - 1, 0)]) & (v < edges[min(i0 + 2, len(edges) - 1)])
-            out.append(float(np.median(v[sel])) + 0.5)
+            # the values in [edges[i0 - 1], edges[i0 + 2]): a run of the sorted values
+            lo, up = np.searchsorted(v, [edges[max(i0 - 1, 0)], edges[min(i0 + 2, len(edges) - 1)]], side="left")
+            out.append(float(sorted_median(v[lo:up])) + 0.5)
+    return out
+
+
+def sorted_median(s):
+    """``np.median`` of a sorted, non-empty float array without NaN, to the last bit: the middle value, or the
+    mean of the two middle values in the array's precision (their sum rounded once, halved exactly)."""
+    n = len(s)
+    if n % 2:
+        return s[n // 2]
+    return (s[n // 2 - 1] + s[n // 2]) / s.dtype.type(2)
+
+
+def _distance_in_box(mask):
+    """``cv2.distanceTransform(mask, DIST_L2, 5)`` computed in the mask's :func:`trim_box` only (zero outside
+    it, as the full transform is there): the same values on fewer pixels."""
+    box = trim_box(mask)
+    out = np.zeros(mask.shape, np.float32)
+    out[box] = cv2.distanceTransform(np.ascontiguousarray(mask[box]), cv2.DIST_L2, 5)
     return out
 
 
@@ -158,6 +178,31 @@ def radius_candidates(region, *, max_close_px: int, min_ratio: float = 0.5, merg
     return [float(np.median(g)) for g in out]
 
 
+@dataclass(frozen=True)
+class SlotGaps:
+    """The slot-bridged band and its slot-sized gaps found at one band radius (:func:`_slot_gaps`), in a crop
+    of the region that holds its box and one empty row or column on each side (:func:`trim_box`; the
+    closing, the gaps and their labels are those of the whole region there, zero outside).
+
+    Attributes
+    ----------
+    radius_px : float
+        The band radius they were found at [px].
+    closed, lab : ndarray (h, w)
+        The closed band (uint8) and the gaps' labels (int32) in the crop.
+    ids : list of int
+        The slot-sized gaps' labels.
+    offset : (int, int)
+        The crop's (x0, y0) in the region [px].
+    """
+
+    radius_px: float
+    closed: np.ndarray
+    lab: np.ndarray
+    ids: list
+    offset: tuple
+
+
 def _slot_gaps(region, radius_px, *, slot_width, slot_depth, radius, close_factor, area_range,
                width_range=(0.5, 1.6), streak=0.2):
     """The slot-bridged band and its slot-sized gaps at the scale ``radius_px / radius``: (closed, labels,
@@ -188,7 +233,7 @@ def _slot_gaps(region, radius_px, *, slot_width, slot_depth, radius, close_facto
 
 
 def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: float, radius: float,
-                close_factor: float, area_range, pitch=(0.0, np.inf), length: float = 0.0) -> int:
+                close_factor: float, area_range, pitch=(0.0, np.inf), length: float = 0.0, gaps=None) -> int:
     """How many slot-sized gaps lie along the band of half width ``radius_px`` if that band is the tube.
 
     At the scale ``radius_px / radius``, the slots (``slot_width`` x
@@ -199,10 +244,12 @@ def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: floa
     distance to the nearest slot [m]) from another one are counted: a
     clamp's bar or a holder as wide as a tube holds no slot, a band of
     noise or texture no slot pattern. A band whose ridge is shorter than
-    ``length`` [m] (30 % of the tube) holds none.
+    ``length`` [m] (30 % of the tube) holds none. ``gaps``: :func:`_slot_gaps`' (closed, labels, slot labels)
+    of ``region`` at ``radius_px`` where computed already.
     """
-    closed, lab, ids = _slot_gaps(region, radius_px, slot_width=slot_width, slot_depth=slot_depth, radius=radius,
-                                  close_factor=close_factor, area_range=area_range)
+    closed, lab, ids = gaps if gaps is not None else _slot_gaps(
+        region, radius_px, slot_width=slot_width, slot_depth=slot_depth, radius=radius, close_factor=close_factor,
+        area_range=area_range)
     if not ids:
         return 0
     s = radius_px / radius
@@ -234,6 +281,13 @@ def plausible_radii(filled, geom, *, max_close_px: int, min_slot_px: float, max_
 
 def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_range, filled=None,
                 min_slot_px: float = 2.0, max_radius_px: float | None = None):
+    """:func:`tube_band`'s radius [px] (NaN: none) and the slots found along it."""
+    return tube_band(region, geom, max_close_px=max_close_px, close_factor=close_factor, area_range=area_range,
+                     filled=filled, min_slot_px=min_slot_px, max_radius_px=max_radius_px)[:2]
+
+
+def tube_band(region, geom, *, max_close_px: int, close_factor: float, area_range, filled=None,
+              min_slot_px: float = 2.0, max_radius_px: float | None = None):
     """Tube radius of a silhouette [px] without knowing the scale: of the bands it shows
     (:func:`radius_candidates`), the one that holds the geometry's slots (:func:`slots_along`: most slots,
     up to the number of joints; the nearer count, then the wider band, on a tie); the thinnest band
@@ -244,7 +298,8 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
 
     Returns
     -------
-    radius [px] (NaN: none), slots found along it (at most the number of joints)
+    radius [px] (NaN: none), slots found along it (at most the number of joints), :class:`SlotGaps` of the
+    band (None where no band holds a slot)
     """
     filled = region if filled is None else filled
     max_radius_px = 0.25 * min(region.shape) if max_radius_px is None else max_radius_px
@@ -255,15 +310,17 @@ def tube_radius(region, geom, *, max_close_px: int, close_factor: float, area_ra
     best = None
     for rc in plausible_radii(filled, geom, max_close_px=max_close_px, min_slot_px=min_slot_px,
                               max_radius_px=max_radius_px):
+        gaps = _slot_gaps(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
+                          area_range=area_range)
         n = slots_along(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
                         area_range=area_range, pitch=(float(np.min(geom.pitches)), float(np.max(geom.pitches))),
-                        length=geom.tip_z - geom.base_edge_z)
+                        length=geom.tip_z - geom.base_edge_z, gaps=gaps)
         key = (min(n, geom.n_joints), -abs(n - geom.n_joints), rc)
         if n > 0 and (best is None or key > best[0]):
-            best = (key, rc)
+            best = (key, rc, gaps)
     if best is None:
-        return rough_tube_radius(filled, max_close_px=max_close_px), 0
-    return best[1], best[0][0]
+        return rough_tube_radius(filled, max_close_px=max_close_px), 0, None
+    return best[1], best[0][0], SlotGaps(best[1], *best[2], (box[1].start or 0, box[0].start or 0))
 
 
 def _crossings(t, P, level, t0, sign):
@@ -338,16 +395,21 @@ def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur
 
 
 def band_centreline(region, radius_px: float, *, slot_width: float, slot_depth: float, radius: float,
-                    close_factor: float, area_range, tol: float = 0.06, reach: float = 2.5) -> np.ndarray:
+                    close_factor: float, area_range, tol: float = 0.06, reach: float = 2.5,
+                    gaps: SlotGaps | None = None) -> np.ndarray:
     """Points on the tube's centreline where it has its full width (P, 2) [px of ``region``].
 
     The ridge of the slot-bridged band (as :func:`slots_along`) within
     ``reach`` radii of a slot (the tube, not another band of its width)
     where its distance transform is within ``tol`` of its median there
-    (the full width: away from the slots, the tip and the holder).
+    (the full width: away from the slots, the tip and the holder). ``gaps``: the band's :class:`SlotGaps`
+    at ``radius_px`` where found already (:func:`tube_band`); the points are the same.
     """
-    closed, lab, ids = _slot_gaps(region, radius_px, slot_width=slot_width, slot_depth=slot_depth, radius=radius,
-                                  close_factor=close_factor, area_range=area_range)
+    if gaps is not None and gaps.radius_px == radius_px:
+        closed, lab, ids, (x0, y0) = gaps.closed, gaps.lab, gaps.ids, gaps.offset
+    else:
+        (closed, lab, ids), x0, y0 = _slot_gaps(region, radius_px, slot_width=slot_width, slot_depth=slot_depth,
+                                                radius=radius, close_factor=close_factor, area_range=area_range), 0, 0
     slots = np.isin(lab, ids)
     if not slots.any():
         return np.zeros((0, 2))
@@ -358,7 +420,7 @@ def band_centreline(region, radius_px: float, *, slot_width: float, slot_depth: 
         return np.zeros((0, 2))
     mode = float(np.median(dt[ridge]))                   # the rough radius may be 20 % off: the tube's own
     yy, xx = np.nonzero(ridge & (np.abs(dt - mode) <= tol * mode))
-    return np.stack([xx, yy], 1).astype(float)
+    return np.stack([xx + x0, yy + y0], 1).astype(float)
 
 
 def band_width(img, centres, normals, width0_px: float, contrast: float, *, step: float = 0.5,
