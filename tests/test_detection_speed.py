@@ -519,3 +519,22 @@ def test_centreline_from_the_scale_searchs_slots_equals_its_own():
         assert len(want) > 0
         np.testing.assert_array_equal(got, want)
     assert found >= 10
+
+
+def test_components_with_stats_equal_opencvs():
+    """Labels, boxes, areas and centroids bit for bit (sparse and dense masks, parts on the border, an empty
+    mask, a mask without background)."""
+    from notchfit.vision.detection.segment import components_with_stats
+
+    rng = np.random.default_rng(16)
+    masks = [np.zeros((7, 9), np.uint8), np.ones((5, 8), np.uint8)]
+    for k in range(60):
+        h, w = (int(v) for v in rng.integers(5, 400, 2))
+        m = (rng.random((h, w)) < rng.uniform(0.01, 0.7)).astype(np.uint8)
+        masks.append(cv2.morphologyEx(m, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)) if k % 2 else m)
+    for m in masks:
+        got, want = components_with_stats(m), cv2.connectedComponentsWithStats(m, connectivity=8)
+        assert got[0] == want[0]
+        for a, b in zip(got[1:], want[1:]):
+            assert a.dtype == b.dtype
+            np.testing.assert_array_equal(a, b)

@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 
 from ...polygon import polygon_area
 from .closed import wedge_mouth
-from .segment import close_disk, fill_holes
+from .segment import close_disk, components_with_stats, fill_holes
 
 __all__ = ["Outline", "bridge_slots", "hole_ends", "wedge_pixels", "crop_region",
            "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
@@ -132,7 +132,7 @@ def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, sl
     src = roi if holder is None else (roi & (1 - cv2.dilate(holder, np.ones((3, 3), np.uint8))))
     closed = close_disk(src, r_close) | roi
     gaps = (closed & (1 - roi)).astype(np.uint8)
-    ng, glab, gst, gcen = cv2.connectedComponentsWithStats(gaps, connectivity=8)
+    ng, glab, gst, gcen = components_with_stats(gaps)
     lo, hi = slot_area_range
     least = min(sliver_area, lo * slot_area)
     slot_ids = [k for k in range(1, ng) if least <= gst[k, cv2.CC_STAT_AREA] <= hi * slot_area]
