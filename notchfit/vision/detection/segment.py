@@ -506,7 +506,6 @@ def band_directions(mask, bridge_px: float, radius_px: float, min_coherence: flo
     jxx, jxy, jyy = (cv2.GaussianBlur(v, (0, 0), s2) for v in (gx * gx, gx * gy, gy * gy))
     if k > 1:
         jxx, jxy, jyy = (cv2.resize(v, (w, h), interpolation=cv2.INTER_LINEAR) for v in (jxx, jxy, jyy))
-    ang = (0.5 * np.arctan2(2 * jxy, jxx - jyy)) % np.float32(np.pi)
     # where the gradients do not agree on one direction (the tube's ends, the holder), the direction of
     # the nearest pixel where they do
     coherent = np.sqrt((jxx - jyy) ** 2 + 4 * jxy ** 2) >= min_coherence * np.maximum(jxx + jyy, 1e-12)
@@ -515,7 +514,8 @@ def band_directions(mask, bridge_px: float, radius_px: float, min_coherence: flo
     _, lab = cv2.distanceTransformWithLabels((~coherent).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5,
                                              labelType=cv2.DIST_LABEL_PIXEL)
     src = np.zeros(int(lab.max()) + 1, np.float32)
-    src[lab[coherent]] = ang[coherent]
+    # the direction only where it is read (element by element the same values)
+    src[lab[coherent]] = (0.5 * np.arctan2(2 * jxy[coherent], jxx[coherent] - jyy[coherent])) % np.float32(np.pi)
     return src[lab]
 
 
@@ -546,7 +546,11 @@ def fill_thin_lines(mask, length_px: float, n_dirs: int = 8, *, across=None, tol
         closed = cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)
         if across is not None:
             # the direction is tested only where the closing adds a pixel (a few % of the mask)
-            yy, xx = np.nonzero(closed[pad:-pad, pad:-pad] > big[pad:-pad, pad:-pad])
+            # the pixels the closing adds (it only adds): their coordinates from OpenCV, row by row
+            added = cv2.findNonZero(cv2.subtract(closed[pad:-pad, pad:-pad], big[pad:-pad, pad:-pad]))
+            if added is None:
+                continue
+            xx, yy = added.reshape(-1, 2).T
             diff = np.abs((across[yy, xx] - a + np.pi / 2) % np.pi - np.pi / 2)
             out[yy[diff <= tol] + pad, xx[diff <= tol] + pad] = 1
             continue
