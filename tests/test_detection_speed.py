@@ -502,7 +502,7 @@ def test_centreline_from_the_scale_searchs_slots_equals_its_own():
         rot[:, 2] += rng.uniform(-60, 60, 2) + [10, -50]
         m |= cv2.warpAffine(tube, rot, (420, 300), flags=cv2.INTER_NEAREST)
         region = m
-        r, n, gaps = width.tube_band(region, g, max_close_px=26, close_factor=1.25, area_range=(0.3, 2.5))
+        r, n, gaps, _ = width.tube_band(region, g, max_close_px=26, close_factor=1.25, area_range=(0.3, 2.5))
         if gaps is None:
             continue
         found += 1
@@ -538,3 +538,133 @@ def test_components_with_stats_equal_opencvs():
         for a, b in zip(got[1:], want[1:]):
             assert a.dtype == b.dtype
             np.testing.assert_array_equal(a, b)
+
+
+def _band_mask(rng):
+    """A slotted band at a random angle, with blobs and lines (uint8)."""
+    m = _random_lines(rng, (60, 260), (1, 3), (8, 30))
+    h, w = m.shape
+    for _ in range(int(rng.integers(0, 8))):
+        p = rng.integers(0, [w, h])
+        cv2.circle(m, (int(p[0]), int(p[1])), int(rng.integers(2, 6)), 0, -1)
+    return m
+
+
+def test_band_directions_read_where_coherent_equal_the_whole_field():
+    """The directions computed only at the coherent pixels (the only ones read) equal those of the whole
+    field, bit for bit (random bands with holes, radii 3 to 15 px)."""
+    from notchfit.vision.detection.segment import band_directions, close_disk, fill_holes
+
+    def reference(mask, bridge_px, radius_px, min_coherence=0.8):
+        band = fill_holes(close_disk(mask, max(int(round(bridge_px)), 1))).astype(np.float32)
+        k = max(1, int(radius_px // 4))
+        h, w = band.shape
+        small = cv2.resize(band, (max(w // k, 1), max(h // k, 1)), interpolation=cv2.INTER_AREA) if k > 1 else band
+        s1, s2 = max(0.5 * radius_px / k, 0.7), max(float(radius_px) / k, 1.0)
+        b = cv2.GaussianBlur(small, (0, 0), s1)
+        gx, gy = cv2.Sobel(b, cv2.CV_32F, 1, 0), cv2.Sobel(b, cv2.CV_32F, 0, 1)
+        jxx, jxy, jyy = (cv2.GaussianBlur(v, (0, 0), s2) for v in (gx * gx, gx * gy, gy * gy))
+        if k > 1:
+            jxx, jxy, jyy = (cv2.resize(v, (w, h), interpolation=cv2.INTER_LINEAR) for v in (jxx, jxy, jyy))
+        ang = (0.5 * np.arctan2(2 * jxy, jxx - jyy)) % np.float32(np.pi)
+        coherent = np.sqrt((jxx - jyy) ** 2 + 4 * jxy ** 2) >= min_coherence * np.maximum(jxx + jyy, 1e-12)
+        if not coherent.any():
+            return np.full(mask.shape, np.nan, np.float32)
+        _, lab = cv2.distanceTransformWithLabels((~coherent).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5,
+                                                 labelType=cv2.DIST_LABEL_PIXEL)
+        src = np.zeros(int(lab.max()) + 1, np.float32)
+        src[lab[coherent]] = ang[coherent]
+        return src[lab]
+
+    rng = np.random.default_rng(17)
+    for _ in range(25):
+        m = _band_mask(rng)
+        bridge, radius = float(rng.uniform(1, 8)), float(rng.uniform(3, 15))
+        np.testing.assert_array_equal(band_directions(m, bridge, radius), reference(m, bridge, radius))
+
+
+def test_thin_lines_filled_from_opencvs_pixel_list_equal_the_boolean_formulation():
+    """The closing's added pixels listed by ``cv2.findNonZero`` fill the same pixels as ``np.nonzero`` of the
+    comparison (random bands with holes and thin gaps, with and without the directions across)."""
+    from notchfit.vision.detection.segment import band_directions, fill_thin_lines
+
+    def reference(mask, length_px, n_dirs=8, *, across=None, tol_deg=25.0):
+        L = int(max(3, round(length_px)))
+        L += 1 - L % 2
+        pad = L
+        big = cv2.copyMakeBorder(mask, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+        out = big.copy()
+        c = L // 2
+        tol = np.radians(tol_deg)
+        for k in range(n_dirs):
+            a = np.pi * k / n_dirs
+            ker = np.zeros((L, L), np.uint8)
+            d = np.array([np.cos(a), np.sin(a)]) * (L // 2)
+            cv2.line(ker, (int(round(c - d[0])), int(round(c - d[1]))), (int(round(c + d[0])), int(round(c + d[1]))), 1)
+            closed = cv2.morphologyEx(big, cv2.MORPH_CLOSE, ker)
+            if across is not None:
+                yy, xx = np.nonzero(closed[pad:-pad, pad:-pad] > big[pad:-pad, pad:-pad])
+                diff = np.abs((across[yy, xx] - a + np.pi / 2) % np.pi - np.pi / 2)
+                out[yy[diff <= tol] + pad, xx[diff <= tol] + pad] = 1
+                continue
+            out |= closed
+        return out[pad:-pad, pad:-pad]
+
+    rng = np.random.default_rng(18)
+    for k in range(25):
+        m = _band_mask(rng)
+        h, w = m.shape
+        for _ in range(3):                                   # thin background lines across
+            p0, p1 = rng.integers(0, [w, h]), rng.integers(0, [w, h])
+            cv2.line(m, (int(p0[0]), int(p0[1])), (int(p1[0]), int(p1[1])), 0, int(rng.integers(1, 3)))
+        across = band_directions(m, 4.0, float(rng.uniform(4, 12))) if k % 2 else None
+        length = float(rng.uniform(3, 12))
+        np.testing.assert_array_equal(fill_thin_lines(m, length, across=across), reference(m, length, across=across))
+
+
+def test_ridge_series_read_by_every_peak_fraction_equals_a_closing_series_each():
+    """The band radii and the rough radius from one series of ridge values (shared by the candidates, the
+    thinnest band and the other bands) equal those from a series of closings each (random bands, blobs)."""
+    import math
+
+    from notchfit.vision.detection import width
+
+    def series(region, max_close_px, peak_fraction):
+        region = width._trim(region)
+        near = width._distance_to(region, int(math.ceil(max_close_px)) + 2)
+        r, out = 2.0, []
+        while r <= max_close_px:
+            out += [(int(round(r)), e) for e in width.ridge_peaks(region, int(round(r)), peak_fraction=peak_fraction,
+                                                                   near=near)]
+            r *= 1.4
+        return out
+
+    def candidates(region, max_close_px, min_ratio=0.5, merge=0.12):
+        out = []
+        for e in sorted(e for r, e in series(region, max_close_px, 0.05) if e >= min_ratio * r):
+            if out and e <= out[-1][-1] * (1 + merge):
+                out[-1].append(e)
+            else:
+                out.append([e])
+        return [float(np.median(g)) for g in out]
+
+    def rough(region, max_close_px, min_ratio=0.5):
+        r_, best = 2.0, math.nan
+        reg = width._trim(region)
+        near = width._distance_to(reg, int(math.ceil(max_close_px)) + 2)
+        while r_ <= max_close_px:
+            est = width.rough_radius(reg, int(round(r_)), near=near)
+            if np.isfinite(est) and est >= min_ratio * int(round(r_)) and not est <= best:
+                best = est
+            r_ *= 1.4
+        return best
+
+    rng = np.random.default_rng(19)
+    for k in range(12):
+        m = _band_mask(rng)
+        s = width.ridge_series(m, 26)
+        want_c, want_r = candidates(m, 26), rough(m, 26)
+        assert width.radius_candidates(m, max_close_px=26) == want_c
+        assert width.radius_candidates(m, max_close_px=26, series=s) == want_c
+        got_r = width.rough_tube_radius(m, max_close_px=26, series=s)
+        assert got_r == want_r or (math.isnan(got_r) and math.isnan(want_r))

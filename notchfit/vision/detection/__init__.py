@@ -235,7 +235,7 @@ def _rough_scale(gray, geom, opts, cache):
                            area_range=opts.rough_slot_area_range, filled=fill_holes(reg),
                            max_radius_px=0.25 * min(shape_c)), reg)
 
-    R_lo, n_slots, gaps, reg = radius(mask)
+    R_lo, n_slots, gaps, series, reg = radius(mask)
     directions = None
     if np.isfinite(R_lo):
         # a streak splits the tube into two bands of half its width, each with the slots beside it: the
@@ -247,16 +247,17 @@ def _rough_scale(gray, geom, opts, cache):
         filled[box] = fill_thin_lines(np.ascontiguousarray(mask[box]), _streak_length(geom, opts) / R * R_lo,
                                       across=across[box])
         # nothing filled: the same silhouette, the same bands and slots (not searched again)
-        R2, n2, gaps2, reg2 = (R_lo, n_slots, gaps, reg) if np.array_equal(filled, mask) else radius(filled)
+        R2, n2, gaps2, series2, reg2 = ((R_lo, n_slots, gaps, series, reg) if np.array_equal(filled, mask)
+                                        else radius(filled))
         if np.isfinite(R2) and (n2 > n_slots or (n2 == n_slots and R2 > R_lo)):
-            R_lo, gaps, reg = R2, gaps2, reg2
+            R_lo, gaps, series, reg = R2, gaps2, series2, reg2
         elif np.array_equal(reg, mask):
             directions = across            # the width profiles' directions: the same band, the same radius
     if not np.isfinite(R_lo):
         return None, "no tube found: no band of constant width in the silhouette"
     others = () if n_slots else tuple(
         rc for rc in plausible_radii(fill_holes(reg), geom, max_close_px=max_close, min_slot_px=2.0,
-                                     max_radius_px=0.25 * min(shape_c)) if rc != R_lo)
+                                     max_radius_px=0.25 * min(shape_c), series=series) if rc != R_lo)
     return RoughScale(float(R_lo), fc, reg, (x0, y0), seg_c, others, directions, gaps), ""
 
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from ._kernels import level_crossings, line_levels, nearest_crossings
 
-__all__ = ["SlotGaps", "band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "rough_radius", "rough_tube_radius", "slots_along", "trim_box",
+__all__ = ["SlotGaps", "band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "ridge_series", "ridge_values", "rough_radius", "rough_tube_radius", "slots_along", "trim_box",
            "tube_band", "tube_radius"]
 
 
@@ -64,11 +64,20 @@ def ridge_peaks(region, close_px: int, *, min_radius_px: float = 2.0, peak_fract
     histogram whose count is at least ``peak_fraction`` of the largest,
     smallest first. ``near``: see :func:`_close_disk`.
     """
+    return _peaks(ridge_values(region, close_px, min_radius_px=min_radius_px, near=near), peak_fraction)
+
+
+def ridge_values(region, close_px: int, *, min_radius_px: float = 2.0, near=None) -> np.ndarray:
+    """The ridge values of :func:`ridge_peaks`, sorted (K,) float32 [px]: the distance transform of the
+    silhouette closed by a disk of ``close_px`` on its ridge, at least ``min_radius_px``."""
     r = max(int(close_px), 1)
     closed, pad = _close_disk(region, r, near=near)
     dt = _distance_in_box(closed)[pad:-pad, pad:-pad]
-    ridge = _ridge(dt) & (dt >= min_radius_px)
-    v = np.sort(dt[ridge])
+    return np.sort(dt[_ridge(dt) & (dt >= min_radius_px)])
+
+
+def _peaks(v, peak_fraction: float) -> list:
+    """:func:`ridge_peaks` of the sorted ridge values ``v``."""
     if len(v) < 10:
         return []
     hi = int(math.ceil(v[-1])) + 2
@@ -115,7 +124,7 @@ def rough_radius(region, close_px: int, *, min_radius_px: float = 2.0, peak_frac
     return peaks[0] if peaks else math.nan
 
 
-def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5) -> float:
+def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5, series=None) -> float:
     """Tube radius of a silhouette [px] without knowing the scale (no slot pattern used).
 
     :func:`rough_radius` for closing radii 2, 3, 4, 6, ... px up to
@@ -123,10 +132,13 @@ def rough_tube_radius(region, *, max_close_px: int, min_ratio: float = 0.5) -> f
     ``1 / min_ratio`` times it. Small closings leave the slots open (the
     estimate is then a link's or the backbone's half width); closings wider
     than half a slot give the tube's radius, and stay there for a while
-    (a straight band does not thicken under a closing).
+    (a straight band does not thicken under a closing). ``series``:
+    :func:`ridge_series` of ``region`` where computed already.
     """
     best = math.nan
-    for r, est in _closing_series(region, max_close_px, lambda reg, c, near: [rough_radius(reg, c, near=near)]):
+    for r, v in ridge_series(region, max_close_px) if series is None else series:
+        peaks = _peaks(v, 0.3)
+        est = peaks[0] if peaks else math.nan
         if np.isfinite(est) and est >= min_ratio * r and not est <= best:
             best = est
     return best
@@ -149,26 +161,28 @@ def _trim(region):
     return region[trim_box(region)]
 
 
-def _closing_series(region, max_close_px, fn):
-    """(closing radius, estimate) for every estimate of ``fn(region, r, near)`` over r = 2, 3, 4, 6, ...; the
-    closings share the distance to the region (``near``, :func:`_distance_to`), computed on the region
-    :func:`_trim` leaves (the estimates are histograms of distances inside it)."""
+def ridge_series(region, max_close_px) -> list:
+    """(closing radius, :func:`ridge_values`) for r = 2, 3, 4, 6, ... up to ``max_close_px``: computed once
+    for every peak fraction that reads them. The closings share the distance to the region (``near``,
+    :func:`_distance_to`), computed on the region :func:`_trim` leaves (the values are distances inside it)."""
     r = 2.0
     region = _trim(region)
     near = _distance_to(region, int(math.ceil(max_close_px)) + 2) if max_close_px >= 2 else None
+    out = []
     while r <= max_close_px:
-        for est in fn(region, int(round(r)), near):
-            yield int(round(r)), est
+        out.append((int(round(r)), ridge_values(region, int(round(r)), near=near)))
         r *= 1.4
+    return out
 
 
 def radius_candidates(region, *, max_close_px: int, min_ratio: float = 0.5, merge: float = 0.12,
-                      peak_fraction: float = 0.05) -> list:
+                      peak_fraction: float = 0.05, series=None) -> list:
     """Every band radius [px] the silhouette shows under closings up to ``max_close_px`` (a closing at
     most ``1 / min_ratio`` times the radius; a ridge peak ``peak_fraction`` of the highest: a short tube
-    beside a long clamp bar counts), estimates within ``merge`` of each other merged."""
-    peaks = lambda reg, c, near: ridge_peaks(reg, c, peak_fraction=peak_fraction, near=near)
-    ests = sorted(e for r, e in _closing_series(region, max_close_px, peaks) if e >= min_ratio * r)
+    beside a long clamp bar counts), estimates within ``merge`` of each other merged. ``series``:
+    :func:`ridge_series` of ``region`` where computed already."""
+    series = ridge_series(region, max_close_px) if series is None else series
+    ests = sorted(e for r, v in series for e in _peaks(v, peak_fraction) if e >= min_ratio * r)
     out = []
     for e in ests:
         if out and e <= out[-1][-1] * (1 + merge):
@@ -270,12 +284,13 @@ def slots_along(region, radius_px: float, *, slot_width: float, slot_depth: floa
     return int(np.sum((nn >= 0.5 * pitch[0] * s) & (nn <= 2.2 * pitch[1] * s)))
 
 
-def plausible_radii(filled, geom, *, max_close_px: int, min_slot_px: float, max_radius_px: float) -> list:
+def plausible_radii(filled, geom, *, max_close_px: int, min_slot_px: float, max_radius_px: float,
+                    series=None) -> list:
     """The band radii [px] of ``filled`` (:func:`radius_candidates`) the tube could have: its slots at
     least ``min_slot_px`` wide at that scale (narrower ones cannot be seen) and the band at most
-    ``max_radius_px``."""
+    ``max_radius_px``. ``series``: :func:`ridge_series` of ``filled`` where computed already."""
     w_min, R = float(np.min(geom.slot_widths)), geom.outer_radius
-    return [rc for rc in radius_candidates(filled, max_close_px=max_close_px)
+    return [rc for rc in radius_candidates(filled, max_close_px=max_close_px, series=series)
             if w_min * rc / R >= min_slot_px and rc <= max_radius_px]
 
 
@@ -299,7 +314,8 @@ def tube_band(region, geom, *, max_close_px: int, close_factor: float, area_rang
     Returns
     -------
     radius [px] (NaN: none), slots found along it (at most the number of joints), :class:`SlotGaps` of the
-    band (None where no band holds a slot)
+    band (None where no band holds a slot), :func:`ridge_series` of ``filled`` (the bands' widths: read
+    again for the other bands the tube could be)
     """
     filled = region if filled is None else filled
     max_radius_px = 0.25 * min(region.shape) if max_radius_px is None else max_radius_px
@@ -308,8 +324,9 @@ def tube_band(region, geom, *, max_close_px: int, close_factor: float, area_rang
     R = geom.outer_radius
     w, d = float(np.median(geom.slot_widths)), float(np.median(geom.slot_depths))
     best = None
+    series = ridge_series(filled, max_close_px)
     for rc in plausible_radii(filled, geom, max_close_px=max_close_px, min_slot_px=min_slot_px,
-                              max_radius_px=max_radius_px):
+                              max_radius_px=max_radius_px, series=series):
         gaps = _slot_gaps(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
                           area_range=area_range)
         n = slots_along(region, rc, slot_width=w, slot_depth=d, radius=R, close_factor=close_factor,
@@ -319,8 +336,8 @@ def tube_band(region, geom, *, max_close_px: int, close_factor: float, area_rang
         if n > 0 and (best is None or key > best[0]):
             best = (key, rc, gaps)
     if best is None:
-        return rough_tube_radius(filled, max_close_px=max_close_px), 0, None
-    return best[1], best[0][0], SlotGaps(best[1], *best[2], (box[1].start or 0, box[0].start or 0))
+        return rough_tube_radius(filled, max_close_px=max_close_px, series=series), 0, None, series
+    return best[1], best[0][0], SlotGaps(best[1], *best[2], (box[1].start or 0, box[0].start or 0)), series
 
 
 def _crossings(t, P, level, t0, sign):
