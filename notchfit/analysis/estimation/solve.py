@@ -61,6 +61,11 @@ class Solution:
     loss_cost : float
         The cost the least squares minimised at ``x`` (``scipy.optimize.least_squares``'s ``cost``: with
         its robust ``loss``; equal to ``cost`` for the linear one): what decides between two runs.
+    moved : bool
+        The winning run left its start: ``‖x − x0‖`` at least scipy's ``xtol`` step test,
+        ``xtol (xtol + ‖x0‖)`` (optimiser coordinates). False: every step it tried from ``x0`` raised the
+        cost until the trust region fell below ``xtol`` — on the friction model's non-smooth cost no
+        evidence that ``x0`` is the optimum (a kink between the finite-difference step and the trial steps).
     """
 
     x: np.ndarray
@@ -73,6 +78,7 @@ class Solution:
     starts: int
     jacobian: np.ndarray | None = field(default=None, repr=False)
     loss_cost: float = math.nan
+    moved: bool = True
 
 
 def _cost(pb: Problem, x) -> float:
@@ -221,7 +227,7 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
         The ``"forward"`` Jacobian at the first start, when the caller has it (an earlier fit's at
         that point, same steps): that run does not compute it.
     """
-    best = None
+    best, moved = None, True
     for j, x0 in enumerate(starts):
         if jac == "forward":
             h = pb.steps(x0, diff_rel, block_steps)
@@ -235,6 +241,7 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
         nfev += res.nfev + (res.njev * x0.size if jac == "forward" else 0)
         if best is None or res.cost < best.cost:
             best = res
+            moved = _left_start(x0, res.x, xtol)
     h = pb.steps(best.x, diff_rel, block_steps)
     J = forward_jacobian(pb, best.x, h) if errors else None
     se = standard_errors(pb, best.x, h, J) if errors else np.full(best.x.size, np.nan)
@@ -242,7 +249,13 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
     if not math.isfinite(cost):
         raise ValueError("the least-squares cost is not finite at its optimum")
     return Solution(best.x, se, cost, int(pb.measured().sum()), bool(best.success), str(best.message),
-                    nfev + (best.x.size + 1 if errors else 0), len(starts), J, float(best.cost))
+                    nfev + (best.x.size + 1 if errors else 0), len(starts), J, float(best.cost), moved)
+
+
+def _left_start(x0, x, xtol: float) -> bool:
+    """A least-squares run ended beyond scipy's ``xtol`` step test from its start ``x0`` (:attr:`Solution.moved`)."""
+    x0 = np.asarray(x0, dtype=float)
+    return bool(np.linalg.norm(np.asarray(x, dtype=float) - x0) >= xtol * (xtol + np.linalg.norm(x0)))
 
 
 # ----------------------------------------------------------------------------- leave-one-out
