@@ -422,9 +422,10 @@ def _singles(st: _Study, opts: _Options, order, full_base, single, score) -> tup
     not be the best (the decision names the best by held-out error). Those left are recorded in
     ``st.skipped["screened"]`` with their in-sample rms; they stay second candidates
     (:func:`_second`). Without a significant candidate every one is cross-validated. That bound holds
-    only at the model's optimum: a candidate whose fit on all experiments did not leave its start
-    (:attr:`~.calibration.Calibration.moved`: every step tried raised the cost, a kink of the non-smooth
-    cost, not an optimum) is never left out on it; it is cross-validated with the last ones.
+    only at the model's optimum: a candidate whose fit on all experiments stalled at its start
+    (:attr:`~.calibration.Calibration.stalled`: every step tried raised the cost though the fit's linear
+    model promised a decrease; a kink of the non-smooth cost, not an optimum) is never left out on it; it is
+    cross-validated with the last ones.
     """
     if not order:
         return {}, {}, ()
@@ -437,9 +438,9 @@ def _singles(st: _Study, opts: _Options, order, full_base, single, score) -> tup
     singles, best = {}, None
     for k, c in enumerate(ranked):
         if best is not None and screen[c][1] >= opts.screen_ratio * best.heldout_rms ** 2:
-            stalled = [x for x in ranked[k:] if not screen[x][0].moved]
+            stalled = [x for x in ranked[k:] if screen[x][0].stalled]
             if stalled:
-                opts.say(f"cross-validating {', '.join(stalled)} (its fit on all experiments did not leave its start)")
+                opts.say(f"cross-validating {', '.join(stalled)} (its fit on all experiments stalled at its start)")
                 singles.update(single(stalled))
             left = tuple(x for x in ranked[k:] if x not in stalled)
             if not left:
