@@ -248,16 +248,17 @@ def test_heldout_lack_of_fit_against_repeated_trials():
     assert bad.overall.significant(0.01) and bad.overall.lack_of_fit_rms == pytest.approx(np.degrees(0.05), rel=0.2)
 
 
-def _screened_singles(monkeypatch, in_sample: dict, heldout: dict, significant: set, *, screen=True):
-    """:func:`study._singles` with a fake screen (in-sample mse per cause) and fake cross-validations
-    (held-out rms per cause); returns the causes cross-validated, in order, and what it returned."""
+def _screened_singles(monkeypatch, in_sample: dict, heldout: dict, significant: set, *, screen=True, stalled=()):
+    """:func:`study._singles` with a fake screen (in-sample mse per cause; the fits of ``stalled`` stalled at
+    their start) and fake cross-validations (held-out rms per cause); returns the causes cross-validated, in
+    order, and what it returned."""
     from types import SimpleNamespace
 
     from notchfit.analysis.diagnosis import CandidateResult
     from notchfit.analysis.diagnosis import study
 
-    monkeypatch.setattr(study, "screen_singles", lambda order, *a, **k: {c: (None, in_sample[c], "single")
-                                                                         for c in order})
+    monkeypatch.setattr(study, "screen_singles", lambda order, *a, **k: {
+        c: (SimpleNamespace(stalled=c in stalled), in_sample[c], "single") for c in order})
     done = []
 
     def single(cs):
@@ -296,3 +297,25 @@ def test_candidates_cross_validated_in_in_sample_order_until_none_can_beat_the_b
     done, (_, screen, _), _ = _screened_singles(monkeypatch, in_sample, heldout, {"proximal_friction"},
                                                 screen=False)
     assert done == list(in_sample) and screen == {}
+
+
+def test_a_screen_fit_stalled_at_its_start_is_cross_validated(monkeypatch):
+    """A stalled screen fit (:func:`notchfit.analysis.estimation.solve.stalled_at_start`) bounds nothing: the
+    reduced Bouc-Wen study of seed 2, whose hysteresis fit stalled at 0.80 mm in-sample against proximal
+    friction's held-out 0.78 mm (docs/history.md, 2026-11-28). The candidates left out are then bounded by
+    the better one."""
+    mm2 = 1e-6
+    in_sample = {"proximal_friction": 0.5 * mm2, "joint_hysteresis": 0.64 * mm2, "external_load": 1.5 * mm2}
+    heldout = {"proximal_friction": 0.78e-3, "joint_hysteresis": 0.24e-3, "external_load": 1.3e-3}
+    sig = {"proximal_friction", "joint_hysteresis"}
+    done, (_, _, left), skipped = _screened_singles(monkeypatch, in_sample, heldout, sig)
+    assert done == ["proximal_friction"] and left == ("joint_hysteresis", "external_load")
+    done, (_, _, left), skipped = _screened_singles(monkeypatch, in_sample, heldout, sig,
+                                                    stalled={"joint_hysteresis"})
+    assert done == ["proximal_friction", "joint_hysteresis"] and left == ("external_load",)
+    assert "joint_hysteresis's held-out 0.240 mm" in skipped["screened"]["external_load"]
+    # every one left stalled: none left out
+    done, (_, _, left), skipped = _screened_singles(monkeypatch, in_sample, heldout, sig,
+                                                    stalled={"joint_hysteresis", "external_load"})
+    assert done == ["proximal_friction", "joint_hysteresis", "external_load"] and left == ()
+    assert "screened" not in skipped

@@ -155,6 +155,10 @@ class Calibration:
     tubes : dict
         Real tubes: ``{tube: {"rest_angle": (n,) [rad], "slot_depth_offset": (n,) [m]}}`` of the tubes
         fitted (identify's per-tube unknowns, :mod:`notchfit.analysis.diagnosis.tubes`); else empty.
+    stalled : bool
+        The fit ended at its start though its linear model there promised a real decrease
+        (:attr:`notchfit.analysis.estimation.solve.Solution.stalled`): its cost is that of a probe, no
+        evidence of the model's optimum.
     """
 
     cause: tuple
@@ -168,6 +172,7 @@ class Calibration:
     nfev: int
     registration: tuple = ()
     tubes: dict = field(default_factory=dict, repr=False)
+    stalled: bool = False
 
     def start(self) -> dict:
         """The fitted values as a start of another fit: ``values`` and, under ``"tubes"``, :attr:`tubes`."""
@@ -313,7 +318,7 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
     train_rms = math.sqrt(float(np.sum(r**2)) / max(n_val, 1))
     return Calibration(cause=model, values=vals, se=se_values(pb, sol.x, sol.se), train_rms=train_rms,
                        cost=sol.cost, n_residuals=sol.n_residuals, success=sol.success, message=sol.message,
-                       nfev=sol.nfev, registration=reg, tubes=pb.tube_values(sol.x))
+                       nfev=sol.nfev, registration=reg, tubes=pb.tube_values(sol.x), stalled=sol.stalled)
 
 
 def _bases(x0, paper, paper_start: bool) -> tuple:

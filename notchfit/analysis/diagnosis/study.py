@@ -421,7 +421,11 @@ def _singles(st: _Study, opts: _Options, order, full_base, single, score) -> tup
     candidate so far: a model's held-out error is not below its in-sample one, so that candidate could
     not be the best (the decision names the best by held-out error). Those left are recorded in
     ``st.skipped["screened"]`` with their in-sample rms; they stay second candidates
-    (:func:`_second`). Without a significant candidate every one is cross-validated.
+    (:func:`_second`). Without a significant candidate every one is cross-validated. That bound holds
+    only at the model's optimum: a candidate whose fit on all experiments stalled at its start
+    (:attr:`~.calibration.Calibration.stalled`: every step tried raised the cost though the fit's linear
+    model promised a decrease; a kink of the non-smooth cost, not an optimum) is never left out on it; it is
+    cross-validated with the last ones.
     """
     if not order:
         return {}, {}, ()
@@ -434,7 +438,14 @@ def _singles(st: _Study, opts: _Options, order, full_base, single, score) -> tup
     singles, best = {}, None
     for k, c in enumerate(ranked):
         if best is not None and screen[c][1] >= opts.screen_ratio * best.heldout_rms ** 2:
-            left = tuple(ranked[k:])
+            stalled = [x for x in ranked[k:] if screen[x][0].stalled]
+            if stalled:
+                opts.say(f"cross-validating {', '.join(stalled)} (its fit on all experiments stalled at its start)")
+                singles.update(single(stalled))
+            left = tuple(x for x in ranked[k:] if x not in stalled)
+            if not left:
+                return singles, screen, ()
+            best = _best_significant(score, singles)
             unit = st.preps[0].metric
             st.skipped["screened"] = {
                 x: (f"in-sample rms {fmt_err(math.sqrt(screen[x][1]), unit)} on all experiments, not below "
@@ -442,9 +453,14 @@ def _singles(st: _Study, opts: _Options, order, full_base, single, score) -> tup
             return singles, screen, left
         opts.say(f"cross-validating {c}")
         singles.update(single([c]))
-        sig = [r for r in (score(x, singles) for x in singles) if r.significant]
-        best = min(sig, key=lambda r: r.heldout_rms) if sig else None
+        best = _best_significant(score, singles)
     return singles, screen, ()
+
+
+def _best_significant(score, singles: dict):
+    """The significant candidate of ``singles`` with the lowest held-out rms (``score``: :func:`_score`), or None."""
+    sig = [r for r in (score(x, singles) for x in singles) if r.significant]
+    return min(sig, key=lambda r: r.heldout_rms) if sig else None
 
 
 def _lack_of_fit_first(cands, base_ms: float, preps, base, lof_kw: dict, noise: float, none_tol: float):

@@ -31,7 +31,7 @@ from scipy.optimize._numdiff import approx_derivative
 
 from .problem import Problem
 
-__all__ = ["Solution", "best_probe_starts", "folds", "forward_jacobian", "grid_starts", "se_values", "solve",
+__all__ = ["Solution", "best_probe_starts", "folds", "forward_jacobian", "grid_starts", "se_values", "solve", "stalled_at_start",
            "standard_errors", "tube_folds"]
 
 
@@ -61,6 +61,12 @@ class Solution:
     loss_cost : float
         The cost the least squares minimised at ``x`` (``scipy.optimize.least_squares``'s ``cost``: with
         its robust ``loss``; equal to ``cost`` for the linear one): what decides between two runs.
+    stalled : bool
+        The winning run ended at its start (within scipy's ``xtol`` step test) although its linear model
+        there promised a decrease of at least ``ftol`` times the cost: every step it tried raised the cost
+        until the trust region fell below ``xtol`` (a kink of the friction model's non-smooth cost between
+        the finite-difference step and the trial steps). Its cost is that of its start, no evidence of an
+        optimum (:func:`stalled_at_start`).
     """
 
     x: np.ndarray
@@ -73,6 +79,7 @@ class Solution:
     starts: int
     jacobian: np.ndarray | None = field(default=None, repr=False)
     loss_cost: float = math.nan
+    stalled: bool = False
 
 
 def _cost(pb: Problem, x) -> float:
@@ -221,7 +228,7 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
         The ``"forward"`` Jacobian at the first start, when the caller has it (an earlier fit's at
         that point, same steps): that run does not compute it.
     """
-    best = None
+    best, stalled = None, False
     for j, x0 in enumerate(starts):
         if jac == "forward":
             h = pb.steps(x0, diff_rel, block_steps)
@@ -235,6 +242,8 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
         nfev += res.nfev + (res.njev * x0.size if jac == "forward" else 0)
         if best is None or res.cost < best.cost:
             best = res
+            # at the end (within xtol of the start when stalled): its residuals and last Jacobian
+            stalled = stalled_at_start(res.fun, jac_of.J, x0, res.x, xtol=xtol, ftol=ftol)
     h = pb.steps(best.x, diff_rel, block_steps)
     J = forward_jacobian(pb, best.x, h) if errors else None
     se = standard_errors(pb, best.x, h, J) if errors else np.full(best.x.size, np.nan)
@@ -242,7 +251,21 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
     if not math.isfinite(cost):
         raise ValueError("the least-squares cost is not finite at its optimum")
     return Solution(best.x, se, cost, int(pb.measured().sum()), bool(best.success), str(best.message),
-                    nfev + (best.x.size + 1 if errors else 0), len(starts), J, float(best.cost))
+                    nfev + (best.x.size + 1 if errors else 0), len(starts), J, float(best.cost), stalled)
+
+
+def stalled_at_start(r0, J0, x0, x, *, xtol: float, ftol: float) -> bool:
+    """A least-squares run that ended at its start ``x0`` (``‖x − x0‖ < xtol (xtol + ‖x0‖)``, scipy's step
+    test) while the Gauss–Newton step of its Jacobian ``J0`` there (``(r, p)``; ``r0`` the residuals) promised a
+    decrease of the cost ``½‖r0‖²`` by at least ``ftol`` of it (scipy's cost test): every trial step raised the
+    cost, so the start is no optimum of the fit's own linear model (:attr:`Solution.stalled`). An optimum
+    where the gradient vanishes promises nothing and is not stalled."""
+    x0, r0 = np.asarray(x0, dtype=float), np.asarray(r0, dtype=float)
+    if np.linalg.norm(np.asarray(x, dtype=float) - x0) >= xtol * (xtol + np.linalg.norm(x0)) or J0 is None:
+        return False
+    dx = np.linalg.lstsq(J0, -r0, rcond=None)[0]
+    promised = 0.5 * (float(r0 @ r0) - float(np.sum((r0 + J0 @ dx) ** 2)))
+    return promised >= ftol * 0.5 * float(r0 @ r0)
 
 
 # ----------------------------------------------------------------------------- leave-one-out
