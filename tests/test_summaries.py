@@ -12,6 +12,7 @@ from notchfit.analysis.diagnosis import Calibration, Diagnosis, Gain
 from notchfit.analysis.fitting import StudyFit
 from notchfit.analysis.identify import Identification, TubeFit
 from notchfit.figures.summary import candidates_figure
+from notchfit.report.diagnosis import loops_caption
 from notchfit.units import DEG
 
 
@@ -86,3 +87,12 @@ def test_the_candidates_figure_draws_the_floor_with_the_folds_band_above_the_noi
     labels = [t.get_text() for t in candidates_figure(cands, 0.03, floor=0.045).axes[0].get_legend().get_texts()]
     assert labels == ["noise floor 0.03 mm", "with the folds' band 0.045 mm"]
     assert len(candidates_figure(cands, 0.03, floor=0.03).axes[0].get_legend().get_texts()) == 1
+
+
+def test_the_loops_caption_names_an_extended_model_only_when_a_cause_is_named():
+    """With no cause named the figure draws measured and baseline only; its caption must not describe a
+    blue extended model that is not there (seen on a wrist study's report)."""
+    assert "extended model (blue)" in loops_caption(named=True, unloads=True)
+    none = loops_caption(named=False, unloads=True)
+    assert "(blue)" not in none and "no cause named" in none
+    assert "loading only" in loops_caption(named=False, unloads=False)

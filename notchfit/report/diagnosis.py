@@ -206,6 +206,16 @@ def _candidates_table(d, angles: bool) -> Table | None:
     return Table.of(rows, text_columns=("parameters",), named=lambda r: r["cause"] in named)
 
 
+def loops_caption(*, named: bool, unloads: bool) -> str:
+    """The loops figure's caption: the extended model is drawn (and named) only when a cause is named,
+    and a loop is only compared when some trial is released."""
+    models = ("calibrated baseline (red dashed) and extended model (blue)" if named else
+              "calibrated baseline (red dashed; no cause named, so no extended model)")
+    shape = ("the loop's width is the friction hysteresis the models must reproduce" if unloads else
+             "loading only: these trials are never released, so there is no loop to compare")
+    return f"Tip angle against the pulled tension for each held-out experiment: measured (dots), {models}; {shape}."
+
+
 def _diagnosis_figures(inp, d) -> list:
     out, parts, u = inp.out, [], d.unit
     if (out / "diagnosis_candidates.csv").is_file():
@@ -219,12 +229,8 @@ def _diagnosis_figures(inp, d) -> list:
                             "and come close to the noise floor (dotted).", "held-out error of the candidates"))
     loops = inp.once(diagnosis_loops)
     if loops is not None:
-        shape = ("the loop's width is the friction hysteresis the models must reproduce" if inp.unloads else
-                 "loading only: these trials are never released, so there is no loop to compare")
         parts.append(figure(loops_figure(loops, degrees=inp.angles),
-                            "Tip angle against the pulled tension for each held-out experiment: measured (dots), "
-                            f"calibrated baseline (red dashed) and extended model (blue); {shape}.",
-                            "hysteresis loops"))
+                            loops_caption(named=any(d.causes), unloads=inp.unloads), "hysteresis loops"))
     pe = out / "diagnosis_point_errors.csv"
     if pe.is_file():
         by_point = nio.read_diagnosis_csv(pe)
