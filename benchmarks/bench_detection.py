@@ -407,10 +407,13 @@ def _pbr_row(kind, cal, sel):
             f"{1e3 * np.median([r[3] for r in sel]):.0f} |")
 
 
-def pbr(folder, repeat=1, render=False):
+def pbr(folder, repeat=1, render=False, tone_gamma=1.0):
     """Per scene kind of the physically based gallery, with the camera file and without it: corners ok /
     present, wrong identities (target 0), invented points, rms and max error [mm] (target rms <= 0.01 mm),
-    the spread of (found - true) / sigma (1 = honest), ms per image; the overall fraction (target >= 95 %)."""
+    the spread of (found - true) / sigma (1 = honest), ms per image; the overall fraction (target >= 95 %).
+
+    ``tone_gamma``: the detector's ``DetectorOptions.tone_gamma``; 2.2 is what ``notchfit detect`` assumes
+    for a JPEG without ``image_gamma`` in experiment.toml (the gallery's files carry an sRGB tone curve)."""
     import tempfile
 
     from notchfit.vision.render.pbr import score_detection
@@ -432,7 +435,8 @@ def pbr(folder, repeat=1, render=False):
                 # user would write for this view (mirror_without_camera)
                 mirror = truth.pose.plane[3] if cal else mirror_without_camera(truth.camera, img.shape[:2],
                                                                                 truth.pose.plane[3])
-                det = detect_notches(img, truth.camera if cal else None, geom, mirror=mirror)
+                det = detect_notches(img, truth.camera if cal else None, geom, mirror=mirror,
+                                     tone_gamma=tone_gamma)
                 best = min(best, time.perf_counter() - t0)
             rows.append((scene.kind, cal, score_detection(det, truth, scene.px_per_mm), best, scene.px_per_mm))
             if not cal:
@@ -483,11 +487,13 @@ def main(argv=None):
     ap.add_argument("--pbr", action="store_true", help="score the physically based gallery instead")
     ap.add_argument("--pbr-dir", default=None, help="gallery folder of --pbr (default tests/data/pbr)")
     ap.add_argument("--pbr-render", action="store_true", help="re-render the gallery first (needs Mitsuba 3)")
+    ap.add_argument("--tone-gamma", type=float, default=1.0,
+                    help="--pbr: undo this tone curve first (2.2: what `notchfit detect` assumes for a JPEG)")
     a = ap.parse_args(argv)
     if a.pbr:
         from pathlib import Path
 
-        pbr(a.pbr_dir or Path(__file__).resolve().parent.parent / "tests" / "data" / "pbr", 1, a.pbr_render)
+        pbr(a.pbr_dir or Path(__file__).resolve().parent.parent / "tests" / "data" / "pbr", 1, a.pbr_render, a.tone_gamma)
         return
     if a.variety:
         variety(a.variety, a.seed, tuple(int(v) for v in a.size.split("x")), a.px_per_mm)
