@@ -56,6 +56,7 @@ from ...units import MM
 from .options import DetectorOptions
 from .overlay import draw_overlay, overlay_with_crop
 from .pipeline import detect_at
+from .pipeline import refinement_image
 from .pipeline import segmented as _segmented
 from .pipeline import streak_length as _streak_length
 from .plane import finish, link_distances, link_tolerance
@@ -139,14 +140,18 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
         plane pose, the image is too small, or ``base`` is not a side.
     """
     opts = _options(options, overrides)
-    lin = _linearised(image, opts.tone_gamma)
-    gray = _gray(lin)
-    colour = lin[..., :3] if np.ndim(lin) == 3 and np.shape(lin)[2] >= 3 else None
+    img = np.asarray(image)
+    gray = _gray(img)
+    colour = img[..., :3] if img.ndim == 3 and img.shape[2] >= 3 else None
+    # the silhouette on the file's values, the sub-pixel edges in linear light (pipeline.refinement_image)
+    cache = {"colour": colour}
+    if opts.tone_gamma != 1.0:
+        cache["linear"] = (_gray(_linearised(img, opts.tone_gamma)), {})
     H, W = gray.shape
     if base is not None and base not in ("top", "bottom", "left", "right"):
         raise ValueError(f"base must be top, bottom, left or right, got {base!r}")
     if camera is None:
-        return _uncalibrated(gray, geom, opts, mirror=mirror, base=base, colour=colour)
+        return _uncalibrated(gray, geom, opts, mirror=mirror, base=base, cache=cache)
     camera.check_image(gray)
     if not camera.has_plane:
         raise ValueError("the camera model has no plane pose: calibrate with --plane-image")
@@ -154,7 +159,7 @@ def detect_notches(image, camera, geom: Geometry, *, mirror: bool = False, base:
     f = work_factor(geom, px_per_m, opts)
     extra = {"scale_mm_per_px": 1.0 / (px_per_m * MM), "scale_sigma": 0.0}
     return detect_at(gray, Setup(camera, geom, opts, f, px_per_m, sgn, base), extra=extra,
-                     cache={"colour": colour}).detection
+                     cache=cache).detection
 
 
 def work_factor(geom: Geometry, px_per_m: float, opts: DetectorOptions) -> int:
@@ -304,14 +309,13 @@ def _scale_extra(widths, R):
     return wpx / (2 * R), {"scale_mm_per_px": mm_px, "scale_sigma": mm_px * sw / wpx, "assumption": text}
 
 
-def _uncalibrated(gray, geom, opts, *, mirror, base, colour=None):
+def _uncalibrated(gray, geom, opts, *, mirror, base, cache):
     """The scale from the tube's diameter: a rough width on a coarse copy, the width across the tube's
     centreline at full resolution, one detection at that scale (a detection at the rough scale and
     widths next to its corners where the centreline gives too few)."""
     m = geom.n_points
     H, W = gray.shape
     sgn = view_orientation(DiameterScale(1.0, (W, H)), (H, W), mirror)[1]
-    cache = {"colour": colour}
     rough, why = _rough_scale(gray, geom, opts, cache)
     if rough is None:
         return empty_detection(m, "no_manipulator", why)
@@ -396,7 +400,7 @@ def _scale_via_corners(gray, geom, opts, rough, *, sgn, base, cache):
     if ref is None or not ref.ok.any():
         return det
     st = _stations(ref, opts.width_stations, sgn)
-    widths = measure_diameter(ref.img, ref.off, st, 2 * R * px_per_m, _segmented(gray, f, opts, cache)[1].contrast,
+    widths = measure_diameter(ref.img, ref.off, st, 2 * R * px_per_m, refinement_image(gray, f, opts, cache)[1],
                               ref.blur) if len(st) else np.zeros(0)
     scale = _scale_extra(widths, R)
     if scale is None:

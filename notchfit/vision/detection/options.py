@@ -15,11 +15,13 @@ class DetectorOptions:
     Attributes
     ----------
     tone_gamma : float
-        The images' tone curve: values are taken to linear light as
-        ``(v / full) ** tone_gamma`` before anything else (camera JPEGs: about
-        2.2, the sRGB curve; 1: linear images, as the renders). A 50 %
-        crossing in tone-mapped values is not the edge: with 2 px of blur and
-        gamma 2.2 the corners are 0.008 mm rms off at 100 px/mm.
+        The images' tone curve: the sub-pixel edges are measured in linear
+        light, ``(v / full) ** tone_gamma`` (camera JPEGs: about 2.2, the sRGB
+        curve; 1: linear images, as the renders). A 50 % crossing in
+        tone-mapped values is not the edge: with 2 px of blur and gamma 2.2 the
+        corners are 0.008 mm rms off at 100 px/mm. The silhouette, the slots and
+        their numbers are found on the file's values, whose noise is about even
+        across the levels.
     work_radius_px, work_slot_px : float
         The downsampled copy used to segment and parse is chosen from the
         tube's size in pixels, not from the file's: the block-averaging factor

@@ -32,6 +32,18 @@ __all__ = ["VARIANTS", "colour_segmentation", "detect_at", "fill_streaks", "loca
            "segmented", "streak_length", "variant_mask"]
 
 
+def refinement_image(gray, f, opts, cache: dict):
+    """The image the sub-pixel stage reads and its object-minus-background contrast: the image in linear
+    light where the caller undid a tone curve (``cache["linear"]``: a blurred edge's 50 % crossing is the
+    edge only in linear light), else ``gray`` itself. The silhouette, the slots and their numbers are found
+    on the file's values (``gray``): the noise of a tone-mapped image is about even across its levels, so
+    one noise estimate and one threshold hold from the shadows to the highlights."""
+    if "linear" not in cache:
+        return gray, segmented(gray, f, opts, cache)[1].contrast
+    lin, own = cache["linear"]
+    return lin, segmented(lin, f, opts, own)[1].contrast
+
+
 def segmented(gray, f, opts, cache: dict):
     """Downsampled copy (cached per factor), its segmentation and largest region."""
     H, W = gray.shape
@@ -172,7 +184,8 @@ def detect_at(gray, setup: Setup, *, extra, stations=False, cache=None) -> Refin
         # mirrors the backdrop is missing from it, and an edge inside the tube then passes for the outer edge
         # (and so are slots numbered without the tip, which would confirm the tube's width)
         ctx = t.outcome
-        return refine_and_finish(gray, seg, ctx, setup, extra=extra, stations=stations,
+        img, contrast = refinement_image(gray, setup.f, opts, cache)
+        return refine_and_finish(img, contrast, ctx, setup, extra=extra, stations=stations,
                                  width_mask=t.mask if t.name == "colour" or ctx.confirm_width else None)
 
     # the variants are refined and the corners merged point by point: each numbers each side on its own
@@ -196,7 +209,7 @@ def detect_at(gray, setup: Setup, *, extra, stations=False, cache=None) -> Refin
     return Refined(det, dataclasses.replace(runs[keep[0]].refinement, plane_input=merged))
 
 
-def refine_and_finish(gray, seg, ctx: Located, setup: Setup, *, extra=None, stations=None,
+def refine_and_finish(gray, contrast: float, ctx: Located, setup: Setup, *, extra=None, stations=None,
                       width_mask=None) -> Refined:
     """Stages 5-6 for located corners (:func:`~.locate.locate`): the Detection, and the Refinement (None when
     there are no corners).
@@ -213,7 +226,7 @@ def refine_and_finish(gray, seg, ctx: Located, setup: Setup, *, extra=None, stat
     specs = ctx.specs
     if specs:
         far = ctx.tube_px if stations else None
-        ref = refine_corners(gray, specs, setup, full=ctx.full, contrast=seg.contrast, extra_px=far,
+        ref = refine_corners(gray, specs, setup, full=ctx.full, contrast=contrast, extra_px=far,
                              outline_px=ctx.contour_px)
         status, pts_px, ideal, cov = statuses(ref, m, status, gray.shape, opts)
         if width_mask is not None:
