@@ -348,7 +348,7 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     singles, screen, unscreened = _singles(st, opts, order, full_base, single, score)
     held.update(singles)
     lof_kw = dict(tol_sigma=replicate_tol_sigma, alpha=lof_alpha)
-    decide_first = partial(_decide, st, opts, held, sigs, order, screen, unscreened, score, lof_kw)
+    decide_first = partial(_decide, st, opts, held, _Ranked(sigs, tuple(order), screen, unscreened, score, lof_kw))
     first, second = _both_steps(st, opts, held, decide_first, run, single)
     named = second.causes
     say(f"fitting the extended model ({model_key(named)}) on all experiments")
@@ -358,10 +358,23 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
     return _result(st, opts, held, first, second, fits)
 
 
-def _decide(st: _Study, opts: _Options, held: dict, sigs, order, screen: dict, unscreened: tuple, score,
-            lof_kw: dict) -> _First:
+@dataclass(frozen=True)
+class _Ranked:
+    """What the first decision reads besides the held-out fits: the baseline's signatures, the candidates in
+    the order of their signatures' ranking, the screen's fits on all experiments (:func:`_singles`) and those
+    it left out, the scoring against the baseline (:func:`_score`) and the lack-of-fit test's options."""
+    sigs: object
+    order: tuple
+    screen: dict
+    unscreened: tuple
+    score: Callable
+    lof_kw: dict
+
+
+def _decide(st: _Study, opts: _Options, held: dict, r: _Ranked) -> _First:
     """The first step's decision (:func:`_lack_of_fit_first`) on the single candidates of ``held`` so far:
-    those the screen left out (``unscreened``) and the second step later cross-validated alone take part."""
+    those the screen left out (``r.unscreened``) and the second step later cross-validated alone take part."""
+    sigs, order, screen, unscreened, score, lof_kw = r.sigs, r.order, r.screen, r.unscreened, r.score, r.lof_kw
     preps, base = st.preps, held["baseline"]
     singles = {c: held[c] for c in order if c in held}
     left = tuple(c for c in unscreened if c not in singles)
