@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-__all__ = ["arc_residuals", "arcs_allowed", "group_lines", "group_median", "intersect", "otsu", "pca_line", "poly2",
+__all__ = ["arc_residuals", "arcs_allowed", "group_lines", "group_median", "intersect", "line_pairs", "otsu", "pca_line", "poly2",
            "robust_group_lines", "unit"]
 
 
@@ -113,6 +113,40 @@ def robust_group_lines(pts, groups, n_groups, *, k_mad=3.0, floor=0.15, n_iter=3
     t = (pts[:, 0] - c[groups, 0]) * d[groups, 0] + (pts[:, 1] - c[groups, 1]) * d[groups, 1]
     stt = np.bincount(groups, wgt * t * t, n_groups)
     return c, d, n, s2, stt, keep
+
+
+def line_pairs(c, dd, n, s2, stt, k1, k2, extra1=0.0, extra2=0.0):
+    """Where lines ``k1`` and ``k2`` (K,) of :func:`robust_group_lines` meet, with covariance.
+
+    Each line's error across it is ``s² / n + lever² s² / S_tt`` (offset and angle; ``lever`` the distance
+    along the line from its centroid to the point), plus ``extra1``/``extra2`` (a variance shared by all its
+    points); ``s2`` (2K,) the residual variances to use.
+
+    Returns
+    -------
+    X (K, 2), cov (K, 2, 2), sin (K,) of the angle between the lines, det (K,) of the normals' matrix;
+    where ``det`` is 0, X and cov are not meaningful.
+    """
+    d1, d2 = dd[k1], dd[k2]
+    sin = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    n1 = np.stack([-d1[:, 1], d1[:, 0]], 1)
+    n2 = np.stack([-d2[:, 1], d2[:, 0]], 1)
+    Amat = np.stack([n1, n2], 1)
+    rhs = np.stack([(n1 * c[k1]).sum(1), (n2 * c[k2]).sum(1)], 1)
+    det = Amat[:, 0, 0] * Amat[:, 1, 1] - Amat[:, 0, 1] * Amat[:, 1, 0]
+    Ainv = np.zeros_like(Amat)
+    sd = np.where(det != 0, det, 1.0)
+    Ainv[:, 0, 0], Ainv[:, 0, 1] = Amat[:, 1, 1] / sd, -Amat[:, 0, 1] / sd
+    Ainv[:, 1, 0], Ainv[:, 1, 1] = -Amat[:, 1, 0] / sd, Amat[:, 0, 0] / sd
+    X = np.einsum("kij,kj->ki", Ainv, rhs)
+    lev1 = ((X - c[k1]) * d1).sum(1)
+    lev2 = ((X - c[k2]) * d2).sum(1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v1 = s2[k1] / np.maximum(n[k1], 1) + lev1 ** 2 * s2[k1] / np.where(stt[k1] > 0, stt[k1], np.inf)
+        v2 = s2[k2] / np.maximum(n[k2], 1) + lev2 ** 2 * s2[k2] / np.where(stt[k2] > 0, stt[k2], np.inf)
+    D = np.zeros((len(k1), 2, 2))
+    D[:, 0, 0], D[:, 1, 1] = v1 + extra1, v2 + extra2
+    return X, Ainv @ D @ np.swapaxes(Ainv, 1, 2), sin, det
 
 
 def arcs_allowed(pts, grp, X, fe, d_limb, sin_b, radius_px: float, significance: float,

@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from .lines import robust_group_lines
+from .lines import line_pairs, robust_group_lines
 
 __all__ = ["Mouth", "MouthView", "gap_width", "limb_meeting", "shut_mouth", "shut_mouths", "with_mouths"]
 
@@ -97,16 +97,10 @@ def limb_meeting(pa, pb, *, s2_floor: float = 0.0, min_points: int = 5):
     c, d, n, s2, stt, _ = robust_group_lines(pts, grp, 2)
     if np.any(n < min_points) or np.any(stt <= 0):
         return None
-    nrm = np.stack([-d[:, 1], d[:, 0]], 1)
-    det = nrm[0, 0] * nrm[1, 1] - nrm[0, 1] * nrm[1, 0]
-    if abs(det) < 1e-6:
+    X, cov, _, det = line_pairs(c, d, n, np.maximum(s2, s2_floor), stt, np.array([0]), np.array([1]))
+    if abs(det[0]) < 1e-6:
         return None
-    A_inv = np.linalg.inv(nrm)
-    X = A_inv @ np.sum(nrm * c, 1)
-    s2 = np.maximum(s2, s2_floor)
-    lever = np.sum((X - c) * d, 1)
-    var = s2 / n + lever ** 2 * s2 / stt
-    return X, A_inv @ np.diag(var) @ A_inv.T, d
+    return X[0], cov[0], d
 
 
 def gap_width(view: MouthView, X, d, into, *, depths=None, reach: float = 3.0, step: float = 0.25,

@@ -22,7 +22,7 @@ import numpy as np
 from ._kernels import profile_crossings, profile_levels, profile_maps
 from .edges import Crossings, Profiles, choose_edges
 from .faces import curved_face_corners, face_view_cov, straight_face_corners
-from .lines import group_median, robust_group_lines, unit
+from .lines import group_median, line_pairs, robust_group_lines, unit
 from .mouth import MouthView
 
 __all__ = ["CornerLines", "CornerSpecs", "PassResult", "ProfileLayout", "Profiles", "corner_lines",
@@ -368,31 +368,9 @@ def corner_lines(pts, grp, K, *, min_points, s2_floor=0.0, s2_edge=None):
     s2 = np.maximum(s2_fit, s2_floor)
     good_e = (n >= min_points) & (stt > 0)
     k1, k2 = np.arange(K), np.arange(K) + K
-    d1, d2 = dd[k1], dd[k2]
-    sin = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-    okc = good_e[k1] & good_e[k2] & (sin > 0.5)
-    n1 = np.stack([-d1[:, 1], d1[:, 0]], 1)
-    n2 = np.stack([-d2[:, 1], d2[:, 0]], 1)
-    Amat = np.stack([n1, n2], 1)
-    rhs = np.stack([(n1 * c[k1]).sum(1), (n2 * c[k2]).sum(1)], 1)
-    det = Amat[:, 0, 0] * Amat[:, 1, 1] - Amat[:, 0, 1] * Amat[:, 1, 0]
-    okc &= np.abs(det) > 1e-9
-    Ainv = np.zeros_like(Amat)
-    sd = np.where(okc, det, 1.0)
-    Ainv[:, 0, 0], Ainv[:, 0, 1] = Amat[:, 1, 1] / sd, -Amat[:, 0, 1] / sd
-    Ainv[:, 1, 0], Ainv[:, 1, 1] = -Amat[:, 1, 0] / sd, Amat[:, 0, 0] / sd
-    X = np.einsum("kij,kj->ki", Ainv, rhs)
-    # var(n_k . dX) = s²/n + (lever arm)² s²/S_tt for each line (offset and angle errors)
-    lev1 = ((X - c[k1]) * d1).sum(1)
-    lev2 = ((X - c[k2]) * d2).sum(1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        v1 = s2[k1] / np.maximum(n[k1], 1) + lev1 ** 2 * s2[k1] / np.where(stt[k1] > 0, stt[k1], np.inf)
-        v2 = s2[k2] / np.maximum(n[k2], 1) + lev2 ** 2 * s2[k2] / np.where(stt[k2] > 0, stt[k2], np.inf)
-    if s2_edge is not None:
-        v1, v2 = v1 + s2_edge[k1], v2 + s2_edge[k2]
-    D = np.zeros((K, 2, 2))
-    D[:, 0, 0], D[:, 1, 1] = v1, v2
-    cov = Ainv @ D @ np.swapaxes(Ainv, 1, 2)
+    extra = (s2_edge[k1], s2_edge[k2]) if s2_edge is not None else (0.0, 0.0)
+    X, cov, sin, det = line_pairs(c, dd, n, s2, stt, k1, k2, *extra)
+    okc = good_e[k1] & good_e[k2] & (sin > 0.5) & (np.abs(det) > 1e-9)
     X[~okc] = np.nan
     cov[~okc] = np.nan
     return CornerLines(X, cov, okc, c, dd, good_e, s2_fit)
