@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy import ndimage
 
 from ...physics.geometry import notch_layout
 from .edges import dense_profiles
@@ -14,7 +15,7 @@ from .lines import unit
 from .records import Refinement, Setup
 from .refine import CornerSpecs, ProfileLayout, refine_pass, sample_profiles
 
-__all__ = ["edge_stations", "limb_edges", "link_widths", "outer_offsets", "outer_starts", "ray_exits", "refine_corners",
+__all__ = ["edge_stations", "holder_backdrops", "limb_edges", "link_widths", "outer_offsets", "outer_starts", "ray_exits", "refine_corners",
            "statuses", "unexplained_cov", "width_deficits"]
 
 
@@ -257,6 +258,66 @@ def unexplained_cov(sp: CornerSpecs, sgn, offsets, deficit, *, resolution: float
     return out
 
 
+def holder_backdrops(img, off, sp: CornerSpecs, sgn, radius_px: float, blur_px: float, *, tol: float) -> np.ndarray:
+    """(K,) bool: base corners whose holder face does not stand against the backdrop their tube's limb does.
+
+    A base corner is where the tube's limb meets the holder's face, both seen
+    against the backdrop: beyond either edge lies the same backdrop. Where
+    the holder's face is seen a little from the side (a chuck's end face
+    below the camera's axis), a band of that face lies between the holder's
+    rim and the backdrop; the tube's base edge is in that band, hidden or
+    shown against the face, and the corner of the rim and the limb is no
+    point of the tube (its refined position lies a band's width off the base
+    edge while its fit is as good as any). On either edge, the image's level
+    just beyond the edge's rise (``3 blur_px + 1`` to that plus ``0.1 R``
+    outward, ``radius_px`` the tube's radius [px]) is read along the edge:
+    next to the corner (up to ``R``) on the holder's face, over its far half
+    on the limb (away from the holder). Where the two levels differ by more
+    than ``tol`` of the holder edge's own step (its level inside minus beyond),
+    the holder's edge is not the holder against the backdrop: True.
+
+    Parameters
+    ----------
+    img, off : the image region [image units] and its offset (u0, v0) [px].
+    sp : CornerSpecs
+        The refined corners and their edges; ``holder_face`` marks the base corners' holder edges.
+    sgn : float
+        Orientation sign of the outline (the edge normals point from the object to the background).
+    """
+    K = len(sp.C)
+    out = np.zeros(K, bool)
+    if sp.holder_face is None or not sp.holder_face.any():
+        return out
+    nrm = _outward(sp, sgn)
+    along = np.concatenate([-sp.Din, sp.Dout])
+    L = np.nan_to_num(np.concatenate([sp.Lin, sp.Lout]))
+    gap = 3.0 * (blur_px if np.isfinite(blur_px) else 1.0) + 1.0
+    t_out = gap + np.linspace(0.0, max(0.1 * radius_px, 2.0), 5)
+    for k in np.nonzero(sp.holder_face[:K] | sp.holder_face[K:])[0]:
+        if not np.all(np.isfinite(sp.C[k])):
+            continue
+        h, e = (k, K + k) if sp.holder_face[k] else (K + k, k)
+        s_h = np.linspace(gap, max(min(L[h], radius_px), gap + 1.0), 12)
+        s_e = np.linspace(0.5 * L[e], max(L[e], 0.5 * L[e] + 1.0), 12)
+        level = lambda ed, s, t: _levels(img, off, sp.C[k] + s[:, None] * along[ed] + t * nrm[ed])
+        beyond_h, beyond_e = level(h, s_h, t_out[:, None, None]), level(e, s_e, t_out[:, None, None])
+        inside_h = level(h, s_h, -t_out[:, None, None])
+        step = abs(inside_h - beyond_h)
+        out[k] = bool(np.isfinite(step) and abs(beyond_h - beyond_e) > tol * step)
+    return out
+
+
+def _levels(img, off, P) -> float:
+    """The median image level at the points ``P`` (..., 2) [px] (bilinear; NaN where all lie outside ``img``)."""
+    Q = P.reshape(-1, 2) - off
+    h, w = img.shape
+    inside = (Q[:, 0] >= 0) & (Q[:, 0] <= w - 1) & (Q[:, 1] >= 0) & (Q[:, 1] <= h - 1)
+    if not inside.any():
+        return math.nan
+    v = ndimage.map_coordinates(img, [Q[inside, 1], Q[inside, 0]], order=1)
+    return float(np.median(v))
+
+
 def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, outline_px=None):
     """Stage 5 for all corners: first pass with long profiles, then passes sized by the measured blur.
 
@@ -313,7 +374,11 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, 
     sig_px = np.sqrt(np.maximum(np.trace(res.cov, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
     # the reported covariance adds what the edges' own profiles show (two rims of a face seen from the side)
     cov_sys = res.cov_sys + cov_missing
-    return Refinement(pidx, sp.C, res.X, res.cov + cov_sys / opts.sigma_inflation ** 2, res.ok, shift, bl,
+    ok = res.ok
+    if opts.holder_backdrop_tol > 0:
+        # a holder's face seen from the side: the corner of its rim and the limb is no point of the tube
+        ok = ok & ~holder_backdrops(img, off, sp, sgn, radius_px, bl, tol=opts.holder_backdrop_tol)
+    return Refinement(pidx, sp.C, res.X, res.cov + cov_sys / opts.sigma_inflation ** 2, ok, shift, bl,
                       sig_px, sp, img, off, kf, wide=res.wide)
 
 
