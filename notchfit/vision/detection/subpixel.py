@@ -496,10 +496,11 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, 
     wide = res.wide
     if opts.outer_step_k > 0 and short is not None:
         # a polished limb's mirror strip: the refined edge is its inner ramp, the tube ends at its outer step
+        # (looked for across the edges where the search before the first pass saw tube outside the silhouette)
         allow = np.where(np.isfinite(short), np.maximum(short, 0.0), 0.0) + float(setup.f)
         offs2, var2 = outer_steps(img, off, sp, sgn, reach_px=opts.outer_reach_R * radius_px,
                                   s0=max(3.0, 3.0 * bl + 1.0), s_end=max(2.0, 2.5 * bl + 1.0), max_move=allow,
-                                  k_sig=opts.outer_step_k)
+                                  k_sig=opts.outer_step_k, only=offs > setup.f)
         moved = (offs2[:K] != 0) | (offs2[K:] != 0)
         if moved.any():
             C2, cov2 = _move_corners(sp, sgn, offs2, var2,
