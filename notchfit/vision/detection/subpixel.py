@@ -128,12 +128,8 @@ def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float,
     only : ndarray (2K,) bool, optional
         The edges to search (default every outer edge).
     """
-    K = len(sp.C)
-    out = np.zeros(2 * K)
-    search = limb_edges(sp)
-    if only is not None:
-        search &= only
-    means = _edge_means(img, off, sp, sgn, search, ProfileLayout(s0, s_end, reach_px, step), corr_px=corr_px,
+    out = np.zeros(2 * len(sp.C))
+    means = _edge_means(img, off, sp, sgn, only, ProfileLayout(s0, s_end, reach_px, step), corr_px=corr_px,
                         min_profiles=min_profiles)
     if means is None:
         return out
@@ -150,14 +146,16 @@ def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float,
     return out
 
 
-def _edge_means(img, off, sp: CornerSpecs, sgn, search, layout: ProfileLayout, *, corr_px: float,
+def _edge_means(img, off, sp: CornerSpecs, sgn, only, layout: ProfileLayout, *, corr_px: float,
                 min_profiles: int):
-    """The mean profile across each edge of ``search`` (2K,) bool over its usable length (``layout``: from
+    """The mean profile across each outer edge (:func:`limb_edges`; of those in ``only`` (2K,) bool where
+    given) over its usable length (``layout``: from
     ``s0`` to ``s_end``, ``h`` [px] either side of its line, every ``step``), and the mean's standard
     error (the profiles' spread over ``sqrt(n / corr_px)``: neighbouring profiles share blur and a JPEG's
     blocks): (edges (E,), t (T,) [px], mean (E, T), standard error (E, T)); None where no edge has
     ``min_profiles`` whole profiles."""
     K = len(sp.C)
+    search = limb_edges(sp) if only is None else limb_edges(sp) & only
     if not search.any() or layout.h < 3 * layout.step:
         return None
     sub = CornerSpecs(sp.C, sp.Din, sp.Dout, np.where(search[:K], sp.Lin, 0.0), np.where(search[K:], sp.Lout, 0.0),
@@ -362,12 +360,8 @@ def outer_steps(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float, s
     width across the edge, :func:`width_deficits`: a matte tube misses none,
     and a cast shadow beside it is the backdrop's) is not taken.
     """
-    K = len(sp.C)
-    offs, var = np.zeros(2 * K), np.zeros(2 * K)
-    search = limb_edges(sp)
-    if only is not None:
-        search &= only
-    means = _edge_means(img, off, sp, sgn, search, ProfileLayout(s0, s_end, reach_px, step), corr_px=corr_px,
+    offs, var = np.zeros(2 * len(sp.C)), np.zeros(2 * len(sp.C))
+    means = _edge_means(img, off, sp, sgn, only, ProfileLayout(s0, s_end, reach_px, step), corr_px=corr_px,
                         min_profiles=min_profiles)
     if means is None:
         return offs, var
