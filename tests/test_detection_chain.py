@@ -440,7 +440,7 @@ def test_no_wrong_number_on_broken_sides_bounded_by_the_other_side(geom):
         corners = {("o", j): tuple(P[idx[(k, j, -side)]] + rng.normal(0, 0.03 * w, 2) for k in ("proximal", "distal"))
                    for j in shown}
         corners.update({k: (cands.near[k], cands.far[k]) for k in range(len(origin))})
-        ranges = _cross_ranges(list(range(len(origin))), [(("o", j), j) for j in shown],
+        ranges = _cross_ranges(list(range(len(origin))), [(corners[("o", j)], j, False) for j in shown],
                                SimpleNamespace(mouth_corners=corners), (dense, s), +1, margin, geom.n_joints)
         jr = np.array([ranges[k] for k in range(len(origin))]).reshape(-1, 2)
         res = number_side(dataclasses.replace(cands, joint_range=jr), geom, tol, scale=1e-3)

@@ -193,6 +193,7 @@ class DetectorOptions:
     rough_slot_area_range: tuple = (0.3, 2.5)
     uncal_close_frac: float = 0.1
     streak_fill_R: float = 0.6
+    pin_agree_w: float = 1.0
 
     def replace(self, **changes) -> "DetectorOptions":
         """A copy with some options changed."""
