@@ -13,12 +13,11 @@ import pytest
 
 from notchfit.io import load_geometry, load_image
 from notchfit.physics.geometry import notch_layout
-from notchfit.physics.notches import notch_points
 from notchfit.vision.detection import detect_notches, pipeline
 from notchfit.vision.detection.chain import ChainTolerance, number_side
 from notchfit.vision.detection.numbering import _cross_ranges, _other_spans
 from notchfit.vision.render.pbr import PbrTruth, score_detection
-from test_detection_chain import FAULTS, PRINTED, _broken_side
+from test_detection_chain import FAULTS, PRINTED, _broken_side_and_other_edge
 
 GALLERY = Path(__file__).parent / "data" / "pbr"
 ROOT = Path(__file__).parent.parent
@@ -69,17 +68,7 @@ def test_no_wrong_number_on_broken_sides_pinned_from_another_silhouette(seed):
     for trial in range(120):
         side = int(rng.choice([-1, 1]))
         faults = rng.choice(FAULTS, size=int(rng.integers(1, 3)), replace=False)
-        state = rng.bit_generator.state
-        cands, origin = _broken_side(geom, side, rng, faults)
-        rng2 = np.random.default_rng()
-        rng2.bit_generator.state = state
-        theta = rng2.uniform(-0.9, 0.9, geom.n_joints) * np.asarray(geom.closure_angles)
-        P = notch_points(theta, geom) * 1e3
-        other = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == -side]
-        edge = [P[idx[("base", 0, -side)]]] + [P[idx[(k, j, -side)]] for j in other
-                                                for k in ("proximal", "distal")] + [P[idx[("tip", 0, -side)]]]
-        dense = np.concatenate([np.linspace(a, b, 40, endpoint=False) for a, b in zip(edge[:-1], edge[1:])])
-        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
+        cands, origin, (P, other, dense, s) = _broken_side_and_other_edge(geom, side, rng, faults)
         cut = int(rng.integers(len(dense) // 2, len(dense) + 1))          # this outline's other edge ends here
         pinned = [j for j in other if rng.random() < 0.7]
         spans = [(tuple(P[idx[(k, j, -side)]] + rng.uniform(-w / 3, w / 3, 2) for k in ("proximal", "distal")), j,
