@@ -60,12 +60,15 @@ def segmented(gray, f, opts, cache: dict):
 def colour_segmentation(cache, f: int, opts) -> Segmentation | None:
     """The segmentation of the working copy's distance from the backdrop's colour (:func:`chroma_distance`):
     a shadow or shading on a coloured card keeps its colour, a neutral metal tube does not. None for a gray
-    image."""
+    image. Kept in ``cache`` by factor: without a camera file every rough scale tried reads it again."""
     colour = cache.get("colour")
     if colour is None:
         return None
-    return _segment(chroma_distance(downsample(colour, f)), min_snr=opts.min_snr, noise_scale=f,
-                    level=opts.segment_level)
+    key = ("colour", f, opts.min_snr, opts.segment_level)           # the same for every rough scale tried
+    if key not in cache:
+        cache[key] = _segment(chroma_distance(downsample(colour, f)), min_snr=opts.min_snr, noise_scale=f,
+                              level=opts.segment_level)
+    return cache[key]
 
 
 def streak_length(geom, opts) -> float:
@@ -175,6 +178,8 @@ def pinned_pass(tried: list, seg: Segmentation, shape, setup: Setup) -> list[Var
     the new reading replaces the first only where it locates every corner the first did and more. Variants numbered without the tip (``confirm_width``) give no pins: their silhouette may be
     half the tube."""
     geom = setup.geom
+    if len(set(geom.slot_sides)) < 2:
+        return tried                             # pins bound the other side's slots: a one-sided tube has none
     pins = {t.name: slot_pins(t.outcome, geom) for t in tried
             if isinstance(t.outcome, Located) and not t.outcome.confirm_width}
     agree = setup.opts.pin_agree_w * float(slot_widths(geom).min()) * setup.px_per_m
