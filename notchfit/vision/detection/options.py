@@ -208,6 +208,7 @@ class DetectorOptions:
     streak_fill_R: float = 0.6
     holder_backdrop_tol: float = 0.25
     outer_step_k: float = 6.0
+    pin_agree_w: float = 1.0
 
     def replace(self, **changes) -> "DetectorOptions":
         """A copy with some options changed."""
