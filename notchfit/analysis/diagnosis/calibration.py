@@ -240,7 +240,7 @@ def _aim_point(preps) -> np.ndarray:
 
 def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base) -> Problem:
     """Start vector and bounds; a real tube's per-tube unknowns and prior (identify's); for a point
-    correction the warp centre on the data and registrations."""
+    correction the warp centre at the aim point (:func:`_aim_point`) and registrations."""
     geoms = [p.geom for p in preps]
     specs = specs_for(model, base, geoms)
     sc = tuple(scales.factor(s.scale) for s in specs)
