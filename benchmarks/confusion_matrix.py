@@ -12,7 +12,12 @@ default test job (4 experiments, 9 + 11 samples, 2 folds) or full (``--full``: s
 leave-one-out), several seeds. The generator's truth.json is deleted before each diagnosis.
 Prints Markdown tables: counts of the first named cause per hidden cause (and of studies given a second
 cause), per wrist study the verdict, the held-out baseline against the noise floor and the gain, and
-per pair how many studies were named exactly that pair, with the held-out gains.
+per pair how many studies were named exactly that pair, with the held-out gains. Each single and pair
+study also shows the attainable gain, where the truth is known: the held-out rms of the generating model
+itself (true parameters and warp, true registration, driven by the measured tensions:
+``notchfit.analysis.diagnosis.calibration.attainable_mse``) is the floor, so the attainable gain is
+``1 − floor / baseline``, and the fraction of it the named model reached is
+``(baseline − extended) / (baseline − floor)`` (1: the row is as good as its data allow).
 
 ``--studies DIR`` keeps every generated study in DIR and reads it from there when it exists: run once,
 then run the same rows on other code (``PYTHONPATH=OLD_CHECKOUT python benchmarks/confusion_matrix.py
@@ -26,14 +31,21 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import json
+import math
 import shutil
 import tempfile
 import time
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
+
 from notchfit.analysis.diagnosis import CAUSES, diagnose
+from notchfit.analysis.diagnosis.calibration import attainable_mse
+from notchfit.analysis.fitting.results import PlaneTransform
 from notchfit.io import read_study
+from notchfit.physics.friction import FrictionParams
 from notchfit.studies.recipes import combine_recipes
 from notchfit.studies.synth import generate_study, load_recipe
 from notchfit.units import DEG, MM
@@ -64,17 +76,53 @@ def short(c: str) -> str:
             .replace("_error", ""))
 
 
+def _truth_file(study: Path) -> Path:
+    """Where a study's truth.json is kept, outside the study (the diagnosis never sees it)."""
+    return study.parent / f"{study.name}.truth.json"
+
+
 def _study(make, name: str, seed: int, tmp: Path, keep: Path | None) -> Path:
-    """The study ``name`` of ``seed`` without its truth.json: read from ``keep`` when it holds it, else
-    generated from the recipe ``make()`` (into ``keep`` when given)."""
+    """The study ``name`` of ``seed`` without its truth.json (moved beside it, :func:`_truth_file`): read
+    from ``keep`` when it holds it, else generated from the recipe ``make()`` (into ``keep`` when given)."""
     study = (keep or tmp) / f"{name}-{seed}"
     if keep is not None and (study / ".complete").exists():
         return study
     shutil.rmtree(study, ignore_errors=True)
     generate_study(make(), study, seed=seed)
-    (study / "truth.json").unlink()
+    (study / "truth.json").replace(_truth_file(study))
     (study / ".complete").touch()
     return study
+
+
+def attainable(d, study: Path):
+    """``(attainable gain [%], fraction of it reached)`` of diagnosis ``d`` from the study's kept truth
+    (None without a truth file, e.g. a study kept by older code; the fraction None without a named cause)."""
+    tf = _truth_file(study)
+    if not tf.exists():
+        return None
+    truth = json.loads(tf.read_text())
+    params = FrictionParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in truth["params"].items()})
+    w = truth.get("warp")
+    warp = None if w is None else {"scale_error": w["scale_error"], "k_radial": w["k_radial"],
+                                   "center": np.array(w["center_mm"]) * MM, "radius": w["radius_mm"] * MM,
+                                   "tilt": tuple(w.get("tilt_rad", (0.0, 0.0))),
+                                   "distance": w.get("distance_mm", 250.0) * MM}
+    mse = []
+    for p in d.prepared:
+        pl = truth["experiments"][p.name]["plane"]
+        T = PlaneTransform(pl["tx_mm"] * MM, pl["ty_mm"] * MM, pl["phi_rad"], pl["mirror"])
+        mse.append(attainable_mse(p, params, transform=T, warp=warp))
+    floor = math.sqrt(float(np.nanmean(np.concatenate(mse))))
+    base, ext = d.gain.baseline, d.gain.extended
+    frac = (base - ext) / (base - floor) if d.causes and base > floor else None
+    return 100.0 * (1.0 - floor / base), frac
+
+
+def _attainable_cell(a) -> str:
+    """``"40% (0.61)"``: the attainable gain and the fraction of it reached ("–" unknown)."""
+    if a is None:
+        return "–"
+    return f"{a[0]:.0f}%" + (f" ({a[1]:.2f})" if a[1] is not None else "")
 
 
 def run(spec: str, seed: int, full: bool, jobs: int, tmp: Path, keep: Path | None = None):
@@ -85,9 +133,11 @@ def run(spec: str, seed: int, full: bool, jobs: int, tmp: Path, keep: Path | Non
 
     study = _study(make, spec + ("-full" if full else ""), seed, tmp, keep)
     d = diagnose(read_study(study), jobs=jobs, max_folds=6 if full else 2)
+    a = attainable(d, study)
     if keep is None:
         shutil.rmtree(study, ignore_errors=True)
-    return d
+        _truth_file(study).unlink(missing_ok=True)
+    return d, a
 
 
 def singles(seeds, full, jobs, tmp, keep=None, rows=None) -> int:
@@ -95,18 +145,21 @@ def singles(seeds, full, jobs, tmp, keep=None, rows=None) -> int:
     if not hiddens:
         return 0
     head = " | ".join(short(c) for c in COLUMNS)
-    print(f"| hidden \\ named | {head} | 2nd cause | held-out gain (seeds {','.join(map(str, seeds))}) |")
-    print("|" + "---|" * (len(COLUMNS) + 3))
+    print(f"| hidden \\ named | {head} | 2nd cause | held-out gain (seeds {','.join(map(str, seeds))}) | "
+          "attainable gain (fraction reached) |")
+    print("|" + "---|" * (len(COLUMNS) + 4))
     for hidden in hiddens:
-        named, gains, second = Counter(), [], 0
+        named, gains, second, atts = Counter(), [], 0, []
         for s in seeds:
-            d = run(hidden, s, full, jobs, tmp, keep)
+            d, a = run(hidden, s, full, jobs, tmp, keep)
             named[d.cause] += 1
             second += len(d.causes) > 1
             gains.append(f"{d.gain.reduction_pct:.0f}%" if d.causes else d.cause)
+            atts.append(_attainable_cell(a))
         want = "none" if hidden == "null" else OTHER_LAWS.get(hidden, hidden)
         cells = [(f"**{named[c]}**" if c == want else str(named[c])) if named[c] else "" for c in COLUMNS]
-        print(f"| {hidden} | " + " | ".join(cells) + f" | {second} | {', '.join(gains)} |", flush=True)
+        print(f"| {hidden} | " + " | ".join(cells) + f" | {second} | {', '.join(gains)} | {', '.join(atts)} |",
+              flush=True)
     return len(hiddens) * len(seeds)
 
 
@@ -146,17 +199,20 @@ def wrists(seeds, jobs, tmp, keep=None, rows=None) -> int:
 
 
 def pairs(specs, seeds, full, jobs, tmp, keep=None) -> int:
-    print(f"\n| hidden pair | both named | named (seeds {','.join(map(str, seeds))}) | combined held-out gain |")
-    print("|---|---|---|---|")
+    print(f"\n| hidden pair | both named | named (seeds {','.join(map(str, seeds))}) | combined held-out gain | "
+          "attainable gain (fraction reached) |")
+    print("|---|---|---|---|---|")
     for spec in specs:
         want = set(spec.split("+"))
-        got, gains, n_both = [], [], 0
+        got, gains, n_both, atts = [], [], 0, []
         for s in seeds:
-            d = run(spec, s, full, jobs, tmp, keep)
+            d, a = run(spec, s, full, jobs, tmp, keep)
             n_both += set(d.causes) == want
             got.append("+".join(short(c) for c in d.causes) or d.cause)
             gains.append(f"{d.gain.reduction_pct:.0f}%")
-        print(f"| {spec} | {n_both}/{len(seeds)} | {', '.join(got)} | {', '.join(gains)} |", flush=True)
+            atts.append(_attainable_cell(a))
+        print(f"| {spec} | {n_both}/{len(seeds)} | {', '.join(got)} | {', '.join(gains)} | {', '.join(atts)} |",
+              flush=True)
     return len(specs) * len(seeds)
 
 

@@ -32,7 +32,8 @@ from .specs import (BASELINE_MU_EXCESS, REGISTRATION_BOUNDS, WARP_CENTER_RANGE, 
                     WARP_RADIUS, StudyScales, as_model, baseline_specs, model_params, specs_for)
 from .tubes import TUBES, has_tube_unknowns, mean_tubes, tube_blocks, tube_params
 
-__all__ = ["Calibration", "SimulationCache", "calibrate", "fold_band", "predict_points", "reregister"]
+__all__ = ["Calibration", "SimulationCache", "attainable_mse", "calibrate", "fold_band", "predict_points",
+           "reregister"]
 
 #: The simulations of a calibration, cached (the estimation core's :class:`~notchfit.analysis.estimation.problem.Simulations`).
 SimulationCache = Simulations
@@ -57,7 +58,7 @@ def _observed(prep: Prepared, theta, values: dict, registration=None, transform=
 def _warp_args(warp: dict) -> tuple:
     """``(scale_error, k_radial, centre, tilt)`` of the camera-plane warp values ``warp``
     (:func:`notchfit.vision.warp.apply_camera_plane_warp`; an absent tilt is none)."""
-    return (warp["scale_error"], warp["k_radial"], (warp["warp_center_x"], warp["warp_center_y"]),
+    return (warp.get("scale_error", 0.0), warp.get("k_radial", 0.0), (warp["warp_center_x"], warp["warp_center_y"]),
             (warp.get("plane_tilt_x", 0.0), warp.get("plane_tilt_y", 0.0)))
 
 
@@ -102,6 +103,41 @@ def predict_points(prep: Prepared, values: dict, *, transform=None, registration
     theta = (cache or Simulations()).theta(prep, params)
     return _observed(prep, theta, values, registration, transform), theta
 
+
+def attainable_mse(prep: Prepared, params: FrictionParams, *, transform=None, warp: dict | None = None,
+                   cache: Simulations | None = None) -> np.ndarray:
+    """Per-sample squared error of the generating model itself on ``prep``: the floor no fitted model can
+    beat on average where the truth is known (a synthetic study).
+
+    The simulator with the true parameters is driven by the measured (noisy) tensions, like every fitted
+    model, its notch points placed by the true registration and seen through the true camera-plane warp;
+    what is left is the point noise and the load-cell noise carried through the model (the expectation of
+    :func:`~notchfit.analysis.estimation.noise.noise_floor`, here drawn once, as the data drew it).
+
+    Parameters
+    ----------
+    prep : Observations
+    params : FrictionParams
+        The true model.
+    transform : PlaneTransform, optional
+        The true registration (default: ``prep``'s estimated one).
+    warp : dict, optional
+        The true camera-plane warp: ``scale_error``, ``k_radial`` [-], ``center`` (2,) [m], ``radius`` [m],
+        ``tilt`` (2,) [rad], ``distance`` [m] (:func:`notchfit.vision.warp.apply_camera_plane_warp`).
+    cache : Simulations, optional
+
+    Returns
+    -------
+    ndarray (S,) [m² or rad²]
+        As :func:`~notchfit.analysis.estimation.observations.sample_mse`.
+    """
+    theta = (cache or Simulations()).theta(prep, params)
+    P = measure_registered(prep, theta, None, transform)
+    if warp is not None and prep.metric == "points":
+        P = apply_camera_plane_warp(P, warp["scale_error"], warp["k_radial"], warp["center"],
+                                    tilt=warp.get("tilt", (0.0, 0.0)), radius=warp["radius"],
+                                    distance=warp.get("distance", WARP_DISTANCE))
+    return sample_mse(prep, P)
 
 def reregister(prep: Prepared, values: dict):
     """Registration of an experiment whose points are corrected by the warp in ``values``.
@@ -191,9 +227,20 @@ def mean_start(cals) -> dict:
     return {**out, TUBES: tubes} if tubes else out
 
 
+def _aim_point(preps) -> np.ndarray:
+    """Where a camera over experiments ``preps`` is aimed [m] (2,): the mean of the straight tube's notch points
+    (Eqs. 1-3 at θ = 0) under each experiment's registration.
+
+    The centre of a camera-plane warp is fitted near it. The bent tube's points lean to the side it is
+    pulled to: the centroid of the measured points of a training set pulled one way only lies some 10 mm off
+    the other's, and a warp centre started and bounded there trades the tilt for a centre at its bound; the
+    straight tube lies where it lies whichever way it is pulled.
+    """
+    return np.mean([measure_registered(p, np.zeros((1, p.geom.n_joints)))[0].mean(axis=0) for p in preps], axis=0)
+
 def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base) -> Problem:
     """Start vector and bounds; a real tube's per-tube unknowns and prior (identify's); for a point
-    correction the warp centre on the data and registrations."""
+    correction the warp centre at the aim point (:func:`_aim_point`) and registrations."""
     geoms = [p.geom for p in preps]
     specs = specs_for(model, base, geoms)
     sc = tuple(scales.factor(s.scale) for s in specs)
@@ -211,9 +258,7 @@ def _problem(preps, model: tuple, start: dict, cache, scales: StudyScales, base)
         x0, lo, hi = np.r_[x0, t0], np.r_[lo, tlo], np.r_[hi, thi]
         prior = np.hstack([tprior[:, :k], np.zeros((tprior.shape[0], len(specs) - k)), tprior[:, k:]])
     if any(REGISTRY[c].corrects_points for c in model):
-        # centre the warp on the data: where a camera would be aimed
-        allp = np.concatenate([p.measured[p.valid] for p in preps])
-        c = np.nanmean(allp, axis=0)
+        c = _aim_point(preps)
         idx = [i for i, s in enumerate(specs) if s.name in ("warp_center_x", "warp_center_y")]
         if "warp_center_x" not in start:
             x0[idx] = c

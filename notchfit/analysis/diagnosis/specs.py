@@ -82,7 +82,8 @@ WARP_RADIUS = 0.01
 #: (:func:`notchfit.vision.warp.apply_plane_tilt`): the tilt's perspective term scales with ``|ω| / D``,
 #: a wrong distance is absorbed by the tilt and the scale error.
 WARP_DISTANCE = 0.25
-#: The warp centre is fitted within this distance of the data centroid [m]; with
+#: The warp centre is fitted within this distance of the aim point (the straight tube under the registrations,
+#: :func:`notchfit.analysis.diagnosis.calibration.calibrate`) [m]; with
 #: |k_radial| <= 0.02 the warp stays one-to-one within about 70 mm of its centre.
 WARP_CENTER_RANGE = 0.03
 
