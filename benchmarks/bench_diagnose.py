@@ -9,7 +9,11 @@ system), which a machine shared with other jobs disturbs less. The serial run al
 histories simulated (cache misses of the process-wide simulation cache, emptied before every run), those
 served from the cache, and the CPU seconds spent in the simulator, against the rest of the diagnosis.
 
+``--candidate-secant K`` fits the candidates with Broyden updates between finite-difference Jacobians
+(``diagnose(candidate_secant=K)``; default 0, the reference's answers).
+
 Usage: python benchmarks/bench_diagnose.py [--recipe NAME] [--pair A+B] [--seed N] [--no-serial | --serial-only]
+       [--candidate-secant K]
 """
 import argparse
 import resource
@@ -43,11 +47,11 @@ def _study(spec: str, seed: int, folder: Path):
     return exps
 
 
-def _time(exps, jobs: int) -> float:
+def _time(exps, jobs: int, secant: int = 0) -> float:
     sims = Simulations.shared()
     sims.reset()                       # every run starts cold (a forked worker inherits the parent's cache)
     t, c = time.perf_counter(), _cpu()
-    d = diagnose(exps, jobs=jobs)
+    d = diagnose(exps, jobs=jobs, candidate_secant=secant)
     wall, cpu = time.perf_counter() - t, _cpu() - c
     print(f"jobs={jobs}: {wall:.1f} s wall, {cpu:.1f} s CPU  causes={', '.join(d.causes) or d.cause}  held-out rms "
           f"{d.gain.baseline / MM:.3f} -> {d.gain.extended / MM:.3f} mm ({d.gain.reduction_pct:.0f}% lower)")
@@ -63,6 +67,8 @@ def main():
     ap.add_argument("--recipe", default="proximal_friction")
     ap.add_argument("--pair", default="external_load+stiffness_gradient")
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--candidate-secant", type=int, default=0,
+                    help="Broyden updates in a row in the candidates' fits (0: differences throughout)")
     runs = ap.add_mutually_exclusive_group()
     runs.add_argument("--no-serial", action="store_true", help="skip the serial reference runs")
     runs.add_argument("--serial-only", action="store_true", help="only the serial runs (with their simulation counts)")
@@ -72,7 +78,7 @@ def main():
         for spec, target in ((args.recipe, 15.0), (args.pair, 30.0)):
             exps = _study(spec, args.seed, tmp / spec)
             runs = [2] if args.no_serial else [1] if args.serial_only else [2, 1]
-            times = {jobs: _time(exps, jobs) for jobs in runs}
+            times = {jobs: _time(exps, jobs, args.candidate_secant) for jobs in runs}
             if len(times) == 2:
                 print(f"speed-up of 2 workers over serial: {times[1] / times[2]:.2f}x")
             if 2 in times:

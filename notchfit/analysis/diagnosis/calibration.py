@@ -278,7 +278,7 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
               xtol: float = 1e-3, cache: Simulations | None = None,
               scales: StudyScales | None = None, base: FrictionParams | None = None,
               paper_start: bool = True, keep_start: float = math.inf, errors: bool = True,
-              tube_starts: int = 2, tube_tol: float = 1e-6) -> Calibration:
+              tube_starts: int = 2, tube_tol: float = 1e-6, secant: int = 0) -> Calibration:
     """Fit the baseline (``cause=None``), a candidate or a pair of candidates on experiments ``preps``.
 
     Bounded least squares (:func:`notchfit.analysis.estimation.solve.solve`) on the
@@ -330,6 +330,9 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
         uses forward differences with the unknowns' own steps, and ``ftol``, ``xtol`` at most ``tube_tol``
         (identify's; the per-tube unknowns move the cost little each, and a fit stopped early would leave
         the baseline an error a candidate then removes).
+    secant : int
+        Broyden rank-one Jacobian updates allowed in a row between finite differences
+        (:func:`notchfit.analysis.estimation.solve.solve`; 0: differences at every accepted point).
 
     Returns
     -------
@@ -353,7 +356,7 @@ def calibrate(preps, cause=None, start: dict | None = None, *,
     # cut-depth offset of a few micrometres would be no step at all
     sol = solve(pb, starts, jac="forward" if tubes else "2-point", diff_rel=diff_step, max_nfev=max_nfev,
                 ftol=min(ftol, tube_tol) if tubes else ftol, xtol=min(xtol, tube_tol) if tubes else xtol,
-                errors=errors, nfev=nprobe)
+                errors=errors, nfev=nprobe, secant=secant)
     vals = pb.values(sol.x)
     regs = pb.block_values(sol.x, "experiment")
     reg = tuple(tuple(regs[p.name]["registration"]) for p in preps) if regs else ()

@@ -171,7 +171,7 @@ class HeldOut:
 
 def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = None, seed: int = 0,
               jobs: int = 1, scheduler=None, scales: StudyScales | None = None, base=None,
-              fold_band: bool = False) -> dict:
+              fold_band: bool = False, cause_kw: dict | None = None) -> dict:
     """Calibrate every model of ``causes`` on every fold and collect the held-out predictions.
 
     Parameters
@@ -199,6 +199,8 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
     fold_band : bool
         Also the baseline's held-out prediction variance (:attr:`HeldOut.band`; ``p + 1`` more runs of
         each fold's experiments).
+    cause_kw : dict, optional
+        Added to ``calibrate_kw`` for the models with a cause (not the baseline), e.g. ``{"secant": 3}``.
 
     Returns
     -------
@@ -221,7 +223,8 @@ def run_folds(preps, folds, causes, starts=None, *, calibrate_kw: dict | None = 
         st = st if st is not None else [None] * len(folds)
         for k, f in enumerate(folds):
             train = tuple(int(i) for i in np.setdiff1d(all_idx, f))
-            tasks.append(FoldTask(preps, train, tuple(int(i) for i in f), model, st[k], kw, seed, scales, base,
+            tasks.append(FoldTask(preps, train, tuple(int(i) for i in f), model, st[k],
+                                  {**kw, **(cause_kw or {})} if model else kw, seed, scales, base,
                                   fold_band and not model))
             keys.append(f"{model_key(model)}/fold{k + 1}")
     # the platform's default start method (fork on Linux), whatever threads this process

@@ -79,6 +79,12 @@ class _Options:
     max_second: int
     screen: bool = True
     screen_ratio: float = 1.0
+    cause_kw: dict = field(default_factory=dict)
+
+    @property
+    def candidate_kw(self) -> dict:
+        """The calibration options of the candidates' and pairs' fits (the baseline's: ``calibrate_kw``)."""
+        return {**self.calibrate_kw, **self.cause_kw}
 
 
 @dataclass
@@ -203,7 +209,7 @@ def _masked_first(st: _Study, opts: _Options, cands, held):
     for i, a in enumerate(pool[:-1]):
         screened.update(screen_pairs(a, pool[i + 1:], st.preps, held[a].mean_values(), scales=st.scales,
                                      others={c: held[c].mean_values() for c in pool[i + 1:]}, base=st.base,
-                                     calibrate_kw=opts.calibrate_kw, jobs=opts.jobs))
+                                     calibrate_kw=opts.candidate_kw, jobs=opts.jobs))
     best = min((k for k in screened if "+" in k), key=lambda k: screened[k][1])
     first, second = best.split("+")
     return first, second, screened
@@ -234,7 +240,7 @@ def _second(st: _Study, opts: _Options, held, step: _First, run, single, rival=N
         screen = partial(screen_pairs, first, preps=st.preps, start=held[first].mean_values(), scales=st.scales,
                          others={c: held[c].mean_values() if c in held else step.screen[c][0].start()
                                  for c in second}, base=st.base,
-                         calibrate_kw=opts.calibrate_kw, jobs=opts.jobs)
+                         calibrate_kw=opts.candidate_kw, jobs=opts.jobs)
         if second:
             opts.say(f"screening {len(second)} second causes with {first} on all experiments")
     within = pooled_mse(held[first].sample_mse(st.preps)) <= noise * (1.0 + opts.rule.none_tol)
@@ -263,7 +269,8 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
              causes=CAUSES, none_tol: float = 0.5, z_crit: float = 3.0, min_excess_removed: float = 0.3,
              calibrate_kw: dict | None = None, progress=None, metric: str = "auto", second_cause: bool = True,
              max_second: int = 4, estimate_protocol: bool = True, lof_alpha: float = 0.01, fold_band: bool = True,
-             replicate_tol_sigma: float = 3.0, screen_candidates: bool = True, screen_ratio: float = 1.0) -> Diagnosis:
+             replicate_tol_sigma: float = 3.0, screen_candidates: bool = True, screen_ratio: float = 1.0,
+             candidate_secant: int = 0) -> Diagnosis:
     """Diagnose a study against the friction model (Sec. IV-B; docs/diagnosis.md).
 
     The baseline is calibrated on the training experiments of each fold and
@@ -320,6 +327,8 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
         Judge the baseline against the noise floor plus its folds' prediction variance (:func:`~.calibration.fold_band`).
     screen_candidates, screen_ratio : bool, float
         Screen the candidates on all experiments first (:func:`_singles`; False: cross-validate every one).
+    candidate_secant : int
+        Broyden updates in a row in the candidates' fits (:func:`notchfit.analysis.estimation.solve.solve`).
 
     Returns
     -------
@@ -330,11 +339,11 @@ def diagnose(experiments, *, jobs: int = 1, scheduler=None, seed: int = 0, max_f
         raise ValueError(f"unknown cause(s) {sorted(unknown)}; known: {', '.join(CAUSES)}")
     opts = _Options(tuple(causes), metric, estimate_protocol, dict(calibrate_kw or {}), jobs, seed,
                     progress or (lambda msg: None), Thresholds(none_tol, z_crit, min_excess_removed), second_cause,
-                    max_second, screen_candidates, screen_ratio)
+                    max_second, screen_candidates, screen_ratio, {"secant": candidate_secant})
     say, kw, st = opts.say, opts.calibrate_kw, _setup(experiments, opts)
     preps, folds = st.preps, folds_by_experiment(len(st.preps), max_folds)
     run_on = partial(run_folds, preps, calibrate_kw=kw, seed=seed, jobs=jobs, scheduler=scheduler,
-                     scales=st.scales, base=st.base, fold_band=fold_band)
+                     scales=st.scales, base=st.base, fold_band=fold_band, cause_kw=opts.cause_kw)
     run = partial(run_on, folds)
 
     say(f"calibrating the baseline on {len(folds)} folds")
@@ -446,7 +455,7 @@ def _singles(st: _Study, opts: _Options, order, full_base, single, score) -> tup
         return single(order), {}, ()
     opts.say(f"screening {len(order)} candidate extensions on all experiments")
     screen = screen_singles(order, st.preps, full_base.start(), scales=st.scales, base=st.base,
-                            calibrate_kw=opts.calibrate_kw, jobs=opts.jobs)
+                            calibrate_kw=opts.candidate_kw, jobs=opts.jobs)
     ranked = sorted(order, key=lambda c: screen[c][1])
     singles, best = {}, None
     for k, c in enumerate(ranked):

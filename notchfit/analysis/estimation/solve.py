@@ -168,6 +168,62 @@ class _Jacobian:
         return self.J
 
 
+class _Secant:
+    """Finite-difference Jacobians with Broyden's rank-one updates between them (Madsen, Nielsen & Tingleff
+    2004, "Methods for non-linear least squares problems", §3.4).
+
+    At an accepted point reached by the first step tried since the last Jacobian, the previous Jacobian is
+    updated with the step ``Δx`` and the change of the residuals ``Δr`` (both already evaluated by the least
+    squares), ``J ← J + (Δr − J Δx) Δxᵀ / (Δxᵀ Δx)``, which costs no residual evaluation; differences
+    (``fd``) are taken at the start, after a step that was rejected (the linear model failed: the update
+    refreshed by differences), after a step that lowered the cost by less than ``ratio`` times what the
+    Jacobian predicted (the linear model described it poorly: a kink of the friction model's cost between the
+    points) and after ``max_updates`` updates in a row. ``residuals`` is the function
+    handed to the least squares (it records the last point evaluated); ``J0`` the Jacobian at ``x0`` when
+    the caller has it.
+    """
+
+    def __init__(self, fun, fd, max_updates: int, x0=None, J0=None, ratio: float = 0.0):
+        self.fun, self.fd, self.max_updates, self.ratio = fun, fd, max_updates, ratio
+        self.x0, self.J0 = (None, None) if J0 is None else (np.asarray(x0, dtype=float).copy(), J0)
+        self.x = self.r = self.J = None
+        self.last = None                      # (x, r) of the last residual evaluation
+        self.calls = 0                        # residual evaluations since the last Jacobian
+        self.updates = 0                      # rank-one updates in a row
+        self.differences = 0                  # finite-difference Jacobians taken
+
+    def residuals(self, x):
+        r = self.fun(x)
+        self.calls += 1
+        self.last = (np.array(x, dtype=float), r)
+        return r
+
+    def __call__(self, x):
+        x = np.asarray(x, dtype=float)
+        at_last = self.last is not None and np.array_equal(self.last[0], x)
+        r = self.last[1] if at_last else self.fun(x)
+        if self.J0 is not None and np.array_equal(x, self.x0):
+            J, self.updates = self.J0, 0
+        elif (self.J is None or not at_last or self.calls != 1 or self.updates >= self.max_updates
+              or not self._predicted(x, r)):
+            J, self.updates = self.fd(x), 0
+            self.differences += 1
+        else:
+            dx, dr = x - self.x, r - self.r
+            J = self.J + np.outer(dr - self.J @ dx, dx) / float(dx @ dx)
+            self.updates += 1
+        self.x, self.r, self.J, self.calls = x.copy(), r, J, 0
+        return J
+
+    def _predicted(self, x, r) -> bool:
+        """The step to ``x`` lowered the cost by at least ``ratio`` times what the Jacobian predicted."""
+        if self.ratio <= 0.0:
+            return True
+        r0 = self.r
+        pred = float(r0 @ r0) - float(np.sum((r0 + self.J @ (x - self.x)) ** 2))
+        return pred > 0.0 and float(r0 @ r0) - float(r @ r) >= self.ratio * pred
+
+
 def standard_errors(pb: Problem, x, h, jacobian=None) -> np.ndarray:
     """Standard errors of ``x``: per parameter the larger of the Gauss–Newton and the cluster-robust estimate.
 
@@ -208,7 +264,8 @@ def se_values(pb: Problem, x, se) -> dict:
 
 def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_scale: float = 3.0,
           max_nfev: int = 100, ftol: float = 1e-6, xtol: float = 1e-6, diff_rel: float = 2e-3,
-          block_steps: dict | None = None, nfev: int = 0, errors: bool = True, jacobian0=None) -> Solution:
+          block_steps: dict | None = None, nfev: int = 0, errors: bool = True, jacobian0=None,
+          secant: int = 0, secant_ratio: float = 0.75) -> Solution:
     """Bounded least squares from each start; the lowest cost wins, with its standard errors.
 
     Parameters
@@ -227,19 +284,32 @@ def solve(pb: Problem, starts, *, jac: str = "forward", loss: str = "linear", f_
     jacobian0 : ndarray, optional
         The ``"forward"`` Jacobian at the first start, when the caller has it (an earlier fit's at
         that point, same steps): that run does not compute it.
+    secant : int
+        Broyden rank-one updates allowed in a row between finite-difference Jacobians (:class:`_Secant`;
+        0: differences at every accepted point).
+    secant_ratio : float
+        An update only after a step that lowered the cost by at least this fraction of what the Jacobian
+        predicted (a step the linear model described well); else differences.
     """
     best, stalled = None, False
     for j, x0 in enumerate(starts):
+        J0 = jacobian0 if j == 0 and jac == "forward" else None
         if jac == "forward":
             h = pb.steps(x0, diff_rel, block_steps)
-            jac_of = _Jacobian(lambda x, h=h: forward_jacobian(pb, x, h), xtol, x0=x0, J0=None if j else jacobian0)
+            fd = lambda x, h=h: forward_jacobian(pb, x, h)       # noqa: E731
         else:
             # scipy's own 2-point differences (least_squares(jac="2-point", diff_step=diff_rel)), called here
-            jac_of = _Jacobian(lambda x: approx_derivative(pb.residuals, x, method="2-point", rel_step=diff_rel,
-                                                           f0=pb.residuals(x), bounds=(pb.lo, pb.hi)), xtol)
-        res = least_squares(pb.residuals, x0, jac=jac_of, bounds=(pb.lo, pb.hi), method="trf", loss=loss,
+            fd = lambda x: approx_derivative(pb.residuals, x, method="2-point", rel_step=diff_rel,  # noqa: E731
+                                             f0=pb.residuals(x), bounds=(pb.lo, pb.hi))
+        fun, sec = pb.residuals, None
+        if secant > 0:
+            sec = _Secant(pb.residuals, fd, secant, x0=x0, J0=J0, ratio=secant_ratio)
+            fun, fd, J0 = sec.residuals, sec, None
+        jac_of = _Jacobian(fd, xtol, x0=x0, J0=J0)
+        res = least_squares(fun, x0, jac=jac_of, bounds=(pb.lo, pb.hi), method="trf", loss=loss,
                             f_scale=f_scale, max_nfev=max_nfev, ftol=ftol, xtol=xtol, x_scale="jac")
-        nfev += res.nfev + (res.njev * x0.size if jac == "forward" else 0)
+        njev = res.njev if sec is None else sec.differences
+        nfev += res.nfev + (njev * x0.size if jac == "forward" else 0)
         if best is None or res.cost < best.cost:
             best = res
             # at the end (within xtol of the start when stalled): its residuals and last Jacobian
