@@ -407,6 +407,26 @@ def test_a_side_pinned_by_the_other_sides_slots_is_numbered():
     assert number_side(loose, PRINTED, tol, scale=1e-3).joints == {}
 
 
+def _broken_side_and_other_edge(geom, side, rng, faults):
+    """:func:`_broken_side`, and the same bent tube's other side: its corners (all points [mm]), its joints,
+    its edge as a dense polyline from the base to the tip and the arc length along it."""
+    lay = notch_layout(geom)
+    idx = {(lay.kind[i], int(lay.joint[i]), int(lay.side[i])): i for i in range(lay.n_points)}
+    state = rng.bit_generator.state
+    cands, origin = _broken_side(geom, side, rng, faults)
+    # the other side: replay the generator to the same bend
+    rng2 = np.random.default_rng()
+    rng2.bit_generator.state = state
+    theta = rng2.uniform(-0.9, 0.9, geom.n_joints) * np.asarray(geom.closure_angles)
+    P = notch_points(theta, geom) * 1e3
+    other = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == -side]
+    edge = [P[idx[("base", 0, -side)]]] + [P[idx[(k, j, -side)]] for j in other
+                                            for k in ("proximal", "distal")] + [P[idx[("tip", 0, -side)]]]
+    dense = np.concatenate([np.linspace(a, b, 40, endpoint=False) for a, b in zip(edge[:-1], edge[1:])])
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
+    return cands, origin, (P, other, dense, s)
+
+
 @pytest.mark.parametrize("geom", [PRINTED, default_geometry()], ids=["printed", "seed"])
 def test_no_wrong_number_on_broken_sides_bounded_by_the_other_side(geom):
     """The broken sides of :func:`_broken_side`, each candidate bounded by the other side's numbered slots as the
@@ -424,23 +444,12 @@ def test_no_wrong_number_on_broken_sides_bounded_by_the_other_side(geom):
     for trial in range(150):
         side = int(rng.choice([-1, 1]))
         faults = rng.choice(FAULTS, size=int(rng.integers(1, 3)), replace=False)
-        state = rng.bit_generator.state
-        cands, origin = _broken_side(geom, side, rng, faults)
-        # the same bent tube's other side: replay the generator to the same bend
-        rng2 = np.random.default_rng()
-        rng2.bit_generator.state = state
-        theta = rng2.uniform(-0.9, 0.9, geom.n_joints) * np.asarray(geom.closure_angles)
-        P = notch_points(theta, geom) * 1e3
-        other = [j for j in range(1, geom.n_joints + 1) if geom.slot_sides[j - 1] == -side]
-        edge = [P[idx[("base", 0, -side)]]] + [P[idx[(k, j, -side)]] for j in other
-                                                for k in ("proximal", "distal")] + [P[idx[("tip", 0, -side)]]]
-        dense = np.concatenate([np.linspace(a, b, 40, endpoint=False) for a, b in zip(edge[:-1], edge[1:])])
-        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
+        cands, origin, (P, other, dense, s) = _broken_side_and_other_edge(geom, side, rng, faults)
         shown = [j for j in other if rng.random() < 0.7]
         corners = {("o", j): tuple(P[idx[(k, j, -side)]] + rng.normal(0, 0.03 * w, 2) for k in ("proximal", "distal"))
                    for j in shown}
         corners.update({k: (cands.near[k], cands.far[k]) for k in range(len(origin))})
-        ranges = _cross_ranges(list(range(len(origin))), [(("o", j), j) for j in shown],
+        ranges = _cross_ranges(list(range(len(origin))), [(corners[("o", j)], j, False) for j in shown],
                                SimpleNamespace(mouth_corners=corners), (dense, s), +1, margin, geom.n_joints)
         jr = np.array([ranges[k] for k in range(len(origin))]).reshape(-1, 2)
         res = number_side(dataclasses.replace(cands, joint_range=jr), geom, tol, scale=1e-3)

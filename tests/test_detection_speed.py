@@ -2,8 +2,8 @@
 formulations they replace (issue 25), bit for bit: the compiled loops over the refinement's edge profiles,
 the working copy of an 8-bit image, the segmentation's one-pass threshold and its background fit, the
 distance transforms cut to the box they are needed in, the disk closing by rectangles, the ridge radii's
-histogram, the parts' areas and boxes counted from their labels; and the grouped median is each group's
-median."""
+histogram, the parts' areas and boxes counted from their labels, the labels' window maxima read at
+listed pixels; and the grouped median is each group's median."""
 
 import cv2
 import numpy as np
@@ -538,6 +538,27 @@ def test_components_with_stats_equal_opencvs():
         for a, b in zip(got[1:], want[1:]):
             assert a.dtype == b.dtype
             np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("half", [1, 2])
+def test_window_max_at_listed_pixels_equals_the_dilated_labels(half):
+    """The largest label in each listed pixel's window equals OpenCV's dilation of the float32 label image
+    read there (pixels on and next to every border listed, labels of touching parts, an image one pixel
+    high), as the slot search read it before."""
+    from notchfit.vision.detection.segment import window_max_at
+
+    rng = np.random.default_rng(17)
+    ker = np.ones((2 * half + 1, 2 * half + 1), np.uint8)
+    for k in range(40):
+        h, w = (1, int(rng.integers(2, 30))) if k == 0 else (int(v) for v in rng.integers(2, 120, 2))
+        m = (rng.random((h, w)) < rng.uniform(0.05, 0.6)).astype(np.uint8)
+        _, lab = cv2.connectedComponents(m, connectivity=8 if k % 2 else 4)
+        n = int(rng.integers(1, 3 * h * w))
+        ys, xs = rng.integers(0, h, n), rng.integers(0, w, n)
+        want = cv2.dilate(lab.astype(np.float32), ker).astype(np.intp)[ys, xs]
+        got = window_max_at(lab, ys, xs, half=half)
+        assert got.dtype == lab.dtype
+        np.testing.assert_array_equal(got, want)
 
 
 def _band_mask(rng):

@@ -19,7 +19,7 @@ from .outline import (bridge_slots, corner_window, crop_region, hole_ends, raw_m
 from .records import Crop, Located, Parsed, Setup
 from .result import Detection, empty_detection
 
-__all__ = ["locate"]
+__all__ = ["locate", "slot_pins"]
 
 
 def _one_sided_holes(ol, mouths, be, side: int, *, max_wall: float) -> dict:
@@ -62,9 +62,10 @@ def _joined(pieces: dict, mouths: dict, rawc: dict, pos):
     return mouths, rawc
 
 
-def _chain_input(ol, mouths, rawc, raw, plane_px, setup: Setup, *, to_plane) -> ChainInput:
+def _chain_input(ol, mouths, rawc, raw, plane_px, setup: Setup, *, to_plane, pins=None) -> ChainInput:
     """The slot candidates' outer corners and the base corners in the plane (low-res px), and the chain's
-    tolerances (options ``chain_rel_tol``, ``chain_abs_w``, ``chain_abs_px``, ``chain_play``)."""
+    tolerances (options ``chain_rel_tol``, ``chain_abs_w``, ``chain_abs_px``, ``chain_play``); ``pins``: another
+    silhouette's numbered slots (:func:`slot_pins`, corners in px), taken to the plane."""
     geom, opts, low_m = setup.geom, setup.opts, setup.low_m
     cnt, mcnt = ol.contour, ol.raw_contour
     N = len(cnt)
@@ -86,11 +87,14 @@ def _chain_input(ol, mouths, rawc, raw, plane_px, setup: Setup, *, to_plane) -> 
     base = tuple(None if e is None else next(rest) for e in ends)
     tol = ChainTolerance(opts.chain_rel_tol, max(opts.chain_abs_w * float(w.min()) / low_m, opts.chain_abs_px),
                          opts.chain_play)
-    return ChainInput(corners, slack, base, plane_px, low_m, tol)
+    to_low = lambda px: setup.camera.pixel_to_plane(np.asarray(px, float)) / low_m
+    pinned = {sd: [(j, tuple(to_low(c))) for j, c in got] for sd, got in (pins or {}).items()}
+    return ChainInput(corners, slack, base, plane_px, low_m, tol, pinned)
 
 
-def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detection:
-    """Bridge, base end, slot numbering on one cropped silhouette: Parsed, or the Detection of a failure."""
+def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool, pins=None) -> Parsed | Detection:
+    """Bridge, base end, slot numbering on one cropped silhouette: Parsed, or the Detection of a failure;
+    ``pins``: another silhouette's numbered slots (:func:`slot_pins`)."""
     camera, geom, opts, f, low_m, sgn = setup.camera, setup.geom, setup.opts, setup.f, setup.low_m, setup.sgn
     r_close, small_shape, gray, dark = crop.r_close, crop.shape, crop.gray, crop.dark
     lay = notch_layout(geom)
@@ -141,7 +145,7 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detect
     w_lo = float(slot_widths(geom).min()) / low_m
     rawc = raw_mouth_corners(ol, mouths, k=max(3, min(int(0.25 * R_lo), int(0.3 * w_lo))), sgn=sgn)
     chain = _chain_input(ol, mouths, rawc, raw, plane_px, setup,
-                         to_plane=lambda p: camera.pixel_to_plane(full(p)) / low_m)
+                         to_plane=lambda p: camera.pixel_to_plane(full(p)) / low_m, pins=pins)
     num = number_slots(cnt, ol.on_border, be, mouths, convex, geom, dist=dist, pair_tol=opts.pair_tol, chain=chain,
                        weak=set(ol.sliver_ids))
     mouths, rawc = _joined(num.pieces, mouths, rawc, lambda i: (i - be.i_right) % len(cnt))
@@ -153,8 +157,11 @@ def _parse(crop: Crop, setup: Setup, *, exclude_holder: bool) -> Parsed | Detect
     return Parsed(ol, be, num, mouths, raw, full, contour_px, rawc)
 
 
-def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True) -> Located | Detection:
+def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True, pins=None) -> Located | Detection:
     """Stages 2-4 on the downsampled copy: outline, base end, numbering, first corner estimates.
+
+    ``pins``: slots another silhouette of the image numbered (:func:`slot_pins`): they bound this
+    silhouette's slots of the other side along the tube (:func:`.numbering.number_slots`).
 
     The slots are bridged with the holder left out of the closing (its
     fillets would reach a slot near the holder); where that numbers fewer
@@ -181,7 +188,7 @@ def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True) -> 
     crop = Crop(roi, offset, small_shape, r_close, slot_area, holders, gray, dark)
     res = fail = None
     for exclude in ((True, False) if holders[1].any() else (False,)):
-        got = _parse(crop, setup, exclude_holder=exclude)
+        got = _parse(crop, setup, exclude_holder=exclude, pins=pins)
         if isinstance(got, Detection):
             fail = fail or got                   # the first failure, where no variant parses
             continue
@@ -211,3 +218,24 @@ def locate(region, box, small_shape, setup: Setup, *, small=None, dark=True) -> 
                         holes=wedge_pixels(ol, mouths, max_wall=0.5 * R_lo))
     tube = (np.arange(len(cnt)) - be.i_right) % len(cnt) <= (be.i_left - be.i_right) % len(cnt)
     return Located(specs, res.contour_px, num.status, num.messages, be.side, full, res.contour_px[tube], num.tipless)
+
+
+def slot_pins(located: Located, geom) -> dict:
+    """The slots a silhouette numbered, as pins for another silhouette of the same image: side (+1, -1) ->
+    list of (joint, (2, 2) outer corners [px], nearer the base first). A slot with one corner located gives
+    it twice. Numbers by the chain are never guessed (:mod:`.chain`), so they hold on any silhouette; where
+    the corners lie is used only to order the other side's slots along the tube."""
+    lay = notch_layout(geom)
+    origin = located.full(np.zeros((1, 2)))[0]
+    factor = located.full(np.ones((1, 2)))[0] - origin
+    slots = {}
+    for sp in located.specs:
+        kind = lay.kind[sp.point]
+        if kind in ("proximal", "distal"):
+            key = (int(lay.side[sp.point]), int(lay.joint[sp.point]))
+            slots.setdefault(key, {})[kind] = np.asarray(sp.xy, float) * factor + origin
+    out = {}
+    for (sd, j), c in sorted(slots.items()):
+        near, far = c.get("proximal", c.get("distal")), c.get("distal", c.get("proximal"))
+        out.setdefault(sd, []).append((j, np.array([near, far])))
+    return out

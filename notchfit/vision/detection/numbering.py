@@ -108,6 +108,10 @@ class ChainInput:
     scale : float
         Metres per plane unit.
     tol : ChainTolerance
+    pinned : dict
+        Side (+1, -1) -> list of (joint, (first, last) outer corner (plane, low-res px)): slots another
+        silhouette of the same image numbered (:func:`~.locate.slot_pins`); they bound this side's
+        slots along the tube like the other side's own numbered slots (:func:`_cross_ranges`).
     """
 
     mouth_corners: dict
@@ -116,6 +120,7 @@ class ChainInput:
     outline_plane: np.ndarray
     scale: float
     tol: ChainTolerance
+    pinned: dict = field(default_factory=dict)
 
 
 def _side_numbers(labels, side, chain: ChainInput, geom, tip, msg, ranges=None):
@@ -225,8 +230,8 @@ def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dis
     if right_j and left_j and (tip is not None or tube_border):
         arcs = _arcs(chain.outline_plane, i_br, L_tube, pos, tip, tube_border)
         margin = 0.5 * _shortest_solid(geom) / chain.scale
-        cross = lambda sd, labels: _cross_ranges(labels, pairs[-sd], chain, arcs[0 if sd < 0 else 1], -sd, margin,
-                                                 geom.n_joints)
+        cross = lambda sd, labels: _cross_ranges(labels, _other_spans(pairs[-sd], chain, -sd), chain,
+                                                 arcs[0 if sd < 0 else 1], -sd, margin, geom.n_joints)
     pieces = _bounded_readings(sides, joints, pairs, cross, ctx, msg)
     return Numbering(pairs[+1], pairs[-1], tip, status, msg, tipless=tipless, pieces=pieces)
 
@@ -257,7 +262,7 @@ def _bounded_readings(sides: dict, joints: dict, pairs: dict, cross, ctx: _Readi
     geom, tip = ctx.geom, ctx.tip
     for sd in sides:
         strong = ctx.strong(sides[sd])
-        if cross is not None and len(pairs[sd]) < len(strong) and pairs[-sd]:
+        if cross is not None and len(pairs[sd]) < len(strong) and (pairs[-sd] or ctx.chain.pinned.get(-sd)):
             pairs[sd] = _only_added(pairs[sd], _side_numbers(strong, sd, ctx.chain, geom, tip, None,
                                                              cross(sd, strong)),
                                     msg, "slots between the other side's numbered slots")
@@ -266,7 +271,7 @@ def _bounded_readings(sides: dict, joints: dict, pairs: dict, cross, ctx: _Readi
         if len(pairs[sd]) == len(joints[sd]) or len(ctx.strong(sides[sd])) == len(sides[sd]):
             continue                               # every joint numbered, or no sliver on this side
         rng = _own_ranges(sides[sd], pairs[sd], geom.n_joints)
-        if cross is not None and pairs[-sd]:
+        if cross is not None and (pairs[-sd] or ctx.chain.pinned.get(-sd)):
             other = cross(sd, sides[sd])
             rng = {lab: (max(rng[lab][0], other[lab][0]), min(rng[lab][1], other[lab][1])) for lab in rng}
         at = lambda lab: [j for j in joints[sd] if rng[lab][0] < j < rng[lab][1]]
@@ -342,26 +347,42 @@ def _arcs(plane, i_br, L_tube, pos, tip, tube_border):
     return (plane[idx[:end_r + 1]], s[:end_r + 1]), (plane[idx[start_l:]], s[start_l:])
 
 
-def _cross_ranges(labels, other_pairs, chain: ChainInput, other_arc, other_side: int, margin: float,
+def _other_spans(pairs, chain: ChainInput, side: int) -> list:
+    """The ``side``'s numbered slots as ((first, last) corner (plane), joint): its own (``pairs``, (label,
+    joint)) and the slots pinned by another silhouette (``chain.pinned``) at the joints it did not number."""
+    own = [(chain.mouth_corners[lab], j, False) for lab, j in pairs]
+    have = {j for _, j in pairs}
+    return own + [(c, j, True) for j, c in chain.pinned.get(side, []) if j not in have]
+
+
+def _cross_ranges(labels, other, chain: ChainInput, other_arc, other_side: int, margin: float,
                   n_joints: int) -> dict:
     """Label -> (lo, hi): the joints between which each slot of one side lies along the tube, from the other
-    side's numbered slots (``other_pairs``, on ``other_arc``). A slot's corners and the corners of the other
-    side's slot before (after) it lie on one rigid link, its solid part between the two slots long: each
-    corner is taken across the tube to the nearest point of the other side's edge, and a numbered slot
-    bounds a candidate only where all its corners are beyond all the candidate's by ``margin`` along that
-    edge (half the shortest solid stretch: the bend of the joint between them and the corners' own errors
-    are left that much)."""
+    side's numbered slots (``other``: list of ((first, last) corner (plane), joint, pinned), :func:`_other_spans`,
+    on ``other_arc``). A slot's corners and the corners of the other side's slot before (after) it lie on one
+    rigid link, its solid part between the two slots long: each corner is taken across the tube to the
+    nearest point of the other side's edge, and a numbered slot bounds a candidate only where all its
+    corners are beyond all the candidate's by ``margin`` along that edge (half the shortest solid stretch:
+    the bend of the joint between them and the corners' own errors are left that much). A numbered slot
+    pinned by another silhouette whose corner lies farther than ``margin`` from this outline's edge (beyond
+    its end, or off it) bounds nothing: where it lies along the edge is not known."""
     pts, s = other_arc
     if not len(pts):
         return {c: (0, n_joints + 1) for c in labels}
-    along = lambda xy: s[np.argmin(np.sum((pts - xy) ** 2, axis=1))]
-    span = lambda lab: sorted(along(p) for p in chain.mouth_corners[lab])
-    other = [(span(x), j) for x, j in other_pairs]
+
+    def along(xy, on_edge=False):
+        d2 = np.sum((pts - xy) ** 2, axis=1)
+        k = int(np.argmin(d2))
+        return s[k] if not on_edge or d2[k] <= margin ** 2 else np.nan
+
+    span = lambda corners, on_edge=False: sorted(along(p, on_edge) for p in corners)
+    bounds = [(span(c, pinned), j) for c, j, pinned in other]
+    bounds = [(sp, j) for sp, j in bounds if np.all(np.isfinite(sp))]
     out = {}
     for c in labels:
-        c0, c1 = span(c)
+        c0, c1 = span(chain.mouth_corners[c])
         lo, hi = 0, n_joints + 1
-        for (x0, x1), j in other:
+        for (x0, x1), j in bounds:
             # along the other side's arc: the right side runs base -> tip, the left side tip -> base
             beyond, before = c0 > x1 + margin, c1 < x0 - margin
             if (beyond and other_side > 0) or (before and other_side < 0):

@@ -150,6 +150,19 @@ class DetectorOptions:
     streak_fill_R : float
         Background lines across the tube thinner than this many ``R`` are
         filled when a bright streak splits the silhouette (a retry).
+    holder_backdrop_tol : float
+        A base corner is measured only where its holder's face stands against
+        the backdrop its tube's limb does: the levels beyond the two edges
+        must agree within this fraction of the holder edge's own step (a
+        holder's end face seen from the side lies between its rim and the
+        backdrop and hides the base edge, :func:`.subpixel.holder_backdrops`);
+        0: not checked.
+    outer_step_k : float
+        After the refinement, an outer edge whose mean profile steps once
+        more outside it (a polished limb's mirror strip, the refined edge its
+        inner ramp) is moved to that outer step when both the step's foot and
+        its level stand out of the backdrop by this many standard errors
+        (:func:`.subpixel.outer_steps`); 0: not looked for.
     """
 
     tone_gamma: float = 1.0
@@ -193,6 +206,9 @@ class DetectorOptions:
     rough_slot_area_range: tuple = (0.3, 2.5)
     uncal_close_frac: float = 0.1
     streak_fill_R: float = 0.6
+    holder_backdrop_tol: float = 0.25
+    outer_step_k: float = 6.0
+    pin_agree_w: float = 1.0
 
     def replace(self, **changes) -> "DetectorOptions":
         """A copy with some options changed."""

@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 
 from ...polygon import polygon_area
 from .closed import wedge_mouth
-from .segment import close_disk, components_with_stats, fill_holes
+from .segment import close_disk, components_with_stats, fill_holes, window_max_at
 
 __all__ = ["Outline", "bridge_slots", "hole_ends", "wedge_pixels", "crop_region",
            "corner_window", "oriented_contour", "raw_mouth_corners", "slot_mouths", "turn_angles", "turn_peaks"]
@@ -140,12 +140,16 @@ def bridge_slots(roi, offset, image_shape, *, r_close: int, slot_area: float, sl
         # a concavity of the holder's outline (a chuck's stepped jaws) is no slot: most of the object
         # around it is holder, where a slot has the tube's faces
         ids = np.array(slot_ids)
-        grown = cv2.dilate(np.isin(glab, ids).astype(np.uint8) * 255, np.ones((3, 3), np.uint8))
-        lab_g = cv2.dilate(glab.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int64)
-        ring = (grown > 0) & (roi > 0)
-        held = cv2.dilate(holder_strict, np.ones((5, 5), np.uint8)) > 0
-        n_ring = np.bincount(lab_g[ring], minlength=ng)[ids]
-        n_held = np.bincount(lab_g[ring & held], minlength=ng)[ids]
+        is_slot = np.zeros(ng, np.uint8)
+        is_slot[ids] = 255
+        grown = cv2.dilate(is_slot.take(glab), np.ones((3, 3), np.uint8))
+        ring = cv2.findNonZero(cv2.bitwise_and(grown, roi))       # the object pixels around the slots (x, y)
+        ring = np.zeros((0, 2), np.intp) if ring is None else ring.reshape(-1, 2).astype(np.intp)
+        ry, rx = ring[:, 1], ring[:, 0]
+        lab_g = window_max_at(glab, ry, rx)                         # the gap next to each (the largest label)
+        held = cv2.dilate(holder_strict, np.ones((5, 5), np.uint8))[ry, rx] > 0
+        n_ring = np.bincount(lab_g, minlength=ng)[ids]
+        n_held = np.bincount(lab_g[held], minlength=ng)[ids]
         slot_ids = [int(k) for k, a, b in zip(ids, n_held, n_ring) if not a > 0.5 * b]
     cnt = oriented_contour(closed, sgn)
     if not len(cnt):
@@ -292,8 +296,7 @@ def raw_mouth_corners(ol: Outline, mouths: dict, *, k: int, sgn: float, thr_deg:
     if M < 3:
         return {}
     mi = np.clip(np.rint(mcnt).astype(np.intp), 0, [ol.gap_labels.shape[1] - 1, ol.gap_labels.shape[0] - 1])
-    lab = cv2.dilate(ol.gap_labels.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.intp)
-    on = lab[mi[:, 1], mi[:, 0]]
+    on = window_max_at(ol.gap_labels, mi[:, 1], mi[:, 0])        # the gap next to each outline point
     turn = turn_angles(mcnt, k, sgn)
     all_peaks = np.array(turn_peaks(turn, k, np.radians(thr_deg), +1.0), dtype=np.intp)
     is_peak = np.zeros(M, bool)
@@ -316,7 +319,6 @@ def raw_mouth_corners(ol: Outline, mouths: dict, *, k: int, sgn: float, thr_deg:
         pk = np.array(peaks)
         ia = int(pk[np.argmin(np.sum((mcnt[pk] - ends[0]) ** 2, axis=1))])
         ib = int(pk[np.argmin(np.sum((mcnt[pk] - ends[1]) ** 2, axis=1))])
-        pos = {int(v): q for q, v in enumerate(run)}
-        if ia != ib and pos[ia] < pos[ib]:
+        if ia != ib and np.flatnonzero(run == ia)[0] < np.flatnonzero(run == ib)[0]:   # ia first along the run
             out[s] = (ia, ib)
     return out

@@ -19,7 +19,7 @@ import numpy as np
 from ...physics.geometry import notch_layout
 from .base import holder_mask
 from .dims import slot_depths, slot_widths
-from .locate import locate
+from .locate import locate, slot_pins
 from .plane import PlaneInput, finish, link_tolerance, merge_plane_inputs
 from .records import Located, Refined, Setup, Variant
 from .result import Detection, empty_detection
@@ -28,8 +28,8 @@ from .segment import (Segmentation, band_directions, chroma_distance, close_disk
 from .segment import segment as _segment
 from .subpixel import link_widths, refine_corners, statuses
 
-__all__ = ["VARIANTS", "colour_segmentation", "detect_at", "fill_streaks", "locate_variants", "refine_and_finish",
-           "segmented", "streak_length", "variant_mask"]
+__all__ = ["VARIANTS", "colour_segmentation", "detect_at", "fill_streaks", "locate_variants", "pinned_pass",
+           "refine_and_finish", "segmented", "shared_pins", "streak_length", "variant_mask"]
 
 
 def refinement_image(gray, f, opts, cache: dict):
@@ -60,12 +60,15 @@ def segmented(gray, f, opts, cache: dict):
 def colour_segmentation(cache, f: int, opts) -> Segmentation | None:
     """The segmentation of the working copy's distance from the backdrop's colour (:func:`chroma_distance`):
     a shadow or shading on a coloured card keeps its colour, a neutral metal tube does not. None for a gray
-    image."""
+    image. Kept in ``cache`` by factor: without a camera file every rough scale tried reads it again."""
     colour = cache.get("colour")
     if colour is None:
         return None
-    return _segment(chroma_distance(downsample(colour, f)), min_snr=opts.min_snr, noise_scale=f,
-                    level=opts.segment_level)
+    key = ("colour", f, opts.min_snr, opts.segment_level)           # the same for every rough scale tried
+    if key not in cache:
+        cache[key] = _segment(chroma_distance(downsample(colour, f)), min_snr=opts.min_snr, noise_scale=f,
+                              level=opts.segment_level)
+    return cache[key]
 
 
 def streak_length(geom, opts) -> float:
@@ -147,8 +150,51 @@ def locate_variants(seg: Segmentation, shape, setup: Setup, cache: dict, *, want
             got = locate(region, box, shape, setup, small=seg.image, dark=seg.contrast < 0)
         tried.append(Variant(name, mask, got))
         if isinstance(got, Located) and wanted <= got.points:
-            break
-    return tried
+            return tried
+    return pinned_pass(tried, seg, shape, setup)
+
+
+def shared_pins(pins: list, geom, agree_px: float) -> dict:
+    """The union of several silhouettes' numbered slots (:func:`.locate.slot_pins`), side -> list of (joint,
+    corners [px]); a joint two silhouettes place more than ``agree_px`` apart is left out (one of them is not
+    that slot's, or not at its place)."""
+    by = {}
+    for p in pins:
+        for sd, got in p.items():
+            for j, c in got:
+                by.setdefault((sd, j), []).append(c)
+    out = {}
+    for (sd, j), cs in sorted(by.items()):
+        if all(np.max(np.linalg.norm(c - cs[0], axis=1)) <= agree_px for c in cs[1:]):
+            out.setdefault(sd, []).append((j, cs[0]))
+    return out
+
+
+def pinned_pass(tried: list, seg: Segmentation, shape, setup: Setup) -> list[Variant]:
+    """Each located variant once more with the slots the other variants numbered as pins (:func:`shared_pins`,
+    option ``pin_agree_w`` slot widths): one silhouette can show one side's slots whole and the other side's
+    broken, another the reverse, and each side's numbered slots bound the other side's along the tube
+    (:func:`.numbering.number_slots`). A variant is read again only where the others numbered a slot it did not;
+    the new reading replaces the first only where it locates every corner the first did and more. Variants numbered without the tip (``confirm_width``) give no pins: their silhouette may be
+    half the tube."""
+    geom = setup.geom
+    if len(set(geom.slot_sides)) < 2:
+        return tried                             # pins bound the other side's slots: a one-sided tube has none
+    pins = {t.name: slot_pins(t.outcome, geom) for t in tried
+            if isinstance(t.outcome, Located) and not t.outcome.confirm_width}
+    agree = setup.opts.pin_agree_w * float(slot_widths(geom).min()) * setup.px_per_m
+    out = []
+    for t in tried:
+        others = shared_pins([p for n, p in pins.items() if n != t.name], geom, agree)
+        own = {(sd, j) for sd, got in pins.get(t.name, {}).items() for j, _ in got}
+        if not isinstance(t.outcome, Located) or not {(sd, j) for sd, got in others.items() for j, _ in got} - own:
+            out.append(t)
+            continue
+        region, box = largest_region(t.mask)
+        got = locate(region, box, shape, setup, small=seg.image, dark=seg.contrast < 0, pins=others)
+        better = isinstance(got, Located) and got.points > t.outcome.points
+        out.append(Variant(t.name, t.mask, got) if better else t)
+    return out
 
 
 def detect_at(gray, setup: Setup, *, extra, stations=False, cache=None) -> Refined:

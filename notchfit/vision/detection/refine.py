@@ -150,6 +150,11 @@ class PassResult:
     wide : ndarray (K,) bool, optional
         Corners with an edge whose profiles rise too much wider than the image's clean edges for one step
         (:func:`wide_edges`): where on that rise the edge lies is not measured.
+    wide_edge : ndarray (2K,) bool, optional
+        Those edges (edge e < K: corner e's incoming edge, else its outgoing edge).
+    spread_edge : ndarray (2K,), optional
+        The variance of each edge's offset that its profiles' rise shows (:func:`edge_spread`) [px²], part of
+        ``cov_sys``.
     """
 
     C: np.ndarray
@@ -161,6 +166,8 @@ class PassResult:
     Dout: np.ndarray
     cov_sys: np.ndarray
     wide: np.ndarray | None = None
+    wide_edge: np.ndarray | None = None
+    spread_edge: np.ndarray | None = None
 
 
 _MAP_WIDTH = 4096           # samples per row of the remap maps (OpenCV wants sides below 32767)
@@ -422,7 +429,8 @@ def _keep_consensus(ch, edge, valid, und, rises, lines, fit_args, blur):
 def _edge_offsets(und, edge, rises, lines: CornerLines, *, min_points, s2_floor, max_spread):
     """The covariance (K, 2, 2) [px²] of the offsets an edge's own profiles show (two rims, a shadow's edge:
     :func:`edge_spread`), to add to the reported uncertainty, not to the fit's (which decides whether the
-    corner is found); and the corners (K,) bool with an edge too wide for one step (:func:`wide_edges`).
+    corner is found); the edges (2K,) bool too wide for one step (:func:`wide_edges`); and the edges' offset
+    variances (2K,) [px²] (:func:`edge_spread`).
     ``und``, ``edge``, ``rises``: the valid crossings [px], their edges and their profiles' rises [px]."""
     K = len(lines.X)
     cov_sys = np.zeros((K, 2, 2))
@@ -430,7 +438,7 @@ def _edge_offsets(und, edge, rises, lines: CornerLines, *, min_points, s2_floor,
     w_e = wide_edges(rises, edge, 2 * K, max_spread=max_spread)
     if s2_edge.any():
         cov_sys = corner_lines(und, edge, K, min_points=min_points, s2_floor=s2_floor, s2_edge=s2_edge).cov - lines.cov
-    return cov_sys, w_e[:K] | w_e[K:]
+    return cov_sys, w_e, s2_edge
 
 
 def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *, lim, min_points, contrast,
@@ -509,9 +517,9 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
                                                     blur_prior if np.isfinite(blur_prior) else blur)
     X, cov, okc, c, dd, good_e, s2_line = lines.X, lines.cov, lines.ok, lines.c, lines.dd, lines.good_e, lines.s2
     # the last pass's (the one whose corners are reported): what the edges' own profiles show
-    cov_sys, wide = _edge_offsets(und, pr.edge[valid], rises, lines, min_points=min_points, s2_floor=s2_floor,
-                                  max_spread=max_spread) if np.isfinite(radius_px) else (np.zeros((K, 2, 2)),
-                                                                                         np.zeros(K, bool))
+    cov_sys, wide, spread = _edge_offsets(und, pr.edge[valid], rises, lines, min_points=min_points, s2_floor=s2_floor,
+                                          max_spread=max_spread) if np.isfinite(radius_px) else \
+        (np.zeros((K, 2, 2)), np.zeros(2 * K, bool), np.zeros(2 * K))
     # an arc shows as a face line's residuals well above the straight edges' (the noise): faces that are
     # straight lines within the noise are not fitted again
     straight = good_e & ~sp.curved if sp.curved is not None else good_e
@@ -532,4 +540,4 @@ def refine_pass(img, off, camera, sp: CornerSpecs, sgn, layout: ProfileLayout, *
     if okc.any():
         Cn[okc] = camera.distort_pixels(X[okc])
     Din, Dout = _next_directions(camera, sp, c, dd, good_e, okc, Cn)
-    return PassResult(Cn, X, cov, okc, blur, Din, Dout, np.nan_to_num(cov_sys), wide)
+    return PassResult(Cn, X, cov, okc, blur, Din, Dout, np.nan_to_num(cov_sys), wide[:K] | wide[K:], wide, spread)

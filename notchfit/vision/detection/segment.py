@@ -333,6 +333,22 @@ def components_with_stats(mask):
     return n, lab, stats, sums / stats[:, 4:5].astype(float)
 
 
+def window_max_at(labels, ys, xs, half: int = 1) -> np.ndarray:
+    """The largest value of ``labels`` (h, w) in the ``2 half + 1`` square window around each listed pixel
+    ``(ys, xs)`` (n,), the window cut by the image border: ``cv2.dilate(labels, ones)`` read at those pixels
+    (labels below 2**24 are exact in the float32 image the dilation would need), without dilating the whole
+    image when only a few of its pixels are read. A pixel's clipped neighbour stays inside its window, so
+    the maximum over clipped indices is the maximum over the window's part inside the image."""
+    h, w = labels.shape
+    cols = [np.clip(xs + dx, 0, w - 1) for dx in range(-half, half + 1)]
+    out = labels[ys, xs]
+    for dy in range(-half, half + 1):
+        yy = np.clip(ys + dy, 0, h - 1)
+        for xx in cols:
+            np.maximum(out, labels[yy, xx], out=out)
+    return out
+
+
 def fill_holes(region, *, keep_area=(0.0, 0.0)) -> np.ndarray:
     """Fill the holes of a region (background parts enclosed by it).
 

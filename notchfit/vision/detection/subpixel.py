@@ -4,9 +4,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
+from scipy import ndimage
 
 from ...physics.geometry import notch_layout
 from .edges import dense_profiles
@@ -14,7 +16,7 @@ from .lines import unit
 from .records import Refinement, Setup
 from .refine import CornerSpecs, ProfileLayout, refine_pass, sample_profiles
 
-__all__ = ["edge_stations", "limb_edges", "link_widths", "outer_offsets", "outer_starts", "ray_exits", "refine_corners",
+__all__ = ["edge_stations", "holder_backdrops", "limb_edges", "link_widths", "outer_offsets", "outer_starts", "ray_exits", "refine_corners",
            "statuses", "unexplained_cov", "width_deficits"]
 
 
@@ -126,36 +128,14 @@ def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float,
     only : ndarray (2K,) bool, optional
         The edges to search (default every outer edge).
     """
-    K = len(sp.C)
-    out = np.zeros(2 * K)
-    search = limb_edges(sp)
-    if only is not None:
-        search &= only
-    if not search.any() or reach_px < 3 * step:
+    out = np.zeros(2 * len(sp.C))
+    means = _edge_means(img, off, sp, sgn, only, ProfileLayout(s0, s_end, reach_px, step), corr_px=corr_px,
+                        min_profiles=min_profiles)
+    if means is None:
         return out
-    sub = CornerSpecs(sp.C, sp.Din, sp.Dout, np.where(search[:K], sp.Lin, 0.0), np.where(search[K:], sp.Lout, 0.0),
-                      sp.face)
-    pr = sample_profiles(img, off, sub, sgn, ProfileLayout(s0, s_end, reach_px, step))
-    if pr is None:
-        return out
-    P = dense_profiles(pr.values, pr.start, pr.half, pr.n_t)
-    t = pr.t
-    full = np.isfinite(P).all(axis=1)
+    edges, t, m, se = means
     bg = t >= (1.0 - bg_frac) * reach_px
     near = (t > 0) & ~bg
-    # every edge's mean profile and its standard error at once (the profiles come edge by edge)
-    e_r, P = pr.edge[full], P[full]
-    n = np.bincount(e_r, minlength=2 * K).astype(float)
-    edges = np.nonzero(search & (n >= min_profiles))[0]
-    if not len(edges):
-        return out
-    first, ends = np.searchsorted(e_r, edges), np.searchsorted(e_r, edges, side="right")
-    cs1 = np.vstack([np.zeros(P.shape[1]), np.cumsum(P, axis=0)])
-    cs2 = np.vstack([np.zeros(P.shape[1]), np.cumsum(P * P, axis=0)])
-    ne = n[edges][:, None]
-    m = (cs1[ends] - cs1[first]) / ne
-    var = np.maximum((cs2[ends] - cs2[first]) / ne - m * m, 0.0)
-    se = np.sqrt(var) / np.sqrt(np.maximum(ne / corr_px, 1.0))
     level = np.median(m[:, bg], axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         z = np.abs(m - level[:, None]) / se
@@ -164,6 +144,41 @@ def outer_offsets(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float,
     last = np.where(dep.any(axis=1), t[dep.shape[1] - 1 - np.argmax(dep[:, ::-1], axis=1)], 0.0)
     out[edges] = np.where(flat, last, 0.0)
     return out
+
+
+def _edge_means(img, off, sp: CornerSpecs, sgn, only, layout: ProfileLayout, *, corr_px: float,
+                min_profiles: int):
+    """The mean profile across each outer edge (:func:`limb_edges`; of those in ``only`` (2K,) bool where
+    given) over its usable length (``layout``: from
+    ``s0`` to ``s_end``, ``h`` [px] either side of its line, every ``step``), and the mean's standard
+    error (the profiles' spread over ``sqrt(n / corr_px)``: neighbouring profiles share blur and a JPEG's
+    blocks): (edges (E,), t (T,) [px], mean (E, T), standard error (E, T)); None where no edge has
+    ``min_profiles`` whole profiles."""
+    K = len(sp.C)
+    search = limb_edges(sp) if only is None else limb_edges(sp) & only
+    if not search.any() or layout.h < 3 * layout.step:
+        return None
+    sub = CornerSpecs(sp.C, sp.Din, sp.Dout, np.where(search[:K], sp.Lin, 0.0), np.where(search[K:], sp.Lout, 0.0),
+                      sp.face)
+    pr = sample_profiles(img, off, sub, sgn, layout)
+    if pr is None:
+        return None
+    P = dense_profiles(pr.values, pr.start, pr.half, pr.n_t)
+    full = np.isfinite(P).all(axis=1)
+    # every edge's mean profile and its standard error at once (the profiles come edge by edge)
+    e_r, P = pr.edge[full], P[full]
+    n = np.bincount(e_r, minlength=2 * K).astype(float)
+    edges = np.nonzero(search & (n >= min_profiles))[0]
+    if not len(edges):
+        return None
+    first, ends = np.searchsorted(e_r, edges), np.searchsorted(e_r, edges, side="right")
+    cs1 = np.vstack([np.zeros(P.shape[1]), np.cumsum(P, axis=0)])
+    cs2 = np.vstack([np.zeros(P.shape[1]), np.cumsum(P * P, axis=0)])
+    ne = n[edges][:, None]
+    m = (cs1[ends] - cs1[first]) / ne
+    var = np.maximum((cs2[ends] - cs2[first]) / ne - m * m, 0.0)
+    se = np.sqrt(var) / np.sqrt(np.maximum(ne / corr_px, 1.0))
+    return edges, pr.t, m, se
 
 
 def ray_exits(poly, P, u, *, min_s: float = 1.0, margin: float = 1.0) -> np.ndarray:
@@ -257,6 +272,168 @@ def unexplained_cov(sp: CornerSpecs, sgn, offsets, deficit, *, resolution: float
     return out
 
 
+def holder_backdrops(img, off, sp: CornerSpecs, sgn, radius_px: float, blur_px: float, *, tol: float) -> np.ndarray:
+    """(K,) bool: base corners whose holder face does not stand against the backdrop their tube's limb does.
+
+    A base corner is where the tube's limb meets the holder's face, both seen
+    against the backdrop: beyond either edge lies the same backdrop. Where
+    the holder's face is seen a little from the side (a chuck's end face
+    below the camera's axis), a band of that face lies between the holder's
+    rim and the backdrop; the tube's base edge is in that band, hidden or
+    shown against the face, and the corner of the rim and the limb is no
+    point of the tube (its refined position lies a band's width off the base
+    edge while its fit is as good as any). On either edge, the image's level
+    just beyond the edge's rise (``3 blur_px + 1`` to that plus ``0.1 R``
+    outward, ``radius_px`` the tube's radius [px]) is read along the edge:
+    next to the corner (up to ``R``) on the holder's face, over its far half
+    on the limb (away from the holder). Where the two levels differ by more
+    than ``tol`` of the holder edge's own step (its level inside minus beyond),
+    the holder's edge is not the holder against the backdrop: True.
+
+    Parameters
+    ----------
+    img, off : the image region [image units] and its offset (u0, v0) [px].
+    sp : CornerSpecs
+        The refined corners and their edges; ``holder_face`` marks the base corners' holder edges.
+    sgn : float
+        Orientation sign of the outline (the edge normals point from the object to the background).
+    """
+    K = len(sp.C)
+    out = np.zeros(K, bool)
+    if sp.holder_face is None or not sp.holder_face.any():
+        return out
+    nrm = _outward(sp, sgn)
+    along = np.concatenate([-sp.Din, sp.Dout])
+    L = np.nan_to_num(np.concatenate([sp.Lin, sp.Lout]))
+    gap = 3.0 * (blur_px if np.isfinite(blur_px) else 1.0) + 1.0
+    t_out = gap + np.linspace(0.0, max(0.1 * radius_px, 2.0), 5)
+    for k in np.nonzero(sp.holder_face[:K] | sp.holder_face[K:])[0]:
+        if not np.all(np.isfinite(sp.C[k])):
+            continue
+        h, e = (k, K + k) if sp.holder_face[k] else (K + k, k)
+        s_h = np.linspace(gap, max(min(L[h], radius_px), gap + 1.0), 12)
+        s_e = np.linspace(0.5 * L[e], max(L[e], 0.5 * L[e] + 1.0), 12)
+        level = lambda ed, s, t: _levels(img, off, sp.C[k] + s[:, None] * along[ed] + t * nrm[ed])
+        beyond_h, beyond_e = level(h, s_h, t_out[:, None, None]), level(e, s_e, t_out[:, None, None])
+        inside_h = level(h, s_h, -t_out[:, None, None])
+        step = abs(inside_h - beyond_h)
+        out[k] = bool(np.isfinite(step) and abs(beyond_h - beyond_e) > tol * step)
+    return out
+
+
+def _levels(img, off, P) -> float:
+    """The median image level at the points ``P`` (..., 2) [px] (bilinear; NaN where all lie outside ``img``)."""
+    Q = P.reshape(-1, 2) - off
+    h, w = img.shape
+    inside = (Q[:, 0] >= 0) & (Q[:, 0] <= w - 1) & (Q[:, 1] >= 0) & (Q[:, 1] <= h - 1)
+    if not inside.any():
+        return math.nan
+    v = ndimage.map_coordinates(img, [Q[inside, 1], Q[inside, 0]], order=1)
+    return float(np.median(v))
+
+
+def outer_steps(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float, s_end: float, max_move,
+                k_sig: float = 6.0, corr_px: float = 4.0, bg_frac: float = 0.35, min_profiles: int = 8,
+                step: float = 0.5, blur0: float = 1.0, only=None):
+    """The tube's outermost step beyond each refined outer edge: its offset [px] (2K,) and variance [px²]
+    (2K,), 0 where the refined edge is that step.
+
+    A polished limb mirrors the backdrop: across it the image steps from the
+    backdrop to a strip nearly as bright (the mirror image, 10-15 px wide on
+    a 1.6 mm tube at 130 px/mm), then ramps down to the tube's dark body.
+    The refined edge's 50 % crossing between the body's level and the
+    backdrop's lies on that inner ramp, a strip's width inside the tube;
+    everything outward of it up to the outer step is tube. Per edge, the
+    mean of its profiles over its usable length (the noise averages down
+    along the edge, as in :func:`outer_offsets`): the backdrop level over
+    the outer ``bg_frac`` of ``reach_px``, and the outermost sample that
+    departs from it by more than ``k_sig`` standard errors (the outer step's
+    foot). The level just inside that step is the mean's median over
+    ``[foot - 2 g, foot - g]`` with ``g = 3 σ + 1`` [px], σ the step's own
+    blur (its 25 -> 75 % rise / 1.349, from ``blur0`` [px] and measured
+    once more); the step's half-way crossing, searched from the backdrop
+    inward, is the tube's edge where both the step and that level stand out
+    by ``k_sig`` standard errors and the crossing lies more than ``2 g``
+    outside the refined edge (a single step's own foot is nearer). Its
+    variance is the mean's standard error there over the mean's slope,
+    squared. A move beyond ``max_move`` (2K,) [px] (the silhouette's missing
+    width across the edge, :func:`width_deficits`: a matte tube misses none,
+    and a cast shadow beside it is the backdrop's) is not taken.
+    """
+    offs, var = np.zeros(2 * len(sp.C)), np.zeros(2 * len(sp.C))
+    means = _edge_means(img, off, sp, sgn, only, ProfileLayout(s0, s_end, reach_px, step), corr_px=corr_px,
+                        min_profiles=min_profiles)
+    if means is None:
+        return offs, var
+    edges, t, m, se = means
+    bg = t >= (1.0 - bg_frac) * reach_px
+    for j, e in enumerate(edges):
+        b = float(np.median(m[j, bg]))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = np.abs(m[j] - b) / se[j]
+        if np.any(z[bg] > k_sig):
+            continue                                    # the backdrop beside the edge is not one level
+        dep = np.nonzero((t > 0) & ~bg & (z > k_sig))[0]
+        if not len(dep):
+            continue
+        foot, sig = t[dep[-1]], blur0
+        for _ in range(2):
+            g = 3.0 * sig + 1.0
+            found = _outer_crossing(t, m[j], se[j], b, foot, g, k_sig)
+            if found is None:
+                break
+            tc, v, sig = found
+        if found is not None and 2.0 * g < tc <= max_move[e]:
+            offs[e], var[e] = tc, v
+    return offs, var
+
+
+def _outer_crossing(t, m, se, b, foot, g, k_sig):
+    """The half-way crossing [px] of one mean profile ``m`` (T,) (standard error ``se``) between the backdrop
+    level ``b`` and the level over ``[foot - 2 g, foot - g]``, searched from ``foot + g`` inward to ``foot - 2 g``;
+    its variance [px²] and the step's blur σ (25 -> 75 % rise / 1.349) [px]; None where that level does
+    not stand out by ``k_sig`` standard errors or the mean does not cross."""
+    inner = (t >= foot - 2.0 * g) & (t <= foot - g)
+    if not inner.any():
+        return None
+    p = float(np.median(m[inner]))
+    if not abs(p - b) > k_sig * float(np.median(se[inner])):
+        return None
+    idx = np.nonzero((t <= foot + g) & (t >= foot - 2.0 * g))[0][::-1]
+    q = (m[idx] - p) / (b - p)                         # 1 on the backdrop, 0 inside the step
+    pos = []
+    for lvl in (0.5, 0.75, 0.25):
+        below = np.nonzero(q < lvl)[0]
+        if not len(below) or below[0] == 0:
+            return None
+        i1, i0 = idx[below[0]], idx[below[0] - 1]      # i0 still at or above the level, i1 below it
+        a0, a1 = (m[i0] - p) / (b - p) - lvl, (m[i1] - p) / (b - p) - lvl
+        pos.append(t[i0] + (t[i1] - t[i0]) * a0 / (a0 - a1))
+    i0, i1 = idx[np.nonzero(q < 0.5)[0][0] - 1], idx[np.nonzero(q < 0.5)[0][0]]
+    slope = (m[i0] - m[i1]) / (t[i0] - t[i1])
+    if slope == 0:
+        return None
+    return pos[0], (0.5 * (se[i0] + se[i1]) / slope) ** 2, max(abs(pos[1] - pos[2]) / 1.349, 0.5)
+
+
+def _move_corners(sp: CornerSpecs, sgn, offs, var, spread):
+    """Corners (K, 2) [px] with their edges moved out by ``offs`` (2K,) [px], and the covariance (K, 2, 2)
+    [px²] to add: what the edges' offset variances ``var`` (2K,) carry to them, less what the moved edges'
+    rises did (``spread`` (2K,) [px²], :func:`.refine.edge_spread`: the ramp is no longer the edge)."""
+    K = len(sp.C)
+    nrm = _outward(sp, sgn)
+    C, cov = sp.C.copy(), np.zeros((K, 2, 2))
+    moved = offs != 0
+    d = var - np.where(moved, np.nan_to_num(spread), 0.0)
+    for k in np.nonzero(moved[:K] | moved[K:])[0]:
+        A = _edge_normals(nrm, k)
+        if A is not None and np.all(np.isfinite(sp.C[k])):
+            J = np.linalg.inv(A)
+            C[k] = sp.C[k] + J @ np.array([offs[k], offs[K + k]])
+            cov[k] = J @ np.diag([d[k], d[K + k]]) @ J.T
+    return C, cov
+
+
 def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, outline_px=None):
     """Stage 5 for all corners: first pass with long profiles, then passes sized by the measured blur.
 
@@ -278,6 +455,7 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, 
     extra = np.zeros((0, 2)) if extra_px is None else extra_px
     img, off = _roi(gray, sp.C, sp.Din, sp.Dout, sp.Lin, sp.Lout, extra, margin)
     cov_missing = np.zeros((len(sp.C), 2, 2))
+    K, short = len(sp.C), None
     if opts.outer_reach_R > 0:
         # the silhouette misses a polished or shaded limb: the first estimates start where the tube ends
         short = None if outline_px is None else width_deficits(sp, sgn, outline_px, 2.0 * radius_px)
@@ -291,8 +469,8 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, 
             # both limbs miss at most the search's reach: a larger deficit is not a link's width
             # (and a slot face's or a holder face's ray does not cross a link)
             sure = np.where((short > 0) & (short <= 2 * opts.outer_reach_R * radius_px), short, np.nan)
-            cov_missing = unexplained_cov(sp, sgn, np.minimum(offs, np.nan_to_num(sure, nan=0.0)), sure,
-                                          resolution=float(setup.f))
+            offs_used = np.minimum(offs, np.nan_to_num(sure, nan=0.0))
+            cov_missing = unexplained_cov(sp, sgn, offs_used, sure, resolution=float(setup.f))
     bl = 1.0
     for it in range(1 + opts.iterations):
         if it == 0:
@@ -309,12 +487,42 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, 
             bl = res.blur
         sp.C = np.where(np.isfinite(res.C).all(1)[:, None], res.C, sp.C)
         sp.Din, sp.Dout = res.Din, res.Dout
+    wide = res.wide
+    if opts.outer_step_k > 0 and short is not None:
+        # a polished limb's mirror strip: the refined edge is its inner ramp, the tube ends at its outer step
+        # (looked for across the edges where the search before the first pass saw tube outside the silhouette)
+        allow = np.where(np.isfinite(short), np.maximum(short, 0.0), 0.0) + float(setup.f)
+        offs2, var2 = outer_steps(img, off, sp, sgn, reach_px=opts.outer_reach_R * radius_px,
+                                  s0=max(3.0, 3.0 * bl + 1.0), s_end=max(2.0, 2.5 * bl + 1.0), max_move=allow,
+                                  k_sig=opts.outer_step_k, only=offs > setup.f)
+        moved = (offs2[:K] != 0) | (offs2[K:] != 0)
+        if moved.any():
+            C2, cov2 = _move_corners(sp, sgn, offs2, var2,
+                                     np.zeros(2 * K) if res.spread_edge is None else res.spread_edge)
+            ok2 = moved & np.isfinite(C2).all(1) & res.ok
+            sp.C = np.where(ok2[:, None], C2, sp.C)
+            X = res.X.copy()
+            X[ok2] = camera.undistort_pixels(sp.C[ok2])
+            res = dataclasses.replace(res, X=X, cov_sys=res.cov_sys + np.where(ok2[:, None, None], cov2, 0.0))
+            if cov_missing.any():
+                # the moved edges' missing width is found: what stays unexplained is the others'
+                found = np.concatenate([offs2[:K] != 0, offs2[K:] != 0]) & np.concatenate([ok2, ok2])
+                cov_missing = unexplained_cov(sp, sgn, np.where(found, np.inf, offs_used), sure,
+                                              resolution=float(setup.f))
+            if wide is not None and res.wide_edge is not None:
+                # the ramp was the moved edge's: what stays wide is the corner's other edges
+                we = res.wide_edge & ~np.concatenate([offs2[:K] != 0, offs2[K:] != 0])
+                wide = np.where(ok2, we[:K] | we[K:], wide)
     shift = np.linalg.norm(sp.C - C0, axis=1)
     sig_px = np.sqrt(np.maximum(np.trace(res.cov, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
     # the reported covariance adds what the edges' own profiles show (two rims of a face seen from the side)
     cov_sys = res.cov_sys + cov_missing
-    return Refinement(pidx, sp.C, res.X, res.cov + cov_sys / opts.sigma_inflation ** 2, res.ok, shift, bl,
-                      sig_px, sp, img, off, kf, wide=res.wide)
+    ok = res.ok
+    if opts.holder_backdrop_tol > 0:
+        # a holder's face seen from the side: the corner of its rim and the limb is no point of the tube
+        ok = ok & ~holder_backdrops(img, off, sp, sgn, radius_px, bl, tol=opts.holder_backdrop_tol)
+    return Refinement(pidx, sp.C, res.X, res.cov + cov_sys / opts.sigma_inflation ** 2, ok, shift, bl,
+                      sig_px, sp, img, off, kf, wide=wide)
 
 
 def statuses(ref: Refinement, m, status, shape, opts):
