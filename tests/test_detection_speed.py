@@ -3,7 +3,8 @@ formulations they replace (issue 25), bit for bit: the compiled loops over the r
 the working copy of an 8-bit image, the segmentation's one-pass threshold and its background fit, the
 distance transforms cut to the box they are needed in, the disk closing by rectangles, the ridge radii's
 histogram, the parts' areas and boxes counted from their labels, the labels' window maxima read at
-listed pixels; and the grouped median is each group's median."""
+listed pixels; and the grouped median is each group's median, through a layout shared by several value
+sets as through one sort per call."""
 
 import cv2
 import numpy as np
@@ -156,6 +157,57 @@ def test_group_median_is_each_groups_median():
     for k in range(41):
         vals = v[(g == k) & np.isfinite(v)]
         assert (np.isnan(got[k]) and not len(vals)) or got[k] == np.median(vals)
+
+
+def _group_median_one_sort(values, groups, n_groups):
+    """The grouped median as the refinement took it before the group layout: one stable sort of the group
+    plus the value scaled below 1, per call."""
+    fin = np.isfinite(values)
+    v, g = values[fin], groups[fin]
+    out = np.full(n_groups, np.nan)
+    if not len(v):
+        return out
+    lo, hi = float(v.min()), float(v.max())
+    key = g + (v - lo) * (0.999 / (hi - lo) if hi > lo else 0.0)
+    vs = v[np.argsort(key, kind="stable")]
+    cnt = np.bincount(g, minlength=n_groups)
+    start = np.cumsum(cnt) - cnt
+    has = cnt > 0
+    out[has] = 0.5 * (vs[start[has] + (cnt[has] - 1) // 2] + vs[start[has] + cnt[has] // 2])
+    return out
+
+
+@pytest.mark.parametrize("ordered", [True, False])
+@pytest.mark.parametrize("one_long_edge", [False, True])
+def test_group_median_with_a_shared_layout_equals_the_one_sort_median(ordered, one_long_edge):
+    """Several value sets over the same edges (levels, slopes, their deviations: float32 image samples, NaN
+    where a profile is not used, ties) take the same medians through one :func:`group_layout` as through
+    the single sort per call the refinement used before, bit for bit; with the profiles in edge order (as
+    sampled) and shuffled, and with one edge far longer than the rest (the sorted-pairs path)."""
+    from notchfit.vision.detection.lines import group_layout, group_median
+
+    rng = np.random.default_rng(11)
+    n_edges = 116
+    n_per = rng.integers(0, 90, n_edges)
+    n_per[7] = 0                                                  # an edge without profiles
+    if one_long_edge:
+        n_per[3] = 40000
+    edge = np.repeat(np.arange(n_edges), n_per)
+    if not ordered:
+        edge = rng.permutation(edge)
+    lay = group_layout(edge, n_edges)
+    assert lay.table is not one_long_edge and (lay.order is None) is ordered
+    n = len(edge)
+    for scale in (1.0, 0.01, 300.0):
+        for _ in range(3):
+            v = (rng.normal(0, scale, n) + rng.normal(0, scale, n_edges)[edge]).astype(np.float32).astype(float)
+            v[rng.random(n) < 0.1] = np.nan
+            v[rng.random(n) < 0.2] = v[0]                          # ties across and within edges
+            v[rng.random(n_edges)[edge] < 0.05] = np.nan           # edges whose profiles are all unused
+            want = _group_median_one_sort(v, edge, n_edges)
+            np.testing.assert_array_equal(group_median(v, edge, n_edges, layout=lay), want)
+            np.testing.assert_array_equal(group_median(v, edge, n_edges), want)
+    assert np.isnan(group_median(np.full(n, np.nan), edge, n_edges, layout=lay)).all()
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])

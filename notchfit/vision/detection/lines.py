@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["arc_residuals", "arcs_allowed", "group_lines", "group_median", "intersect", "line_pairs", "otsu", "pca_line", "poly2",
-           "robust_group_lines", "unit"]
+__all__ = ["GroupLayout", "arc_residuals", "arcs_allowed", "group_layout", "group_lines", "group_median", "intersect",
+           "line_pairs", "otsu", "pca_line", "poly2", "robust_group_lines", "unit"]
 
 
 def otsu(values, bins=256):
@@ -58,20 +59,65 @@ def intersect(c1, d1, c2, d2):
     return c1 + s[0] * d1
 
 
-def group_median(values, groups, n_groups):
-    """Median of ``values`` per group (NaN ignored; NaN for empty groups)."""
-    fin = np.isfinite(values)
-    v, g = values[fin], groups[fin]
-    out = np.full(n_groups, np.nan)
-    if not len(v):
-        return out
-    lo, hi = float(v.min()), float(v.max())
-    key = g + (v - lo) * (0.999 / (hi - lo) if hi > lo else 0.0)     # one sort orders groups, then values
-    vs = v[np.argsort(key, kind="stable")]
-    cnt = np.bincount(g, minlength=n_groups)
+@dataclass(frozen=True)
+class GroupLayout:
+    """Where each item of a grouping sits in a table with one row per group, its values left-aligned.
+
+    Built once by :func:`group_layout` and passed to :func:`group_median` for
+    every set of values over the same groups (a refinement pass takes several
+    medians per edge of the same profiles): the items are put in group order
+    once, each call sorts only the rows of its own values.
+    """
+
+    order: np.ndarray | None    # (N,) items in group order; None when the groups are already in order
+    rows: np.ndarray            # (N,) each item's group, in group order
+    cols: np.ndarray            # (N,) its place within the group
+    shape: tuple                # (n_groups, largest group)
+    table: bool                 # False: the table would be mostly padding (one group far larger than most)
+
+
+def group_layout(groups, n_groups: int, *, max_fill: float = 8.0) -> GroupLayout:
+    """The table layout of ``groups`` (N,) int in ``range(n_groups)`` for :func:`group_median`.
+
+    ``max_fill``: a table larger than ``max_fill`` times the items (plus 1024) is not used; the medians
+    then sort (group, value) pairs with :func:`numpy.lexsort` on each call.
+    """
+    groups = np.asarray(groups)
+    cnt = np.bincount(groups, minlength=n_groups)
     start = np.cumsum(cnt) - cnt
-    has = cnt > 0
-    out[has] = 0.5 * (vs[start[has] + (cnt[has] - 1) // 2] + vs[start[has] + cnt[has] // 2])
+    ordered = bool(np.all(groups[1:] >= groups[:-1]))
+    order = None if ordered else np.argsort(groups, kind="stable")
+    rows = groups if ordered else groups[order]
+    cols = np.arange(len(groups)) - start[rows]
+    width = int(cnt.max()) if len(groups) else 0
+    return GroupLayout(order, rows, cols, (n_groups, width), n_groups * width <= max_fill * len(groups) + 1024)
+
+
+def group_median(values, groups, n_groups, *, layout: GroupLayout | None = None):
+    """Median of ``values`` (N,) per group (NaN and infinities ignored; NaN for empty groups) (n_groups,).
+
+    ``layout``: :func:`group_layout` of ``groups`` when several value sets share them (``groups`` is then
+    not read). Each group's median is that of its own sorted values, as :func:`numpy.median` takes it.
+    """
+    lay = group_layout(groups, n_groups) if layout is None else layout
+    v = np.asarray(values, float)
+    v = v if lay.order is None else v[lay.order]
+    fin = np.isfinite(v)
+    cnt = np.bincount(lay.rows, fin, minlength=n_groups).astype(int)
+    out = np.full(n_groups, np.nan)
+    has = np.nonzero(cnt > 0)[0]
+    if not len(has):
+        return out
+    lo, hi = (cnt[has] - 1) // 2, cnt[has] // 2
+    if lay.table:
+        tab = np.full(lay.shape, np.nan)
+        tab[lay.rows, lay.cols] = np.where(fin, v, np.nan)
+        tab.sort(axis=1)                                  # NaN last in each row
+        out[has] = 0.5 * (tab[has, lo] + tab[has, hi])
+        return out
+    vs = v[fin][np.lexsort((v[fin], lay.rows[fin]))]
+    first = np.cumsum(cnt) - cnt
+    out[has] = 0.5 * (vs[first[has] + lo] + vs[first[has] + hi])
     return out
 
 
@@ -97,12 +143,13 @@ def robust_group_lines(pts, groups, n_groups, *, k_mad=3.0, floor=0.15, n_iter=3
     variance s² (G,) [px²], spread along the line S_tt (G,) [px²], keep mask.
     """
     keep = np.ones(len(pts), bool)
+    lay = group_layout(groups, n_groups)
     for it in range(n_iter + 1):
         c, d, n = group_lines(pts, groups, n_groups, keep)
         r = (pts[:, 0] - c[groups, 0]) * (-d[groups, 1]) + (pts[:, 1] - c[groups, 1]) * d[groups, 0]
         if it == n_iter:
             break
-        mad = 1.4826 * group_median(np.where(keep, np.abs(r), np.nan), groups, n_groups)
+        mad = 1.4826 * group_median(np.where(keep, np.abs(r), np.nan), groups, n_groups, layout=lay)
         lim = np.maximum(k_mad * np.nan_to_num(mad, nan=np.inf), floor)
         new = np.abs(r) <= lim[groups]
         if np.array_equal(new, keep):

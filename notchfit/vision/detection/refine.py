@@ -22,7 +22,7 @@ import numpy as np
 from ._kernels import profile_crossings, profile_levels, profile_maps
 from .edges import Crossings, Profiles, choose_edges
 from .faces import curved_face_corners, face_view_cov, straight_face_corners
-from .lines import group_median, line_pairs, robust_group_lines, unit
+from .lines import group_layout, group_median, line_pairs, robust_group_lines, unit
 from .mouth import MouthView
 
 __all__ = ["CornerLines", "CornerSpecs", "PassResult", "ProfileLayout", "Profiles", "corner_lines",
@@ -230,8 +230,9 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
     lo_v = np.where(banded, cs * ext, lo_v)
     # levels from the profiles that span the edge; slot faces take their partner's (open background)
     span_ok = (lo_v - hi_v) * (1.0 / contrast) > 0.5
-    lo = group_median(np.where(span_ok, lo_v, np.nan), e_idx, K2)
-    hi = group_median(np.where(span_ok, hi_v, np.nan), e_idx, K2)
+    by_edge = group_layout(e_idx, K2)                   # the profiles by edge, for every median below
+    lo = group_median(np.where(span_ok, lo_v, np.nan), e_idx, K2, layout=by_edge)
+    hi = group_median(np.where(span_ok, hi_v, np.nan), e_idx, K2, layout=by_edge)
     if extrapolate:
         # the object level's slope toward the edge (shading across a cylinder), from 2 px further in,
         # carried to the edge: the 50 % level is halfway between the levels *at* the edge
@@ -241,9 +242,9 @@ def edge_crossings(pr: Profiles, face, contrast, *, lim, step, extrapolate=True,
         with np.errstate(invalid="ignore", divide="ignore"):
             slope = (lo_w - lo_v) / ((i2 - (n_t - kp)) * step)
         use = span_ok & np.isfinite(slope) & ~banded
-        med = group_median(np.where(use, slope, np.nan), e_idx, K2)
+        med = group_median(np.where(use, slope, np.nan), e_idx, K2, layout=by_edge)
         # only a slope the profiles agree on (3 standard errors of the median): flat levels stay exact
-        mad = 1.4826 * group_median(np.where(use, np.abs(slope - med[e_idx]), np.nan), e_idx, K2)
+        mad = 1.4826 * group_median(np.where(use, np.abs(slope - med[e_idx]), np.nan), e_idx, K2, layout=by_edge)
         n_use = np.bincount(e_idx, use.astype(float), K2)
         sig = np.abs(med) > 3 * 1.2533 * mad / np.sqrt(np.maximum(n_use, 1))
         reach = np.full(K2, np.nan)
@@ -295,7 +296,8 @@ def _rise_widths(qa, t, step) -> np.ndarray:
     return np.where(np.isfinite(wd) & (wd > 0), wd, np.nan)
 
 
-def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1.25, widths=None) -> np.ndarray:
+def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1.25, widths=None,
+                layout=None) -> np.ndarray:
     """Variance of each edge line's offset that its own profiles show beyond their noise [px²] (n_edges,).
 
     A face seen a little from the side shows two edges a few pixels apart (its
@@ -307,11 +309,11 @@ def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1
     excess width ``Δ = sqrt(rise² - rise_all²)`` is taken as the spread of
     two edges and ``Δ² / 12`` (a uniform offset over it) returned; 0 elsewhere.
     ``widths``: the valid profiles' rise widths when already measured (``qa``, the normalised profiles
-    (Np, T), is then not read and may be None).
+    (Np, T), is then not read and may be None). ``layout``: :func:`.lines.group_layout` of ``edge``.
     """
     wd = np.full(len(valid), np.nan)
     wd[valid] = _rise_widths(qa[valid], t, step) if widths is None else widths
-    per_edge = group_median(wd, edge, n_edges)
+    per_edge = group_median(wd, edge, n_edges, layout=layout)
     fin = wd[np.isfinite(wd)]
     if len(fin) < 5:
         return np.zeros(n_edges)
@@ -321,7 +323,7 @@ def edge_spread(qa, valid, t, step, edge, n_edges: int, *, min_excess: float = 1
 
 
 def wide_edges(widths, edge, n_edges: int, *, max_spread: float = 12.0, quantile: float = 0.25,
-               min_edges: int = 4) -> np.ndarray:
+               min_edges: int = 4, layout=None) -> np.ndarray:
     """(n_edges,) bool: edges whose profiles rise over a ramp, not a step: their median 25 % -> 75 % rise
     exceeds the image's sharp edges' by more than ``max_spread`` blur σ.
 
@@ -339,9 +341,10 @@ def wide_edges(widths, edge, n_edges: int, *, max_spread: float = 12.0, quantile
     Parameters
     ----------
     widths : ndarray (P,)
-        The valid profiles' rises [px] (NaN where they do not rise); ``edge`` (P,) their edge.
+        The valid profiles' rises [px] (NaN where they do not rise); ``edge`` (P,) their edge
+        (``layout``: its :func:`.lines.group_layout`, when already made).
     """
-    per_edge = group_median(np.asarray(widths, float), edge, n_edges)
+    per_edge = group_median(np.asarray(widths, float), edge, n_edges, layout=layout)
     fin = per_edge[np.isfinite(per_edge)]
     if len(fin) < min_edges:
         return np.zeros(n_edges, bool)
@@ -434,8 +437,9 @@ def _edge_offsets(und, edge, rises, lines: CornerLines, *, min_points, s2_floor,
     ``und``, ``edge``, ``rises``: the valid crossings [px], their edges and their profiles' rises [px]."""
     K = len(lines.X)
     cov_sys = np.zeros((K, 2, 2))
-    s2_edge = edge_spread(None, np.ones(len(edge), bool), None, None, edge, 2 * K, widths=rises)
-    w_e = wide_edges(rises, edge, 2 * K, max_spread=max_spread)
+    by_edge = group_layout(edge, 2 * K)
+    s2_edge = edge_spread(None, np.ones(len(edge), bool), None, None, edge, 2 * K, widths=rises, layout=by_edge)
+    w_e = wide_edges(rises, edge, 2 * K, max_spread=max_spread, layout=by_edge)
     if s2_edge.any():
         cov_sys = corner_lines(und, edge, K, min_points=min_points, s2_floor=s2_floor, s2_edge=s2_edge).cov - lines.cov
     return cov_sys, w_e, s2_edge
