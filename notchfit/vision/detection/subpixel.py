@@ -16,7 +16,7 @@ from .lines import unit
 from .records import Refinement, Setup
 from .refine import CornerSpecs, ProfileLayout, refine_pass, sample_profiles
 
-__all__ = ["edge_stations", "holder_backdrops", "limb_edges", "link_widths", "outer_offsets", "outer_starts", "ray_exits", "refine_corners",
+__all__ = ["edge_stations", "holder_backdrops", "limb_edges", "link_widths", "outer_offsets", "outer_starts", "outer_step", "ray_exits", "refine_corners",
            "statuses", "unexplained_cov", "width_deficits"]
 
 
@@ -366,26 +366,38 @@ def outer_steps(img, off, sp: CornerSpecs, sgn, *, reach_px: float, s0: float, s
     if means is None:
         return offs, var
     edges, t, m, se = means
-    bg = t >= (1.0 - bg_frac) * reach_px
     for j, e in enumerate(edges):
-        b = float(np.median(m[j, bg]))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            z = np.abs(m[j] - b) / se[j]
-        if np.any(z[bg] > k_sig):
-            continue                                    # the backdrop beside the edge is not one level
-        dep = np.nonzero((t > 0) & ~bg & (z > k_sig))[0]
-        if not len(dep):
-            continue
-        foot, sig = t[dep[-1]], blur0
-        for _ in range(2):
-            g = 3.0 * sig + 1.0
-            found = _outer_crossing(t, m[j], se[j], b, foot, g, k_sig)
-            if found is None:
-                break
-            tc, v, sig = found
-        if found is not None and 2.0 * g < tc <= max_move[e]:
-            offs[e], var[e] = tc, v
+        found = outer_step(t, m[j], se[j], t >= (1.0 - bg_frac) * reach_px, k_sig=k_sig, blur0=blur0)
+        if found is not None and found[0] <= max_move[e]:
+            offs[e], var[e] = found
     return offs, var
+
+
+def outer_step(t, m, se, bg, *, k_sig: float = 6.0, blur0: float = 1.0):
+    """The outermost step of one mean profile across an edge (:func:`outer_steps`): its half-way crossing
+    [px] and variance [px²], or None where there is none more than ``2 g`` outside the refined edge.
+
+    ``t`` (T,) [px] runs outward from the refined edge (0), ``m`` (T,) is the mean profile and ``se`` (T,)
+    its standard error, ``bg`` (T,) bool the samples on the backdrop (the outer part of the reach).
+    """
+    b = float(np.median(m[bg]))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = np.abs(m - b) / se
+    if np.any(z[bg] > k_sig):
+        return None                                     # the backdrop beside the edge is not one level
+    dep = np.nonzero((t > 0) & ~bg & (z > k_sig))[0]
+    if not len(dep):
+        return None
+    foot, sig = t[dep[-1]], blur0
+    for _ in range(2):
+        g = 3.0 * sig + 1.0
+        found = _outer_crossing(t, m, se, b, foot, g, k_sig)
+        if found is None:
+            break
+        tc, v, sig = found
+    if found is None or not 2.0 * g < tc:
+        return None
+    return tc, v
 
 
 def _outer_crossing(t, m, se, b, foot, g, k_sig):

@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from ._kernels import level_crossings, line_levels, nearest_crossings
+from .subpixel import outer_step
 
 __all__ = ["SlotGaps", "band_centreline", "band_width", "measure_diameter", "radius_candidates", "ridge_peaks", "ridge_series", "ridge_values", "rough_radius", "rough_tube_radius", "slots_along", "trim_box",
            "tube_band", "tube_radius"]
@@ -367,7 +368,8 @@ def _edges(t, P, t0, obj_win, bg_win, sign, rising=True):
 
 
 def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur_px: float, *,
-                     step: float = 0.5, window=(0.7, 1.35)):
+                     step: float = 0.5, window=(0.7, 1.35), outer_k: float = 6.0, outer_reach: float = 0.2,
+                     min_profiles: int = 8):
     """Tube width across the outer edges [px] at a set of stations.
 
     Parameters
@@ -383,6 +385,13 @@ def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur
         Object minus background level (its sign is the polarity).
     blur_px : float
         Edge blur σ [px] (plateaus are taken beyond 2σ + 2 px of an edge).
+    outer_k, outer_reach, min_profiles : float, float, int
+        A polished limb's mirror strip: the widths are taken to the outermost
+        step of the mean profile beyond the crossings (:func:`_outer_width`)
+        where it stands out of the backdrop by ``outer_k`` standard errors
+        within ``outer_reach`` times ``width0_px`` (0.4 R, as
+        ``DetectorOptions.outer_reach_R``) and at least ``min_profiles``
+        widths were measured; ``outer_k`` 0: not looked for.
 
     Returns
     -------
@@ -408,7 +417,56 @@ def measure_diameter(img, off, stations, width0_px: float, contrast: float, blur
     a_b, _ = _line_levels(t, P, tf0, (2 * b + 2, a))
     good = np.isfinite(tn) & (sgn * (a_o - a_b) > 0.5 * abs(contrast)) & np.isfinite(P[:, t <= window[0] * width0_px]).all(1)
     tf = _edges(t, P, tf0, (-a, -2 * b - 2), (2 * b + 2, a), sgn, rising=False)
-    return np.where(good, tf - tn, np.nan)
+    w = np.where(good, tf - tn, np.nan)
+    if outer_k > 0:
+        w = w + _outer_width(img, P0, nrm, np.where(np.isfinite(w), tn, np.nan), np.where(np.isfinite(w), tf, np.nan),
+                             reach_px=outer_reach * width0_px, k_sig=outer_k, blur0=b, step=step,
+                             min_profiles=min_profiles)
+    return w
+
+
+def _outer_width(img, P0, nrm, tn, tf, *, reach_px, k_sig, blur0, step, corr_px: float = 4.0,
+                 extend: float = 0.25, min_profiles: int = 8):
+    """What the tube's outer steps add to the widths between the crossings ``tn``, ``tf`` (S,) [px along the
+    profiles from ``P0`` (S, 2) along ``nrm`` (S, 2)], (S,) [px]: a polished limb mirrors the backdrop, so
+    the crossings lie on the mirror strips' inner ramps.
+
+    Per edge (a run of stations with the same normal, :func:`.subpixel.edge_stations`) and side, the mean
+    of profiles ``corr_px`` apart along the stations' span, extended by ``extend`` of it each way (the
+    stations lie on 0.3-0.7 of a straight stretch), outward of the median crossing, each less its own
+    backdrop level (the outer ``0.35`` of ``reach_px``, as :func:`.subpixel.outer_steps`): the noise
+    averages down along the edge. Its outermost step (:func:`.subpixel.outer_step`) is the tube's edge.
+    0 where none is found or fewer than ``min_profiles`` profiles are read.
+    """
+    out = np.zeros(len(P0))
+    s = np.arange(0.0, reach_px + step, step)
+    bg = s >= (1.0 - 0.35) * reach_px
+    group = np.cumsum(np.r_[True, np.any(nrm[1:] != nrm[:-1], axis=1)])
+    for gi in np.unique(group):
+        sel = group == gi
+        n_, a_ = nrm[sel][0], np.array([-nrm[sel][0][1], nrm[sel][0][0]])
+        u = P0[sel] @ a_
+        span = float(u.max() - u.min())
+        uu = np.arange(u.min() - extend * span, u.max() + extend * span + 1e-9, corr_px)
+        if len(uu) < min_profiles:
+            continue
+        base = float(np.median(P0[sel] @ n_)) * n_
+        for t0, d in ((tn, -1.0), (tf, 1.0)):
+            tm = t0[sel][np.isfinite(t0[sel])]
+            if not len(tm):
+                continue
+            tt = float(np.median(tm)) + d * s
+            pts = base + uu[:, None, None] * a_ + tt[None, :, None] * n_
+            Q = cv2.remap(img, pts[..., 0].astype(np.float32), pts[..., 1].astype(np.float32), cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan")).astype(float)
+            Q = Q[np.isfinite(Q).all(1)]
+            if len(Q) < min_profiles:
+                continue
+            Q = Q - np.median(Q[:, bg], axis=1)[:, None]
+            found = outer_step(s, Q.mean(0), Q.std(0) / math.sqrt(len(Q)), bg, k_sig=k_sig, blur0=blur0)
+            if found is not None:
+                out[sel] += found[0]
+    return out
 
 
 def band_centreline(region, radius_px: float, *, slot_width: float, slot_depth: float, radius: float,
