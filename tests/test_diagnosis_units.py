@@ -268,7 +268,7 @@ def _screened_singles(monkeypatch, in_sample: dict, heldout: dict, significant: 
     def score(c, singles):
         return CandidateResult(c, {}, 1, heldout[c], heldout[c], 0.0, 5.0, 1.0, c in significant)
 
-    opts = SimpleNamespace(screen=screen, screen_ratio=1.0, say=lambda m: None, calibrate_kw={}, jobs=1)
+    opts = SimpleNamespace(screen=screen, screen_ratio=1.0, say=lambda m: None, calibrate_kw={}, candidate_kw={}, jobs=1)
     st = SimpleNamespace(preps=(SimpleNamespace(metric="points"),), scales=None, base=None, skipped={})
     full = SimpleNamespace(start=lambda: {})
     out = study._singles(st, opts, list(in_sample), full, single, score)
