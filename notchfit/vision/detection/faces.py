@@ -92,7 +92,9 @@ def curved_face_corners(pts, grp, lines, curved, *, radius_px: float, s2_floor: 
         The straight-line fits of every edge and their corners; a copy with the corners, covariances and
         ok flags updated is returned (a corner whose face is seen only far from it, in a view where the
         faces' arcs bulge by more than ``max_bulge_px``, is not ok: no line or arc extrapolates to it; with
-        ``view``, the pass's :class:`.mouth.MouthView`, a slot with both so is measured at its mouth).
+        ``view``, the pass's :class:`.mouth.MouthView`, a slot with both so is measured at its mouth, and
+        with ``keep_far`` and a camera file, the rest are kept with their whole bulge,
+        :func:`far_line_corners`).
     curved : ndarray (2K,) bool
     radius_px : float
         Tube radius in ideal pixels.
@@ -137,9 +139,10 @@ def curved_face_corners(pts, grp, lines, curved, *, radius_px: float, s2_floor: 
             out = with_mouths(out, shut_mouths(
                 pts, grp, far, partner, curved, replace(view, sin_view=float(np.median(used))), s2_floor=s2_floor,
                 min_points=min_points, max_start=start_px + max_start * radius_px))
-        if keep_far:
+        if keep_far and view is not None and not isinstance(view.camera, DiameterScale):
+            # only where a camera file bounds the bulge: without one the view is an assumption
             out = far_line_corners(out, [k for k in far if not out.ok[k]], curved, radius_px=radius_px,
-                                   sin_view=float(np.median(used)), camera=None if view is None else view.camera)
+                                   sin_view=float(np.median(used)), camera=view.camera)
         return out
     return replace(lines, X=X, cov=cov, ok=okc)
 
