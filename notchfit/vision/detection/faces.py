@@ -20,7 +20,8 @@ from .lines import arc_residuals, arcs_allowed, group_median
 from .mouth import shut_mouths, with_mouths
 from .view import DiameterScale
 
-__all__ = ["curved_face_corners", "face_view_cov", "known_arc_corners", "straight_face_corners", "view_sines"]
+__all__ = ["curved_face_corners", "face_view_cov", "far_line_corners", "known_arc_corners", "straight_face_corners",
+           "view_sines"]
 
 def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor: float = 0.15, n_iter: int = 3):
     """Robust least squares ``v = v0 + c u (+ b g(u))``, ``g(u) = sqrt(u (2 radius - u))``, for G groups at once.
@@ -59,7 +60,7 @@ def _face_fits(u, v, gid, G, radius, *, curved: bool, k_mad: float = 3.0, floor:
 def curved_face_corners(pts, grp, lines, curved, *, radius_px: float, s2_floor: float = 0.0,
                         min_points: int = 5, significance: float = 16.0, start_px: float = 0.0,
                         max_start: float = 0.1, max_sin: float = 0.7, partner=None, lone_sigma: float = 6.0,
-                        max_bulge_px: float = 1.0, fit=None, view=None):
+                        max_bulge_px: float = 1.0, fit=None, view=None, keep_far: bool = True):
     """Corners where a circular face meets the outer edge, the face seen a little from the side.
 
     A slot or tip face is a circle of radius ``R`` about the tube's axis. Seen
@@ -91,7 +92,9 @@ def curved_face_corners(pts, grp, lines, curved, *, radius_px: float, s2_floor: 
         The straight-line fits of every edge and their corners; a copy with the corners, covariances and
         ok flags updated is returned (a corner whose face is seen only far from it, in a view where the
         faces' arcs bulge by more than ``max_bulge_px``, is not ok: no line or arc extrapolates to it; with
-        ``view``, the pass's :class:`.mouth.MouthView`, a slot with both so is measured at its mouth).
+        ``view``, the pass's :class:`.mouth.MouthView`, a slot with both so is measured at its mouth, and
+        with ``keep_far`` and a camera file, the rest are kept with their whole bulge,
+        :func:`far_line_corners`).
     curved : ndarray (2K,) bool
     radius_px : float
         Tube radius in ideal pixels.
@@ -131,11 +134,66 @@ def curved_face_corners(pts, grp, lines, curved, *, radius_px: float, s2_floor: 
     # from its corner cannot be extrapolated to it, by a line or an arc: that corner is not found
     if far and used and float(np.median(used)) * radius_px > max_bulge_px:
         okc[far] = False
+        out = replace(lines, X=X, cov=cov, ok=okc)
         if view is not None and partner is not None:
-            return with_mouths(replace(lines, X=X, cov=cov, ok=okc), shut_mouths(
+            out = with_mouths(out, shut_mouths(
                 pts, grp, far, partner, curved, replace(view, sin_view=float(np.median(used))), s2_floor=s2_floor,
                 min_points=min_points, max_start=start_px + max_start * radius_px))
+        if keep_far and view is not None and not isinstance(view.camera, DiameterScale):
+            # only where a camera file bounds the bulge: without one the view is an assumption
+            out = far_line_corners(out, [k for k in far if not out.ok[k]], curved, radius_px=radius_px,
+                                   sin_view=float(np.median(used)), camera=view.camera)
+        return out
     return replace(lines, X=X, cov=cov, ok=okc)
+
+
+def far_line_corners(lines, ks, curved, *, radius_px: float, sin_view: float, camera=None, margin: float = 0.5):
+    """Corners ``ks`` whose face is seen only far from them, kept at their straight lines' intersection with
+    the arc's whole bulge as a systematic error along the limb.
+
+    Seen ``β`` from the side the face is an arc ``R sin β`` deep along the limb, tangent to it at the
+    corner; where the face is seen only far from the corner (the limb's mirror strip hides it next to the
+    limb), the straight line through its far part meets the limb up to that whole bulge off, to one side
+    or the other as its front or back rim is seen. That bound is taken as the standard deviation along the
+    limb (``sin β`` the larger of the faces' measured arcs, ``sin_view``, and the camera's view of this
+    corner, :func:`view_sines`, where a ``camera`` is given). A corner is kept only where that bulge is
+    below ``margin`` times its distance to every other corner's line intersection: moved by its whole
+    bulge it stays nearer its own position than any other's (a slot nearly closed, its corners a pixel or
+    two apart, stays withheld: there the line's corner can lie nearer the partner).
+
+    Parameters
+    ----------
+    lines : refine.CornerLines
+        With the withheld corners' line intersections ``X`` (K, 2) [ideal px]; ``curved`` (2K,) bool.
+    ks : list of int
+        The corners seen only far from their face.
+
+    Returns
+    -------
+    refine.CornerLines
+        A copy with ``ks``' kept corners ``ok`` and the bulge's covariance [px²] added to ``cov_view``.
+    """
+    K = len(lines.X)
+    ks = [k for k in ks if np.all(np.isfinite(lines.X[k])) and curved[k] != curved[K + k]]
+    if not ks:
+        return lines
+    ks = np.array(ks)
+    d_limb = np.where(curved[ks][:, None], lines.dd[K + ks], lines.dd[ks])
+    sin_b = np.full(len(ks), sin_view)
+    if camera is not None:
+        sin_b = np.fmax(sin_b, view_sines(camera, lines.X[ks], d_limb))
+    bulge = radius_px * sin_b
+    gap = np.linalg.norm(lines.X[ks, None, :] - lines.X[None, :, :], axis=2)
+    gap[np.arange(len(ks)), ks] = np.inf
+    keep = bulge < margin * np.nanmin(np.where(np.isfinite(gap), gap, np.inf), axis=1)
+    if not keep.any():
+        return lines
+    ok = lines.ok.copy()
+    cov_view = np.zeros_like(lines.cov) if lines.cov_view is None else lines.cov_view.copy()
+    for k, b, d in zip(ks[keep], bulge[keep], d_limb[keep]):
+        ok[k] = True
+        cov_view[k] = cov_view[k] + b * b * np.outer(d, d)
+    return replace(lines, ok=ok, cov_view=cov_view)
 
 
 def _corner_arcs(pts, grp, lines, curved, *, radius_px, max_u0, fit, s2_floor: float = 0.0,
@@ -377,6 +435,8 @@ def straight_face_corners(camera, lines, on_line, curved, pts, grp, *, radius_px
     """The corners of curved faces left straight lines (``on_line`` (K,) bool): with a camera file measured
     again with the arc its view gives (:func:`known_arc_corners`, not next to a mirroring limb,
     ``outside``), the rest given the covariance of their unseen arc (:func:`face_view_cov`, ``view_bias``).
+    Corners whose ``lines.cov_view`` already holds a view term (a face seen only far from its corner, kept
+    with its whole bulge; a slot measured at its mouth) are left as they are.
 
     Returns the corners (K, 2) [ideal px], their fit covariance and the systematic covariance to add
     (K, 2, 2) [px²].
@@ -384,6 +444,8 @@ def straight_face_corners(camera, lines, on_line, curved, pts, grp, *, radius_px
     X, cov = lines.X, lines.cov
     cov_sys = np.zeros((len(X), 2, 2))
     on_line = on_line.copy()
+    if lines.cov_view is not None:
+        on_line &= ~np.any(lines.cov_view, axis=(1, 2))     # their view term is in cov_view already
     if on_line.any() and known_arc and not isinstance(camera, DiameterScale):
         # with a camera file the face's arc is known: the face is measured with it, not as a line
         # (not next to a mirroring limb: there the face's crossings are a mirror image's boundary)

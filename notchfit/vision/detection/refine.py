@@ -93,7 +93,8 @@ class CornerLines:
     s2 : ndarray (2K,)
         Residual variance of each line before the noise floor [px²].
     cov_view : ndarray (K, 2, 2), optional
-        Beyond the fits: the gap a slot bent shut leaves unresolved at its mouth [px²] (:mod:`.mouth`).
+        Beyond the fits: the gap a slot bent shut leaves unresolved at its mouth [px²] (:mod:`.mouth`), the
+        whole bulge of a face seen only far from its corner (:func:`.faces.far_line_corners`).
     """
 
     X: np.ndarray
