@@ -107,12 +107,12 @@ def test_closed_b_with_a_clean_silhouette_gives_no_wrong_identity(monkeypatch):
     assert s.ok >= 1
 
 
-@pytest.mark.parametrize("k", [0, 1])
-def test_closed_a_base_corner_hidden_by_the_rim_is_not_invented(monkeypatch, k):
-    """The local background's silhouette cut to the own renderer's: corner 0 (hidden by the chuck's rim) is
-    located 16 px off and must not be reported ``ok``."""
+def test_closed_a_base_corner_hidden_by_the_rim_is_not_invented(monkeypatch):
+    """The local background's silhouette cut to the own renderer's (dilated 1 px): corner 0 (hidden by the
+    chuck's rim) is located 16 px off and must not be reported ``ok`` (the refinement's acceptance withholds
+    it today; this pins that)."""
     scene, truth, img = _scene("closed_a")
-    _own_silhouette_cut(monkeypatch, scene, truth, k=k, base="local")
+    _own_silhouette_cut(monkeypatch, scene, truth, k=1, base="local")
     det = detect_notches(img, truth.camera, NINE, mirror=truth.pose.plane[3])
     s = score_detection(det, truth, scene.px_per_mm)
     assert s.wrong == 0 and s.invented == 0
