@@ -166,8 +166,9 @@ def _lost_link_gaps(cands: SideCandidates, geom, chain: ChainInput) -> np.ndarra
 
     Such a gap is a slot bent open, or the solid edge of a link lost from the silhouette (as bright as the
     backdrop) between two slots closed at the mouth: its first corner is then the earlier slot's mouth, not
-    this slot's, and a reading of it as one slot numbers that corner one joint off. The gap's own shape does
-    not tell the two apart (an open slot's faces and a link's end faces are both square to the edge).
+    this slot's, and a reading of it as one slot numbers that corner one joint off. The two corners alone do
+    not tell the two apart: the span is within what a slot bent open by its closure angle, plus the
+    tolerance, may show.
     """
     near, far = np.asarray(cands.near, float).reshape(-1, 2), np.asarray(cands.far, float).reshape(-1, 2)
     span = np.linalg.norm(far - near, axis=1)
