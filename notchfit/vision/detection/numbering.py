@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .base import BaseEnd, image_side
-from .chain import ChainTolerance, SideCandidates, number_side
+from .chain import ChainNumbers, ChainTolerance, SideCandidates, number_side
 
 __all__ = ["ChainInput", "Numbering", "number_slots", "orient_corner_pair"]
 
@@ -137,6 +137,12 @@ def _side_numbers(labels, side, chain: ChainInput, geom, tip, msg, ranges=None):
     cands = SideCandidates(side, near, far, chain.base[0 if side > 0 else 1], tip_pt,
                            np.array([chain.slack.get(s, 0.0) for s in labels]), jr)
     res = number_side(cands, geom, chain.tol, scale=chain.scale)
+    wide = _lost_link_gaps(cands, geom, chain)
+    if wide.any() and res.joints:
+        res = _agree_split(res, cands, wide, geom, chain)
+        if msg is not None and len(res.joints) < len(labels):
+            msg.append(f"{int(wide.sum())} gap(s) on the {name} side as long as a link's edge: a slot bent open or "
+                       "a link lost between two closed mouths; numbers only where both readings agree")
     if msg is None:
         return [(labels[k], j) for k, j in sorted(res.joints.items())]
     n_side = sum(1 for v in geom.slot_sides if v == side)
@@ -151,6 +157,59 @@ def _side_numbers(labels, side, chain: ChainInput, geom, tip, msg, ranges=None):
         msg.append(f"{len(labels)} slots on the {name} side, {n_side} expected: numbered by agreement with "
                    "the rigid-link chain")
     return [(labels[k], j) for k, j in sorted(res.joints.items())]
+
+
+def _lost_link_gaps(cands: SideCandidates, geom, chain: ChainInput) -> np.ndarray:
+    """(K,) bool: the candidates whose two corners are farther apart than the widest slot cut by more than the
+    chain's tolerance, and at least as far as the shortest solid edge between two consecutive slots of their
+    side less it, next to a candidate closed at the mouth.
+
+    Such a gap is a slot bent open, or the solid edge of a link lost from the silhouette (as bright as the
+    backdrop) between two slots closed at the mouth: its first corner is then the earlier slot's mouth, not
+    this slot's, and a reading of it as one slot numbers that corner one joint off. The two corners alone do
+    not tell the two apart: the span is within what a slot bent open by its closure angle, plus the
+    tolerance, may show.
+    """
+    near, far = np.asarray(cands.near, float).reshape(-1, 2), np.asarray(cands.far, float).reshape(-1, 2)
+    span = np.linalg.norm(far - near, axis=1)
+    tol = chain.tol.abs_tol
+    w = np.asarray(geom.slot_widths, float)
+    on = np.asarray(geom.slot_sides) == cands.side
+    z, ws = np.asarray(geom.joint_z, float)[on], w[on]
+    if len(z) < 2:
+        return np.zeros(len(span), bool)
+    # the shortest solid edge between two consecutive slots of this side (closed, their mouths are its ends)
+    link = float(np.min(np.diff(z) - 0.5 * (ws[1:] + ws[:-1]))) / chain.scale
+    wide = (span > float(w.max()) / chain.scale + tol) & (span >= link - tol)
+    # the link's ends are closed mouths only where the joints beside it bend that far: consecutive joints carry
+    # nearly the same tendon moment, so a next or previous slot found closed at the mouth (a wedge) is the
+    # evidence; beside open slots a wide gap is a slot bent open
+    closed = np.array([cands.slack_of(k) > 0 for k in range(len(span))] + [False])
+    return wide & (closed[np.arange(len(span)) - 1] | closed[np.arange(len(span)) + 1])
+
+
+def _agree_split(res: ChainNumbers, cands: SideCandidates, wide, geom, chain: ChainInput) -> ChainNumbers:
+    """``res`` (the chain's numbers of ``cands``) kept where a second reading agrees, in which each ``wide``
+    candidate (:func:`_lost_link_gaps`) is two slots closed at the mouth, one at each of its corners (each
+    known to half the widest slot, as a closed mouth found from its wedge); the wide candidates get no number
+    (which reading holds is not known)."""
+    idx, near, far, slack, jr = [], [], [], [], []
+    half = 0.5 * float(np.max(geom.slot_widths)) / chain.scale
+    for k in range(len(cands.near)):
+        parts = (cands.near[k], cands.far[k]) if wide[k] else (None,)
+        for p in parts:
+            idx.append(k if p is None else -1)
+            near.append(cands.near[k] if p is None else p)
+            far.append(cands.far[k] if p is None else p)
+            slack.append(cands.slack_of(k) if p is None else half)
+            if cands.joint_range is not None:
+                jr.append(cands.joint_range[k])
+    split = dataclasses.replace(cands, near=np.array(near), far=np.array(far), slack=np.array(slack),
+                                joint_range=np.array(jr, int).reshape(-1, 2) if jr else None)
+    other = number_side(split, geom, chain.tol, scale=chain.scale).joints
+    new = {k: q for q, k in enumerate(idx) if k >= 0}
+    keep = {k: j for k, j in res.joints.items() if not wide[k] and other.get(new[k]) == j}
+    return dataclasses.replace(res, joints=keep, unnumbered=[k for k in range(len(cands.near)) if k not in keep])
 
 
 def number_slots(cnt, on_border, be: BaseEnd, mouths: dict, convex, geom, *, dist, pair_tol,
