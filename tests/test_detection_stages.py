@@ -583,7 +583,6 @@ def test_local_edge_model_finds_a_step_of_either_sign_beside_a_bright_strip_unde
 def _plane_input(status, pts, cov_px=0.1):
     from notchfit.vision.detection.plane import PlaneInput
 
-    m = len(status)
     pts = np.asarray(pts, float)
     cov = np.where(np.isfinite(pts[:, :1, None]), np.eye(2) * cov_px ** 2, np.nan)
     return PlaneInput(pts.copy(), pts.copy(), cov, list(status), ["first"], 1.0, np.zeros((0, 2)), "bottom")

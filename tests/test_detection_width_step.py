@@ -13,7 +13,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import pytest
 
 from notchfit.io import load_geometry, load_image
 from notchfit.vision.detection import detect_notches, mirror_without_camera
