@@ -9,6 +9,8 @@ as a false "second" cause. A pair the screen finds worth a cross-validation is e
 candidate moves the data: that candidate is cross-validated alone before the pair, and the first
 decision is retaken with it.
 """
+from types import SimpleNamespace
+
 import numpy as np
 
 from notchfit.analysis.diagnosis.pairs import second_step
@@ -29,7 +31,8 @@ class _Held:
 
 def _screen(second):
     """In-sample errors of the pair screen: the pair with ``b`` removes 90 % of ``a``'s error."""
-    return {"a": (None, 1.0, "first"), **{f"a+{c}": (None, 0.1 if c == "b" else 0.99, "first") for c in second}}
+    fit = SimpleNamespace(stalled=False)
+    return {"a": (fit, 1.0, "first"), **{f"a+{c}": (fit, 0.1 if c == "b" else 0.99, "first") for c in second}}
 
 
 class _Stop(Exception):
@@ -70,3 +73,23 @@ def test_without_a_rival_the_candidate_alone_comes_before_its_pair():
     out, calls = _step(0.5, lambda held: "")
     assert out is None
     assert calls == [("single", ("b",)), ("pairs", (("a", "b"),))]
+
+
+def test_a_pair_whose_screen_fit_stalled_at_its_start_is_cross_validated():
+    """The pair screen reads an in-sample error as a bound on the held-out one, which holds only at an
+    optimum: a pair fit that stalled at its start (Calibration.stalled) is cross-validated whatever its
+    in-sample error, after the pairs the screen chose, as the first step does with its candidates."""
+    from notchfit.analysis.diagnosis.pairs import _to_cross_validate
+
+    def screen(ms: dict, stalled=()):
+        out = {"a": (SimpleNamespace(stalled=False), 1.0, "first")}
+        out.update({f"a+{c}": (SimpleNamespace(stalled=c in stalled), v, "first") for c, v in ms.items()})
+        return out
+
+    ms = {"b": 0.5, "c": 0.99, "d": 0.6}
+    args = (0.1, 0.5, 1.05, 2)                       # noise, min_excess_removed, screen_tol, max_cv
+    assert _to_cross_validate("a", list(ms), screen(ms), *args) == ["b"]
+    assert _to_cross_validate("a", list(ms), screen(ms, stalled=("c",)), *args) == ["b", "c"]
+    weak = {"b": 0.95, "c": 0.99}                    # no pair earns a cross-validation in sample
+    assert _to_cross_validate("a", list(weak), screen(weak), *args) == []
+    assert _to_cross_validate("a", list(weak), screen(weak, stalled=("c",)), *args) == ["c"]

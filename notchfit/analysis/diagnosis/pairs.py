@@ -166,13 +166,18 @@ def screen_pairs(c1: str, second, preps, start: dict, *, others: dict | None = N
 
 
 def _to_cross_validate(c1, second, screen, noise, min_excess_removed, screen_tol, max_cv) -> list[str]:
-    """The second candidates whose screen earns a cross-validation (module docstring)."""
+    """The second candidates whose screen earns a cross-validation (module docstring), and after them those
+    whose pair fit stalled at its start (:attr:`.calibration.Calibration.stalled`): an in-sample error bounds
+    the held-out one only at an optimum, so a stalled screen fit says nothing about its pair, as in the
+    candidates' screen of the first step."""
     ms1 = screen[c1][1]
     ms = {c2: screen[model_key((c1, c2))][1] for c2 in second}
     order = sorted(second, key=ms.get)
+    stalled = [c for c in order if screen[model_key((c1, c))][0].stalled]
     if ms1 - ms[order[0]] < 0.5 * min_excess_removed * (ms1 - noise):
-        return []
-    return [c for c in order if ms[c] <= screen_tol * ms[order[0]]][:max_cv]
+        return stalled
+    chosen = [c for c in order if ms[c] <= screen_tol * ms[order[0]]][:max_cv]
+    return chosen + [c for c in stalled if c not in chosen]
 
 
 def second_step(c1: str, held: dict, preps, run, noise: float, second, rule: Thresholds, *, against_baseline=None,
