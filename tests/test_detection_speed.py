@@ -13,6 +13,7 @@ from scipy.special import erf
 
 from notchfit.vision.detection._kernels import profile_crossings, profile_levels, surface_threshold
 from notchfit.vision.detection.base import _distance_near
+from notchfit.vision.detection.chain import _best
 
 
 def _profiles(rng, n=400, n_t=12, step=0.5):
@@ -741,3 +742,65 @@ def test_ridge_series_read_by_every_peak_fraction_equals_a_closing_series_each()
         assert width.radius_candidates(m, max_close_px=26, series=s) == want_c
         got_r = width.rough_tube_radius(m, max_close_px=26, series=s)
         assert got_r == want_r or (math.isnan(got_r) and math.isnan(want_r))
+
+
+def _best_reference(feas, allowed, wgt, start, end, eps=1e-6):
+    """The chain's dynamic programme as first written: each step reduces over every (candidate, node) pair,
+    filled or not, and the candidates a best matching jumps over are collected one transition at a time."""
+    NEG = -1e9
+    C, M = allowed.shape
+    gain = np.where(feas, 0.0, NEG)
+    fwd = np.full((C, M), NEG)
+    for c in range(C):
+        prev = (fwd[:, :, None] + gain[:, :, c, :]).max(axis=(0, 1))
+        fwd[c] = np.where(allowed[c], wgt[c] + np.maximum(np.where(start[c], 0.0, NEG), prev), NEG)
+    bwd = np.full((C, M), NEG)
+    for c in range(C - 1, -1, -1):
+        nxt = (gain[c] + bwd[None, :, :]).max(axis=(1, 2))
+        bwd[c] = np.where(allowed[c], wgt[c] + np.maximum(np.where(end[c], 0.0, NEG), nxt), NEG)
+    ends = fwd[end]
+    score = float(ends.max()) if ends.size else NEG
+    if score <= 0:
+        return score, None
+    valid = (fwd > NEG / 2) & (bwd > NEG / 2)
+    on = valid & (np.abs(fwd + bwd - wgt[:, None] - score) < eps)
+    edges = feas & valid[:, :, None, None] & valid[None, None, :, :] \
+        & (np.abs(fwd[:, :, None, None] + gain + bwd[None, None, :, :] - score) < eps)
+    firsts = on & start & (np.abs(fwd - wgt[:, None]) < eps)
+    lasts = on & end & (np.abs(bwd - wgt[:, None]) < eps)
+    skipped = np.zeros(C, bool)
+    cc = np.arange(C)
+    for c1, _, c2, _ in zip(*np.nonzero(edges)):
+        skipped |= (cc > c1) & (cc < c2)
+    if firsts.any():
+        skipped |= cc < np.nonzero(firsts.any(1))[0].max()
+    if lasts.any():
+        skipped |= cc > np.nonzero(lasts.any(1))[0].min()
+    return score, (on, skipped, edges, firsts, lasts)
+
+
+@pytest.mark.parametrize("ordered", [True, False])
+def test_chain_programme_reading_filled_rows_equals_the_full_reduction(ordered):
+    """The chain's best matchings (:func:`~notchfit.vision.detection.chain._best`), each step reading only the
+    rows filled before it, equal the programme that reduces over every row: the score and every table, on
+    random tables (transitions ordered by candidate and node as the chain builds them, and unordered)."""
+    rng = np.random.default_rng(25)
+    found = 0
+    for _ in range(150):
+        C, M = (int(v) for v in rng.integers(2, 12, 2))
+        allowed = rng.random((C, M)) < rng.uniform(0.3, 1.0)
+        feas = (rng.random((C, M, C, M)) < rng.uniform(0.05, 0.8)) & allowed[:, :, None, None] & allowed[None, None]
+        if ordered:
+            cc, uu = np.arange(C), np.arange(M)
+            feas &= (cc[:, None] < cc[None, :])[:, None, :, None] & (uu[:, None] < uu[None, :])[None, :, None, :]
+        wgt = np.where(rng.random(C) < 0.2, 0.5, 1.0)
+        start, end = allowed & (rng.random((C, M)) < 0.7), allowed & (rng.random((C, M)) < 0.7)
+        got = _best(feas, allowed, wgt, start=start, end=end)
+        score, tables = _best_reference(feas, allowed, wgt, start, end)
+        assert got.score == score
+        if tables is None:
+            continue
+        found += 1
+        for mine, ref in zip((got.on, got.skipped, got.edges, got.firsts, got.lasts), tables):
+            np.testing.assert_array_equal(mine, ref)
+    assert found > 100

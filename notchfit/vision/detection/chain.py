@@ -192,14 +192,24 @@ def _best(feas, allowed, wgt, *, start, end, eps: float = 1e-6) -> _Best:
     NEG = -1e9
     C, M = allowed.shape
     gain = np.where(feas, 0.0, NEG)
+    # a row not yet filled holds NEG and any term through it is at most NEG, which the start (end) term, itself
+    # at least NEG, already bounds: each step reads only the rows filled before it, (candidate, node) pairs
+    # flattened into one axis (one reduction instead of two)
+    into = gain.reshape(C * M, C, M)                     # [(c', u'), c, u]
+    out_of = gain.reshape(C, M, C * M)                   # [c, u, (c', u')]
+    begin, finish = np.where(start, 0.0, NEG), np.where(end, 0.0, NEG)
     fwd = np.full((C, M), NEG)
+    flat = fwd.reshape(-1)
     for c in range(C):
-        prev = (fwd[:, :, None] + gain[:, :, c, :]).max(axis=(0, 1))
-        fwd[c] = np.where(allowed[c], wgt[c] + np.maximum(np.where(start[c], 0.0, NEG), prev), NEG)
+        n = c * M
+        prev = (flat[:n, None] + into[:n, c, :]).max(axis=0) if n else begin[c]
+        fwd[c] = np.where(allowed[c], wgt[c] + np.maximum(begin[c], prev), NEG)
     bwd = np.full((C, M), NEG)
+    flat = bwd.reshape(-1)
     for c in range(C - 1, -1, -1):
-        nxt = (gain[c] + bwd[None, :, :]).max(axis=(1, 2))
-        bwd[c] = np.where(allowed[c], wgt[c] + np.maximum(np.where(end[c], 0.0, NEG), nxt), NEG)
+        n = (c + 1) * M
+        nxt = (out_of[c, :, n:] + flat[None, n:]).max(axis=1) if n < C * M else finish[c]
+        bwd[c] = np.where(allowed[c], wgt[c] + np.maximum(finish[c], nxt), NEG)
     ends = fwd[end]
     score = float(ends.max()) if ends.size else NEG
     if score <= 0:
@@ -211,10 +221,10 @@ def _best(feas, allowed, wgt, *, start, end, eps: float = 1e-6) -> _Best:
         & (np.abs(fwd[:, :, None, None] + gain + bwd[None, None, :, :] - score) < eps)
     firsts = on & start & (np.abs(fwd - wgt[:, None]) < eps)
     lasts = on & end & (np.abs(bwd - wgt[:, None]) < eps)
-    skipped = np.zeros(C, bool)
     cc = np.arange(C)
-    for c1, _, c2, _ in zip(*np.nonzero(edges)):
-        skipped |= (cc > c1) & (cc < c2)
+    jumps = edges.any(axis=(1, 3))                       # (c1, c2): some best matching goes from c1 to c2
+    skipped = (jumps[:, None, :] & (cc[:, None, None] < cc[None, :, None])
+               & (cc[None, :, None] < cc[None, None, :])).any(axis=(0, 2))
     if firsts.any():
         skipped |= cc < np.nonzero(firsts.any(1))[0].max()
     if lasts.any():
