@@ -47,7 +47,6 @@ def test_no_stations_next_to_a_corner_that_is_neither_ok_nor_a_rim():
     assert edge_stations(_base_corner(False, False), 5, 1.0).shape == (0, 4)
 
 
-@pytest.mark.slow
 def test_chuck_a_without_camera_file_at_gamma_2_2_keeps_its_corners():
     path = ROOT / "tests" / "data" / "pbr" / "chuck_a.json"
     from notchfit.vision.render.pbr import PbrScene, PbrTruth, score_detection
