@@ -186,6 +186,9 @@ class Refinement:
         Set by :func:`.pipeline.refine_and_finish`.
     wide : ndarray (K,) bool or None
         Corners with an edge too wide for one step (:func:`.refine.wide_edges`): ambiguous.
+    rim : ndarray (K,) bool or None
+        Base corners withheld as a holder's rim seen from the side (:func:`.subpixel.holder_backdrops`):
+        not ``ok``, though their limb edge is still the tube's.
     """
 
     pidx: np.ndarray
@@ -202,6 +205,7 @@ class Refinement:
     kf: float
     plane_input: PlaneInput | None = None
     wide: np.ndarray | None = None
+    rim: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

@@ -529,12 +529,12 @@ def refine_corners(gray, specs, setup: Setup, *, full, contrast, extra_px=None, 
     sig_px = np.sqrt(np.maximum(np.trace(res.cov, axis1=1, axis2=2) / 2, 0)) * opts.sigma_inflation
     # the reported covariance adds what the edges' own profiles show (two rims of a face seen from the side)
     cov_sys = res.cov_sys + cov_missing
-    ok = res.ok
+    rim = np.zeros(len(pidx), bool)
     if opts.holder_backdrop_tol > 0:
         # a holder's face seen from the side: the corner of its rim and the limb is no point of the tube
-        ok = ok & ~holder_backdrops(img, off, sp, sgn, radius_px, bl, tol=opts.holder_backdrop_tol)
-    return Refinement(pidx, sp.C, res.X, res.cov + cov_sys / opts.sigma_inflation ** 2, ok, shift, bl,
-                      sig_px, sp, img, off, kf, wide=wide)
+        rim = res.ok & holder_backdrops(img, off, sp, sgn, radius_px, bl, tol=opts.holder_backdrop_tol)
+    return Refinement(pidx, sp.C, res.X, res.cov + cov_sys / opts.sigma_inflation ** 2, res.ok & ~rim, shift, bl,
+                      sig_px, sp, img, off, kf, wide=wide, rim=rim)
 
 
 def statuses(ref: Refinement, m, status, shape, opts):
@@ -628,13 +628,19 @@ def _far_limbs(ref: Refinement, ends: dict, short_px: float, *, reach_px: float,
 
 
 def edge_stations(ref, n_per_edge, sgn):
-    """Points on the straight outer edge next to every ok corner, with the unit normal into the tube (S, 4)."""
+    """Points on the straight outer edge next to every ok corner, with the unit normal into the tube (S, 4).
+
+    A base corner withheld as a holder's rim seen from the side (``ref.rim``) still gives its limb edge's
+    stations: the test finds the corner no point of the tube, not the limb, which is the tube's edge
+    against the backdrop up to the next corner. Only the tube's limbs give stations, never a slot's or
+    the holder's face (:func:`limb_edges`)."""
     sp = ref.specs
     K = len(sp.C)
+    limb = limb_edges(sp)
     rows = []
-    for k in np.nonzero(ref.ok)[0]:
-        for e, (D, L, face) in enumerate(((-sp.Din[k], sp.Lin[k], sp.face[k]), (sp.Dout[k], sp.Lout[k],
-                                                                                 sp.face[K + k]))):
+    for k in np.nonzero(ref.ok if ref.rim is None else ref.ok | ref.rim)[0]:
+        for e, (D, L, face) in enumerate(((-sp.Din[k], sp.Lin[k], not limb[k]), (sp.Dout[k], sp.Lout[k],
+                                                                                  not limb[K + k]))):
             if face or not np.isfinite(L) or L < 8:
                 continue
             trav = sp.Din[k] if e == 0 else sp.Dout[k]
